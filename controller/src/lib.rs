@@ -1,1 +1,17 @@
-//! placeholder
+//! gelgrip's application kernel: core types, the ports every adapter implements, the
+//! synchronized-frame gate, configuration and the acquisition loop.
+//!
+//! This crate depends on no adapter. Hub transports (`backends/*`) implement
+//! [`hub::HubTransport`] and register a [`registry::HubFactory`]; only the `gelgrip` binary
+//! wires concrete adapters together. Time is injected through [`clock::Clock`], so the same
+//! code runs in real time or in deterministic virtual time.
+
+pub mod acquire;
+pub mod clock;
+pub mod config;
+pub mod frame;
+pub mod gate;
+pub mod hub;
+pub mod hubtime;
+pub mod layout;
+pub mod registry;

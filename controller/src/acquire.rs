@@ -1,0 +1,122 @@
+//! The acquisition loop: keep triggers queued on the hub, feed its events to the gate, and
+//! hand out the sets the gate emits.
+//!
+//! Two triggers are kept outstanding so the hub can fire the next one the moment its bus is
+//! free, as a free-running coordinator does; the host's USB latency then adds latency but
+//! not period.
+
+use std::sync::Arc;
+
+use crate::clock::Clock;
+use crate::config::{GateSettings, Limit};
+use crate::frame::FrameSet;
+use crate::gate::{Gate, GateLimits};
+use crate::hub::{BusPrediction, HubError, HubEvent, HubTransport};
+
+/// Triggers kept queued on the hub.
+const TRIGGERS_IN_FLIGHT: u32 = 2;
+
+/// The gate window for `settings`, with `auto` limits derived from the bus model:
+/// spread = 1.5 × predicted trigger spread, age = 2 × predicted set latency.
+pub fn gate_limits(settings: &GateSettings, prediction: &BusPrediction) -> GateLimits {
+    GateLimits {
+        max_spread_us: match settings.max_spread_us {
+            Limit::Fixed(us) => us,
+            Limit::Auto => (1.5 * prediction.trigger_spread_us).ceil() as u32,
+        },
+        max_age_us: match settings.max_age_us {
+            Limit::Fixed(us) => us,
+            Limit::Auto => (2.0 * prediction.set_latency_us).ceil() as u64,
+        },
+    }
+}
+
+/// CPU time this thread has used, in ns (for measuring the receive path alone).
+pub type CpuClock = fn() -> u64;
+
+/// Drives a hub and a gate.
+pub struct Acquisition {
+    hub: Box<dyn HubTransport>,
+    gate: Gate,
+    clock: Arc<dyn Clock>,
+    next_seq: u32,
+    outstanding: u32,
+    cpu_clock: Option<CpuClock>,
+    receive_cpu_ns: u64,
+}
+
+impl std::fmt::Debug for Acquisition {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Acquisition")
+            .field("hub", self.hub.describe())
+            .field("gate", &self.gate)
+            .field("next_seq", &self.next_seq)
+            .finish()
+    }
+}
+
+impl Acquisition {
+    /// Acquire from `hub` through `gate`, starting at trigger sequence `first_seq`.
+    pub fn new(hub: Box<dyn HubTransport>, gate: Gate, clock: Arc<dyn Clock>, first_seq: u32) -> Self {
+        Self {
+            hub,
+            gate,
+            clock,
+            next_seq: first_seq,
+            outstanding: 0,
+            cpu_clock: None,
+            receive_cpu_ns: 0,
+        }
+    }
+
+    /// Measure the CPU time of the gate's work with `cpu_clock`.
+    pub fn with_cpu_clock(mut self, cpu_clock: CpuClock) -> Self {
+        self.cpu_clock = Some(cpu_clock);
+        self
+    }
+
+    /// The gate (for its statistics).
+    pub fn gate(&self) -> &Gate {
+        &self.gate
+    }
+
+    /// The hub transport.
+    pub fn hub(&self) -> &dyn HubTransport {
+        self.hub.as_ref()
+    }
+
+    /// CPU time spent in the gate so far, in ns (0 without a CPU clock).
+    pub fn receive_cpu_ns(&self) -> u64 {
+        self.receive_cpu_ns
+    }
+
+    async fn top_up_triggers(&mut self) -> Result<(), HubError> {
+        while self.outstanding < TRIGGERS_IN_FLIGHT {
+            self.hub.trigger(self.next_seq).await?;
+            self.next_seq = self.next_seq.wrapping_add(1);
+            self.outstanding += 1;
+        }
+        Ok(())
+    }
+
+    /// Process hub events until the gate emits a set, and return it.
+    pub async fn next_set(&mut self) -> Result<FrameSet, HubError> {
+        loop {
+            self.top_up_triggers().await?;
+            let event = self.hub.next_event().await?;
+            if matches!(event, HubEvent::SetEnd { .. }) {
+                self.outstanding = self.outstanding.saturating_sub(1);
+            }
+            let now = self.clock.now_us();
+            let cpu_start = self.cpu_clock.map(|c| c());
+            let emitted = self.gate.push(event, now);
+            self.gate.tick(now);
+            if let (Some(c), Some(start)) = (self.cpu_clock, cpu_start) {
+                self.receive_cpu_ns += c().saturating_sub(start);
+            }
+            if let Some(set) = emitted {
+                return Ok(set);
+            }
+        }
+    }
+}

@@ -1,0 +1,395 @@
+//! The application configuration: TOML parsed into private raw structs, then validated into
+//! domain types. Every error names the file, the field and what is allowed.
+//!
+//! Relative paths resolve against the directory of the file that contains them. The
+//! transport-specific section `[hub.<transport>]` is handed, unparsed, to that transport's
+//! factory, which validates it into its own types (see [`crate::registry`]).
+
+mod error;
+mod files;
+
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use serde::Deserialize;
+
+pub use error::{ConfigError, FieldCheck};
+pub use files::{DiskFiles, EmbeddedFiles, FileSource};
+
+use crate::hub::TriggerMode;
+use crate::layout::HandLayout;
+use crate::registry::TransportRegistry;
+
+/// A limit that is either derived from the bus model (`"auto"`) or fixed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Limit<T> {
+    /// Derived from the transport's bus model.
+    Auto,
+    /// Set by the user.
+    Fixed(T),
+}
+
+/// Which gate policy groups frames into sets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum GatePolicy {
+    /// Group by trigger sequence.
+    Trigger,
+}
+
+/// `[gate]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GateSettings {
+    /// Grouping policy.
+    pub policy: GatePolicy,
+    /// Largest capture spread of an emitted set, in µs.
+    pub max_spread_us: Limit<u32>,
+    /// Largest age of an emitted set, in µs (configured in ms).
+    pub max_age_us: Limit<u64>,
+}
+
+/// `[servos]` (validated now; driven from the actuation issue on).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ServoSettings {
+    /// `sim` or `dynamixel`.
+    pub bus: String,
+    /// Serial port of the servo bus.
+    pub port: String,
+    /// Baud rate.
+    pub baud: u32,
+    /// Servo ids, one per finger.
+    pub ids: Vec<u8>,
+}
+
+/// `[http]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HttpSettings {
+    /// Address the dashboard binds.
+    pub bind: SocketAddr,
+    /// Access token (required for a non-loopback bind).
+    pub token: Option<String>,
+}
+
+/// The `[hub.<transport>]` section, for the transport's factory to validate.
+#[derive(Debug, Clone)]
+pub struct BackendSection {
+    /// Builds errors naming the config file.
+    pub check: FieldCheck,
+    /// `hub.sim`, `hub.cdc`, …
+    pub prefix: String,
+    /// The raw table (empty when absent).
+    pub table: toml::Table,
+    /// Directory relative paths resolve against.
+    pub base_dir: PathBuf,
+    /// Where to read referenced files.
+    pub files: Arc<dyn FileSource>,
+}
+
+/// `[hub]`.
+#[derive(Debug, Clone)]
+pub struct HubSettings {
+    /// Transport name, chosen from the registry.
+    pub transport: String,
+    /// Broadcast or sequential trigger.
+    pub trigger: TriggerMode,
+    /// The transport's own section.
+    pub section: BackendSection,
+}
+
+/// A validated configuration.
+#[derive(Debug, Clone)]
+pub struct AppConfig {
+    /// The file it came from (or `<embedded>/…`).
+    pub file: String,
+    /// The hand.
+    pub layout: HandLayout,
+    /// The hub.
+    pub hub: HubSettings,
+    /// The sync gate.
+    pub gate: GateSettings,
+    /// The servos.
+    pub servos: ServoSettings,
+    /// The dashboard.
+    pub http: HttpSettings,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawConfig {
+    version: i64,
+    layout: String,
+    #[serde(default)]
+    hub: RawHub,
+    #[serde(default)]
+    gate: RawGate,
+    #[serde(default)]
+    servos: RawServos,
+    #[serde(default)]
+    http: RawHttp,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields, default)]
+struct RawHub {
+    transport: String,
+    trigger: String,
+    sim: Option<toml::Table>,
+    cdc: Option<toml::Table>,
+    ch347: Option<toml::Table>,
+    replay: Option<toml::Table>,
+}
+
+impl Default for RawHub {
+    fn default() -> Self {
+        Self {
+            transport: "sim".into(),
+            trigger: "broadcast".into(),
+            sim: None,
+            cdc: None,
+            ch347: None,
+            replay: None,
+        }
+    }
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields, default)]
+struct RawGate {
+    policy: String,
+    max_spread_us: toml::Value,
+    max_age_ms: toml::Value,
+}
+
+impl Default for RawGate {
+    fn default() -> Self {
+        Self {
+            policy: "trigger".into(),
+            max_spread_us: toml::Value::String("auto".into()),
+            max_age_ms: toml::Value::String("auto".into()),
+        }
+    }
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields, default)]
+struct RawServos {
+    bus: String,
+    port: String,
+    baud: u32,
+    ids: Vec<u8>,
+}
+
+impl Default for RawServos {
+    fn default() -> Self {
+        Self {
+            bus: "sim".into(),
+            port: "/dev/ttyUSB0".into(),
+            baud: 1_000_000,
+            ids: vec![1, 2, 3],
+        }
+    }
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields, default)]
+struct RawHttp {
+    bind: String,
+    token: String,
+}
+
+impl Default for RawHttp {
+    fn default() -> Self {
+        Self {
+            bind: "127.0.0.1:8080".into(),
+            token: String::new(),
+        }
+    }
+}
+
+/// Baud rates an XM430 accepts (Baud Rate register 8).
+pub const DYNAMIXEL_BAUDS: [u32; 8] = [
+    9_600, 57_600, 115_200, 1_000_000, 2_000_000, 3_000_000, 4_000_000, 4_500_000,
+];
+
+/// Environment variable that supplies the HTTP token when the config leaves it empty.
+pub const HTTP_TOKEN_ENV: &str = "GELGRIP_HTTP_TOKEN";
+
+impl AppConfig {
+    /// Load and validate `path` through `files`; transport names are checked against
+    /// `registry`, which also validates the transport's own section.
+    pub fn load(
+        path: &Path,
+        files: Arc<dyn FileSource>,
+        registry: &TransportRegistry,
+    ) -> Result<Self, ConfigError> {
+        let text = files.read(path)?;
+        let file = path.display().to_string();
+        let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        Self::from_text(&file, &text, &base_dir, files, registry)
+    }
+
+    /// Validate config `text`, naming it `file` in errors.
+    pub fn from_text(
+        file: &str,
+        text: &str,
+        base_dir: &Path,
+        files: Arc<dyn FileSource>,
+        registry: &TransportRegistry,
+    ) -> Result<Self, ConfigError> {
+        let check = FieldCheck::new(file);
+        let raw: RawConfig = check.parse(text)?;
+        check.version(raw.version)?;
+        let layout_path = base_dir.join(&raw.layout);
+        let layout_text = files.read(&layout_path)?;
+        let layout = HandLayout::from_toml(&layout_path.display().to_string(), &layout_text)?;
+        let hub = validate_hub(&check, raw.hub, base_dir, files, registry)?;
+        registry.validate(&hub.transport, &hub.section, &layout)?;
+        Ok(Self {
+            file: file.to_string(),
+            layout,
+            hub,
+            gate: validate_gate(&check, raw.gate)?,
+            servos: validate_servos(&check, raw.servos)?,
+            http: validate_http(&check, raw.http)?,
+        })
+    }
+}
+
+fn validate_hub(
+    check: &FieldCheck,
+    raw: RawHub,
+    base_dir: &Path,
+    files: Arc<dyn FileSource>,
+    registry: &TransportRegistry,
+) -> Result<HubSettings, ConfigError> {
+    registry.check_name(check, &raw.transport)?;
+    let trigger = match raw.trigger.as_str() {
+        "broadcast" => TriggerMode::Broadcast,
+        "sequential" => TriggerMode::Sequential,
+        other => return Err(check.invalid("hub.trigger", other, "broadcast | sequential")),
+    };
+    let table = match raw.transport.as_str() {
+        "sim" => raw.sim,
+        "cdc" => raw.cdc,
+        "ch347" => raw.ch347,
+        "replay" => raw.replay,
+        _ => None,
+    }
+    .unwrap_or_default();
+    Ok(HubSettings {
+        section: BackendSection {
+            check: check.clone(),
+            prefix: format!("hub.{}", raw.transport),
+            table,
+            base_dir: base_dir.to_path_buf(),
+            files,
+        },
+        transport: raw.transport,
+        trigger,
+    })
+}
+
+fn limit(
+    check: &FieldCheck,
+    field: &str,
+    value: &toml::Value,
+    min: f64,
+    max: f64,
+) -> Result<Limit<f64>, ConfigError> {
+    match value {
+        toml::Value::String(s) if s == "auto" => Ok(Limit::Auto),
+        toml::Value::Integer(i) => Ok(Limit::Fixed(check.range(field, *i as f64, min, max)?)),
+        toml::Value::Float(f) => Ok(Limit::Fixed(check.range(field, *f, min, max)?)),
+        other => Err(check.invalid(
+            field,
+            other,
+            &format!("\"auto\" or a number in [{min}, {max}]"),
+        )),
+    }
+}
+
+fn validate_gate(check: &FieldCheck, raw: RawGate) -> Result<GateSettings, ConfigError> {
+    let policy = match raw.policy.as_str() {
+        "trigger" => GatePolicy::Trigger,
+        "approximate" => {
+            return Err(check.unavailable(
+                "gate.policy",
+                "approximate",
+                Some("the hardware hub transports issue"),
+                &["trigger"],
+            ));
+        }
+        other => return Err(check.invalid("gate.policy", other, "trigger")),
+    };
+    let spread = limit(check, "gate.max_spread_us", &raw.max_spread_us, 1.0, 1e6)?;
+    let age = limit(check, "gate.max_age_ms", &raw.max_age_ms, 0.1, 60_000.0)?;
+    Ok(GateSettings {
+        policy,
+        max_spread_us: match spread {
+            Limit::Auto => Limit::Auto,
+            Limit::Fixed(v) => Limit::Fixed(v.round() as u32),
+        },
+        max_age_us: match age {
+            Limit::Auto => Limit::Auto,
+            Limit::Fixed(v) => Limit::Fixed((v * 1000.0).round() as u64),
+        },
+    })
+}
+
+fn validate_servos(check: &FieldCheck, raw: RawServos) -> Result<ServoSettings, ConfigError> {
+    match raw.bus.as_str() {
+        "sim" => {}
+        "dynamixel" => {
+            return Err(check.unavailable(
+                "servos.bus",
+                "dynamixel",
+                Some("the actuation issue"),
+                &["sim"],
+            ));
+        }
+        other => return Err(check.invalid("servos.bus", other, "sim | dynamixel")),
+    }
+    if !DYNAMIXEL_BAUDS.contains(&raw.baud) {
+        return Err(check.invalid(
+            "servos.baud",
+            raw.baud,
+            "one of 9600, 57600, 115200, 1000000, 2000000, 3000000, 4000000, 4500000",
+        ));
+    }
+    if raw.ids.is_empty() || raw.ids.len() > 16 {
+        return Err(check.invalid("servos.ids", format!("{:?}", raw.ids), "1 to 16 ids"));
+    }
+    for (i, id) in raw.ids.iter().enumerate() {
+        if *id > 252 || raw.ids[..i].contains(id) {
+            return Err(check.invalid(
+                &format!("servos.ids[{i}]"),
+                id,
+                "a unique id in [0, 252]",
+            ));
+        }
+    }
+    Ok(ServoSettings {
+        bus: raw.bus,
+        port: raw.port,
+        baud: raw.baud,
+        ids: raw.ids,
+    })
+}
+
+fn validate_http(check: &FieldCheck, raw: RawHttp) -> Result<HttpSettings, ConfigError> {
+    let bind: SocketAddr = raw
+        .bind
+        .parse()
+        .map_err(|_| check.invalid("http.bind", &raw.bind, "an address:port such as 127.0.0.1:8080"))?;
+    let token = Some(raw.token)
+        .filter(|t| !t.is_empty())
+        .or_else(|| std::env::var(HTTP_TOKEN_ENV).ok().filter(|t| !t.is_empty()));
+    if !bind.ip().is_loopback() && token.is_none() {
+        return Err(check.invalid(
+            "http.bind",
+            bind,
+            &format!("a loopback address, or set http.token / {HTTP_TOKEN_ENV} for a non-loopback bind"),
+        ));
+    }
+    Ok(HttpSettings { bind, token })
+}

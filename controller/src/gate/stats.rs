@@ -1,0 +1,87 @@
+//! Gate statistics: set rate, spread and latency histograms, drops by reason.
+
+use hdrhistogram::Histogram;
+
+use super::counts::ReasonCounts;
+use crate::frame::FrameSet;
+
+/// Running statistics of a gate.
+#[derive(Debug, Clone)]
+pub struct GateStats {
+    /// Sets emitted.
+    pub sets: u64,
+    /// Host time of the first emitted set, µs.
+    pub first_emit_us: Option<u64>,
+    /// Host time of the last emitted set, µs.
+    pub last_emit_us: Option<u64>,
+    /// Capture spread of emitted sets, µs.
+    pub spread_us: Histogram<u64>,
+    /// Emission minus earliest capture of emitted sets, µs.
+    pub latency_us: Histogram<u64>,
+    /// Frames dropped, by reason.
+    pub drops: ReasonCounts,
+    /// Sets rejected, by reason.
+    pub sets_rejected: ReasonCounts,
+    /// Frames (valid or corrupt) the gate was given.
+    pub frames_in: u64,
+    /// Frames delivered inside emitted sets.
+    pub frames_out: u64,
+}
+
+impl Default for GateStats {
+    fn default() -> Self {
+        Self {
+            sets: 0,
+            first_emit_us: None,
+            last_emit_us: None,
+            // 3 significant digits is about 0.1 % resolution.
+            spread_us: Histogram::new(3).expect("3 significant figures is a valid histogram"),
+            latency_us: Histogram::new(3).expect("3 significant figures is a valid histogram"),
+            drops: ReasonCounts::default(),
+            sets_rejected: ReasonCounts::default(),
+            frames_in: 0,
+            frames_out: 0,
+        }
+    }
+}
+
+impl GateStats {
+    /// Record an emitted set.
+    pub fn record(&mut self, set: &FrameSet) {
+        self.sets += 1;
+        self.frames_out += set.frames.len() as u64;
+        self.first_emit_us.get_or_insert(set.emitted_host_us);
+        self.last_emit_us = Some(set.emitted_host_us);
+        self.spread_us.saturating_record(u64::from(set.spread_us));
+        self.latency_us.saturating_record(set.latency_us());
+    }
+
+    /// (sets − 1) / (t_last − t_first), 0 with fewer than 2 sets.
+    pub fn set_rate_hz(&self) -> f64 {
+        match (self.first_emit_us, self.last_emit_us) {
+            (Some(a), Some(b)) if self.sets >= 2 && b > a => {
+                (self.sets - 1) as f64 / ((b - a) as f64 / 1e6)
+            }
+            _ => 0.0,
+        }
+    }
+
+    /// 99th percentile spread, `None` when no set was emitted.
+    pub fn spread_us_p99(&self) -> Option<u64> {
+        (self.sets > 0).then(|| self.spread_us.value_at_quantile(0.99))
+    }
+
+    /// Latency quantile `q` in µs, `None` when no set was emitted.
+    pub fn latency_us_quantile(&self, q: f64) -> Option<u64> {
+        (self.sets > 0).then(|| self.latency_us.value_at_quantile(q))
+    }
+
+    /// Spread histogram as (upper bound µs, count) buckets of `step_us`.
+    pub fn spread_buckets(&self, step_us: u64) -> Vec<(u64, u64)> {
+        self.spread_us
+            .iter_linear(step_us.max(1))
+            .map(|v| (v.value_iterated_to(), v.count_since_last_iteration()))
+            .filter(|(_, c)| *c > 0)
+            .collect()
+    }
+}
