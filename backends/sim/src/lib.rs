@@ -1,1 +1,24 @@
-//! placeholder
+//! gelgrip's simulated world, a product backend selected with `hub.transport = "sim"`.
+//!
+//! - [`scene`]: what presses on each sensor (built-in static presses until scene physics
+//!   arrives with the actuation issue);
+//! - [`optics`]: a physically grounded image model: Lambertian shading of the indented gel
+//!   under three coloured side lights, with per-unit LED gain and offset, vignetting and
+//!   seeded noise;
+//! - [`pool`]: the JPEG frames each sensor produces;
+//! - [`timeline`]: the hub's bus at the transaction level (I2C trigger bits, board
+//!   buffering, SPI transfer of each frame's actual length), which produces every timestamp;
+//! - [`hub`]: [`hub::SimHub`], the `HubTransport` that plays that timeline on the injected
+//!   clock, with fault injection from config;
+//! - [`config`] and [`factory`]: the `[hub.sim]` section and the registry entry.
+
+pub mod config;
+pub mod factory;
+pub mod hub;
+pub mod optics;
+pub mod pool;
+pub mod scene;
+pub mod timeline;
+pub mod unit;
+
+pub use factory::SimHubFactory;

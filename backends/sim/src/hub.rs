@@ -1,0 +1,294 @@
+//! [`SimHub`]: the simulated hub as a `HubTransport`.
+//!
+//! Each trigger is scheduled on the bus [`timeline`](crate::timeline); the resulting events
+//! (frames as real SPI frame bytes, and set ends) wait in a time-ordered queue and are
+//! released on the injected clock, so a real clock paces them in real time with absolute
+//! deadlines and a virtual clock runs them as fast as the host can. The coordinator side
+//! decodes every frame with `gelgrip_hubwire` exactly as a CH347 host would, so injected
+//! corruption is caught by the real CRC checks.
+
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+use std::sync::Arc;
+
+use async_trait::async_trait;
+use bytes::Bytes;
+use rand::Rng;
+use rand_pcg::Pcg64Mcg;
+
+use gelgrip_controller::clock::Clock;
+use gelgrip_controller::frame::{Frame, ReceivedFrame, SensorIndex};
+use gelgrip_controller::hub::{
+    BusPrediction, HubDescription, HubError, HubEvent, HubTransport, SensorSettings, TriggerMode,
+};
+use gelgrip_controller::hubtime::HubTimeMap;
+use gelgrip_controller::layout::HandLayout;
+use gelgrip_hubwire::i2c;
+use gelgrip_hubwire::spi_frame::{self, FrameHeader, HEADER_LEN, TRAILER_LEN};
+use gelgrip_hubwire::timing::BusModel;
+
+use crate::config::SimConfig;
+use crate::pool::{EncodeError, FramePool};
+use crate::timeline::{BoardInput, BusParams, schedule_set};
+use crate::unit::rng_for;
+
+#[derive(Debug)]
+enum Pending {
+    Frame {
+        board: u8,
+        seq: u32,
+        /// Hub time at which the board received its trigger.
+        trigger_hub_us: u32,
+        wire: Vec<u8>,
+    },
+    SetEnd {
+        seq: u32,
+        frames_sent: u8,
+    },
+}
+
+/// The simulated hub.
+#[derive(Debug)]
+pub struct SimHub {
+    description: HubDescription,
+    cfg: SimConfig,
+    bus: BusParams,
+    pool: FramePool,
+    settings: Vec<SensorSettings>,
+    clock: Arc<dyn Clock>,
+    rng: Pcg64Mcg,
+    /// (delivery time ns, insertion order) → event.
+    queue: BinaryHeap<Reverse<(u64, u64, usize)>>,
+    slots: Vec<Option<Pending>>,
+    order: u64,
+    bus_free_ns: u64,
+    time_map: HubTimeMap,
+}
+
+fn to_hub_mode(mode: TriggerMode) -> i2c::TriggerMode {
+    match mode {
+        TriggerMode::Broadcast => i2c::TriggerMode::Broadcast,
+        TriggerMode::Sequential => i2c::TriggerMode::Sequential,
+    }
+}
+
+impl SimHub {
+    /// Build the hub for `layout`, rendering every sensor's frames.
+    pub fn new(
+        layout: &HandLayout,
+        trigger: TriggerMode,
+        cfg: SimConfig,
+        clock: Arc<dyn Clock>,
+    ) -> Result<Self, EncodeError> {
+        let pool = FramePool::render(layout, &cfg)?;
+        let bus = BusParams {
+            trigger: to_hub_mode(trigger),
+            i2c_hz: cfg.i2c_hz,
+            spi_clock_hz: cfg.spi_clock_hz,
+            t_buf_ns: u64::from(cfg.t_buf_us) * 1000,
+            t_usb_ns: u64::from(cfg.t_usb_us) * 1000,
+        };
+        let model = BusModel {
+            sensors: u8::try_from(layout.sensors.len()).unwrap_or(u8::MAX),
+            trigger: bus.trigger,
+            i2c_hz: cfg.i2c_hz,
+            spi_clock_hz: cfg.spi_clock_hz,
+            mean_frame_bytes: pool.mean_jpeg_bytes() + (HEADER_LEN + TRAILER_LEN) as f64,
+            t_buf_us: f64::from(cfg.t_buf_us),
+            t_usb_us: f64::from(cfg.t_usb_us),
+            capture_jitter_us: f64::from(cfg.capture_jitter_us),
+        };
+        let description = HubDescription {
+            transport: "sim".into(),
+            sensors: layout.sensors.len(),
+            trigger,
+            prediction: BusPrediction {
+                mean_frame_bytes: model.mean_frame_bytes,
+                t_spi_us: model.t_spi_us(),
+                trigger_spread_us: model.trigger_spread_us(),
+                paper_rate_hz: model.paper_rate_hz(),
+                paper_latency_us: model.paper_latency_us(),
+                set_period_us: model.set_period_us(),
+                set_latency_us: model.set_latency_us(),
+            },
+        };
+        let start = clock.now_us();
+        Ok(Self {
+            description,
+            rng: rng_for(cfg.seed, 0xFA17),
+            time_map: HubTimeMap::new(cfg.hub_clock_start_us, 0),
+            settings: vec![SensorSettings::default(); layout.sensors.len()],
+            cfg,
+            bus,
+            pool,
+            clock,
+            queue: BinaryHeap::new(),
+            slots: Vec::new(),
+            order: 0,
+            bus_free_ns: start * 1000,
+        })
+    }
+
+    /// The rendered frames (for tests and the calibration tools).
+    pub fn pool(&self) -> &FramePool {
+        &self.pool
+    }
+
+    fn hub_us(&self, host_ns: u64) -> u32 {
+        self.cfg
+            .hub_clock_start_us
+            .wrapping_add((host_ns / 1000) as u32)
+    }
+
+    fn enqueue(&mut self, at_ns: u64, event: Pending) {
+        let slot = match self.slots.iter().position(Option::is_none) {
+            Some(i) => {
+                self.slots[i] = Some(event);
+                i
+            }
+            None => {
+                self.slots.push(Some(event));
+                self.slots.len() - 1
+            }
+        };
+        self.queue.push(Reverse((at_ns, self.order, slot)));
+        self.order += 1;
+    }
+
+    fn board_inputs(&mut self, seq: u32) -> Vec<(BoardInput, Option<Vec<u8>>, u32)> {
+        let n = self.description.sensors;
+        (0..n)
+            .map(|b| {
+                let faults = self.cfg.faults.get(b).cloned().unwrap_or_default();
+                let jitter_ns = if self.cfg.capture_jitter_us > 0 {
+                    self.rng.random_range(0..=u64::from(self.cfg.capture_jitter_us) * 1000)
+                } else {
+                    0
+                };
+                let lost = faults.drop_rate > 0.0 && self.rng.random_bool(faults.drop_rate);
+                let corrupt = faults.corrupt_rate > 0.0 && self.rng.random_bool(faults.corrupt_rate);
+                let capture_delay_ns = u64::from(faults.capture_delay_us) * 1000;
+                let offset_us = ((jitter_ns + capture_delay_ns) / 1000) as u32;
+                let wire = (!lost).then(|| {
+                    let jpeg = self.pool.frame(b, seq).cloned().unwrap_or_default();
+                    let header = FrameHeader {
+                        sensor_id: b as u8,
+                        trigger_seq: seq,
+                        capture_offset_us: offset_us,
+                        exposure_us: self.settings.get(b).map_or(0, |s| s.exposure_us),
+                        payload_len: 0,
+                    };
+                    let mut wire = spi_frame::encode(&header, &jpeg);
+                    if corrupt {
+                        let bit = self.rng.random_range(0..wire.len() * 8);
+                        wire[bit / 8] ^= 1 << (bit % 8);
+                    }
+                    wire
+                });
+                let input = BoardInput {
+                    jitter_ns,
+                    capture_delay_ns,
+                    delivery_delay_ns: u64::from(faults.delivery_delay_us) * 1000,
+                    frame_bytes: wire.as_ref().map(Vec::len),
+                };
+                (input, wire, offset_us)
+            })
+            .collect()
+    }
+
+    fn receive(&mut self, event: Pending) -> HubEvent {
+        match event {
+            Pending::SetEnd { seq, frames_sent } => HubEvent::SetEnd {
+                trigger_seq: seq,
+                frames_sent,
+            },
+            Pending::Frame {
+                board,
+                seq,
+                trigger_hub_us,
+                wire,
+            } => match spi_frame::decode(&wire) {
+                Ok((f, _)) if f.header.sensor_id == board && f.header.trigger_seq == seq => {
+                    let capture_ts_us = trigger_hub_us.wrapping_add(f.header.capture_offset_us);
+                    self.time_map.reanchor(trigger_hub_us);
+                    HubEvent::Frame(ReceivedFrame {
+                        capture_host_us: self.time_map.to_host_us(capture_ts_us),
+                        received_host_us: self.clock.now_us(),
+                        frame: Frame {
+                            sensor: SensorIndex(board),
+                            trigger_seq: seq,
+                            capture_ts_us,
+                            exposure_us: f.header.exposure_us,
+                            jpeg: Bytes::from(f.jpeg),
+                        },
+                    })
+                }
+                Ok((f, _)) => HubEvent::Corrupt {
+                    sensor: Some(SensorIndex(board)),
+                    trigger_seq: Some(seq),
+                    detail: format!(
+                        "read board {board} for seq {seq}, header says sensor {} seq {}",
+                        f.header.sensor_id, f.header.trigger_seq
+                    ),
+                },
+                Err(e) => HubEvent::Corrupt {
+                    sensor: Some(SensorIndex(board)),
+                    trigger_seq: Some(seq),
+                    detail: e.to_string(),
+                },
+            },
+        }
+    }
+}
+
+#[async_trait]
+impl HubTransport for SimHub {
+    fn describe(&self) -> &HubDescription {
+        &self.description
+    }
+
+    async fn configure_sensors(&mut self, settings: &[SensorSettings]) -> Result<(), HubError> {
+        if settings.len() != self.description.sensors {
+            return Err(HubError::Config {
+                detail: format!(
+                    "{} sensor settings for {} sensors",
+                    settings.len(),
+                    self.description.sensors
+                ),
+            });
+        }
+        self.settings = settings.to_vec();
+        Ok(())
+    }
+
+    async fn trigger(&mut self, seq: u32) -> Result<(), HubError> {
+        let start_ns = self.bus_free_ns.max(self.clock.now_us() * 1000);
+        let boards = self.board_inputs(seq);
+        let inputs: Vec<BoardInput> = boards.iter().map(|(i, _, _)| *i).collect();
+        let times = schedule_set(&self.bus, start_ns, &inputs);
+        let mut sent = 0u8;
+        for (b, ((_, wire, _), t)) in boards.into_iter().zip(&times.boards).enumerate() {
+            if let (Some(wire), Some(at)) = (wire, t.delivered_ns) {
+                sent += 1;
+                let trigger_hub_us = self.hub_us(t.trigger_receipt_ns);
+                let board = b as u8;
+                self.enqueue(at, Pending::Frame { board, seq, trigger_hub_us, wire });
+            }
+        }
+        let set_end = Pending::SetEnd { seq, frames_sent: sent };
+        self.enqueue(times.set_end_ns, set_end);
+        self.bus_free_ns = times.bus_free_ns;
+        Ok(())
+    }
+
+    async fn next_event(&mut self) -> Result<HubEvent, HubError> {
+        let Reverse((at_ns, _, slot)) = self.queue.pop().ok_or(HubError::Idle)?;
+        let event = self
+            .slots
+            .get_mut(slot)
+            .and_then(Option::take)
+            .ok_or(HubError::Idle)?;
+        self.clock.sleep_until(at_ns.div_ceil(1000)).await;
+        Ok(self.receive(event))
+    }
+}

@@ -1,0 +1,120 @@
+//! Image formation: Lambertian shading of the indented gel under three coloured side lights.
+//!
+//! The gel's reflective skin is lit by a red, a green and a blue LED placed around the pad at
+//! a low elevation. Its normal follows the indentation: with depth `d(x, y)` into the gel
+//! (mm) the surface normal is `n ∝ (∂d/∂x, ∂d/∂y, 1)`. Channel `c` then sees
+//!
+//! `I_c = gain_c · V(r) · base_c · (ambient + k · max(0, n·L_c)) / (ambient + k · L_c,z) + offset_c + noise`
+//!
+//! so a flat gel shows the base colour, slopes facing an LED brighten its channel and slopes
+//! facing away darken it. `V(r) = 1 − v·r²` is the lens vignetting (r = 1 at the corner).
+//! Values are clamped to 0–255, so saturated and black pixels occur naturally at extremes.
+
+use rand::Rng;
+use rand_distr::{Distribution, Normal};
+
+use crate::scene::HeightMap;
+use crate::unit::UnitVariation;
+
+/// LED azimuths (degrees, image x towards y) of the red, green and blue lights.
+const LED_AZIMUTH_DEG: [f64; 3] = [90.0, 210.0, 330.0];
+/// LED elevation above the gel plane, degrees.
+const LED_ELEVATION_DEG: f64 = 30.0;
+/// Flat-gel colour before unit variation, grey levels.
+const BASE_RGB: [f64; 3] = [150.0, 140.0, 130.0];
+/// Diffuse share of the light that does not depend on the normal.
+const AMBIENT: f64 = 0.3;
+/// Directional share.
+const DIRECTIONAL: f64 = 1.0;
+
+fn light_directions() -> [[f64; 3]; 3] {
+    let el = LED_ELEVATION_DEG.to_radians();
+    LED_AZIMUTH_DEG.map(|az| {
+        let az = az.to_radians();
+        [el.cos() * az.cos(), el.cos() * az.sin(), el.sin()]
+    })
+}
+
+/// Render `map` (pixel size `mm_per_px`) as interleaved 8-bit RGB.
+pub fn render(
+    map: &HeightMap,
+    mm_per_px: f64,
+    unit: &UnitVariation,
+    noise_sigma: f64,
+    rng: &mut impl Rng,
+) -> Vec<u8> {
+    let (w, h) = (map.width_px, map.height_px);
+    let lights = light_directions();
+    let noise = Normal::new(0.0, noise_sigma.max(0.0)).ok();
+    let depth = |x: usize, y: usize| f64::from(map.depth_mm[y * w + x]);
+    let half_diag2 = ((w * w + h * h) as f64 / 4.0).max(1.0);
+    let mut out = Vec::with_capacity(w * h * 3);
+    for y in 0..h {
+        for x in 0..w {
+            // Central differences (one-sided at the border), in mm per mm.
+            let (x0, x1) = (x.saturating_sub(1), (x + 1).min(w - 1));
+            let (y0, y1) = (y.saturating_sub(1), (y + 1).min(h - 1));
+            let gx = (depth(x1, y) - depth(x0, y)) / (((x1 - x0).max(1)) as f64 * mm_per_px);
+            let gy = (depth(x, y1) - depth(x, y0)) / (((y1 - y0).max(1)) as f64 * mm_per_px);
+            let norm = (gx * gx + gy * gy + 1.0).sqrt();
+            let n = [gx / norm, gy / norm, 1.0 / norm];
+            let dx = x as f64 - w as f64 / 2.0;
+            let dy = y as f64 - h as f64 / 2.0;
+            let vignette = 1.0 - unit.vignetting * (dx * dx + dy * dy) / half_diag2;
+            for c in 0..3 {
+                let l = lights[c];
+                let lambert = (n[0] * l[0] + n[1] * l[1] + n[2] * l[2]).max(0.0);
+                let shade = (AMBIENT + DIRECTIONAL * lambert) / (AMBIENT + DIRECTIONAL * l[2]);
+                let mut v = unit.led_gain[c] * vignette * BASE_RGB[c] * shade + unit.offset[c];
+                if let Some(n) = &noise {
+                    v += n.sample(rng);
+                }
+                out.push(v.round().clamp(0.0, 255.0) as u8);
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::unit::rng_for;
+
+    const UNIT: UnitVariation = UnitVariation {
+        led_gain: [1.0; 3],
+        offset: [0.0; 3],
+        vignetting: 0.0,
+    };
+
+    #[test]
+    fn flat_gel_shows_the_base_colour() {
+        let img = render(&HeightMap::flat(8, 6), 0.1, &UNIT, 0.0, &mut rng_for(1, 1));
+        assert_eq!(&img[0..3], &[150, 140, 130]);
+        assert!(img.chunks(3).all(|p| p == [150, 140, 130]));
+    }
+
+    #[test]
+    fn slope_towards_the_red_led_brightens_red() {
+        // Red LED at azimuth 90° lies towards +y. A surface whose normal tips towards +y has
+        // depth increasing with y (n ∝ (∂d/∂x, ∂d/∂y, 1)).
+        let mut map = HeightMap::flat(8, 8);
+        for y in 0..8 {
+            for x in 0..8 {
+                map.depth_mm[y * 8 + x] = y as f32 * 0.05;
+            }
+        }
+        let img = render(&map, 0.1, &UNIT, 0.0, &mut rng_for(1, 1));
+        let centre = &img[(4 * 8 + 4) * 3..(4 * 8 + 4) * 3 + 3];
+        assert!(centre[0] > 150, "{centre:?}");
+        assert!(centre[1] < 140 && centre[2] < 130, "{centre:?}");
+    }
+
+    #[test]
+    fn extreme_slopes_stay_in_range() {
+        let mut map = HeightMap::flat(4, 4);
+        map.depth_mm[5] = 1e6;
+        let img = render(&map, 1e-4, &UNIT, 30.0, &mut rng_for(1, 1));
+        assert_eq!(img.len(), 48);
+    }
+}

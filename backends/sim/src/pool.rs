@@ -1,0 +1,125 @@
+//! The JPEG frames each simulated sensor produces.
+//!
+//! A static scene changes nothing between frames but the camera noise, so each sensor
+//! renders `noise_pool` noisy frames once and cycles through them ("model only what the scene
+//! requires"). Every frame is a real baseline JPEG at the configured quality; the bus timing
+//! uses each frame's actual length.
+
+use bytes::Bytes;
+use jpeg_encoder::{ColorType, Encoder};
+
+use gelgrip_controller::layout::HandLayout;
+
+use crate::config::SimConfig;
+use crate::optics::render;
+use crate::scene::HeightMap;
+use crate::unit::{UnitVariation, rng_for};
+
+/// JPEG encoding failed.
+#[derive(Debug, thiserror::Error)]
+#[error("JPEG encoding of sensor {sensor} failed: {source}")]
+pub struct EncodeError {
+    /// Sensor index.
+    pub sensor: usize,
+    /// The encoder's error.
+    pub source: jpeg_encoder::EncodingError,
+}
+
+/// Encode interleaved RGB as a baseline JPEG.
+pub fn encode_jpeg(
+    rgb: &[u8],
+    width_px: u16,
+    height_px: u16,
+    quality: u8,
+) -> Result<Vec<u8>, jpeg_encoder::EncodingError> {
+    let mut out = Vec::new();
+    Encoder::new(&mut out, quality).encode(rgb, width_px, height_px, ColorType::Rgb)?;
+    Ok(out)
+}
+
+/// Pre-rendered frames per sensor.
+#[derive(Debug, Clone)]
+pub struct FramePool {
+    frames: Vec<Vec<Bytes>>,
+}
+
+impl FramePool {
+    /// Render and encode the pool for every sensor of `layout`.
+    pub fn render(layout: &HandLayout, cfg: &SimConfig) -> Result<Self, EncodeError> {
+        let frames = layout
+            .sensors
+            .iter()
+            .enumerate()
+            .map(|(i, s)| {
+                let (w, h) = (s.resolution.width_px as usize, s.resolution.height_px as usize);
+                let map = HeightMap::builtin_press(
+                    i,
+                    w,
+                    h,
+                    s.mm_per_px,
+                    cfg.ball_diameter_mm,
+                    cfg.press_depth_mm,
+                );
+                let unit = UnitVariation::draw(cfg.seed, i);
+                (0..cfg.noise_pool)
+                    .map(|k| {
+                        let mut rng = rng_for(cfg.seed, ((i as u64) << 32) | k as u64);
+                        let rgb = render(&map, s.mm_per_px, &unit, cfg.noise_sigma, &mut rng);
+                        encode_jpeg(&rgb, w as u16, h as u16, cfg.jpeg_quality)
+                            .map(Bytes::from)
+                            .map_err(|source| EncodeError { sensor: i, source })
+                    })
+                    .collect::<Result<Vec<_>, _>>()
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(Self { frames })
+    }
+
+    /// The frame sensor `sensor` produces for trigger `seq`.
+    pub fn frame(&self, sensor: usize, seq: u32) -> Option<&Bytes> {
+        let frames = self.frames.get(sensor)?;
+        frames.get(seq as usize % frames.len().max(1))
+    }
+
+    /// Mean JPEG length over all sensors and frames, bytes.
+    pub fn mean_jpeg_bytes(&self) -> f64 {
+        let (sum, n) = self
+            .frames
+            .iter()
+            .flatten()
+            .fold((0usize, 0usize), |(s, n), f| (s + f.len(), n + 1));
+        if n == 0 { 0.0 } else { sum as f64 / n as f64 }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use gelgrip_controller::config::{BackendSection, FieldCheck};
+    use gelgrip_controller::config::DiskFiles;
+
+    pub(crate) fn default_config(layout: &HandLayout) -> SimConfig {
+        let section = BackendSection {
+            check: FieldCheck::new("test"),
+            prefix: "hub.sim".into(),
+            table: toml::Table::new(),
+            base_dir: ".".into(),
+            files: std::sync::Arc::new(DiskFiles),
+        };
+        SimConfig::from_section(&section, layout).expect("defaults are valid")
+    }
+
+    #[test]
+    fn default_contact_frames_are_about_20_kb_and_decode() {
+        let layout = HandLayout::generated(7).expect("layout");
+        let cfg = default_config(&layout);
+        let pool = FramePool::render(&layout, &cfg).expect("render");
+        let mean = pool.mean_jpeg_bytes();
+        eprintln!("mean JPEG {mean:.0} bytes");
+        assert!((17_000.0..23_000.0).contains(&mean), "mean JPEG {mean} bytes");
+        let jpeg = pool.frame(3, 11).expect("frame");
+        let mut dec = zune_jpeg::JpegDecoder::new(zune_jpeg::zune_core::bytestream::ZCursor::new(jpeg.as_ref()));
+        let pixels = dec.decode().expect("valid JPEG");
+        assert_eq!(pixels.len(), 320 * 240 * 3);
+    }
+}
