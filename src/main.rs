@@ -1,1 +1,57 @@
-fn main() {}
+//! `gelgrip`: the command-line entry point. Parses arguments, sets up logging and hands off to
+//! a command; all wiring of concrete adapters lives in [`wiring`].
+
+mod cli;
+mod commands;
+mod embedded;
+mod output;
+mod wiring;
+
+use std::process::ExitCode;
+
+use clap::Parser;
+
+use cli::{BenchCommand, Cli, Command};
+
+fn init_logging() {
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info"));
+    tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .init();
+}
+
+/// Exit code 2 for usage and configuration errors, 1 for runtime faults (CONTRACTS.md).
+fn exit_code_for(err: &anyhow::Error) -> u8 {
+    if wiring::is_config_error(err) { 2 } else { 1 }
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    init_logging();
+    let runtime = match tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()
+    {
+        Ok(rt) => rt,
+        Err(e) => {
+            eprintln!("error: cannot start the async runtime: {e}");
+            return ExitCode::from(1);
+        }
+    };
+    let result = runtime.block_on(async {
+        match cli.command.unwrap_or(Command::Run(cli.run)) {
+            Command::Run(args) => commands::run::run(args).await,
+            Command::CheckConfig(args) => commands::check_config::run(args),
+            Command::Bench(BenchCommand::Bus(args)) => commands::bench_bus::run(args).await,
+        }
+    });
+    match result {
+        Ok(code) => ExitCode::from(code),
+        Err(err) => {
+            eprintln!("error: {err:#}");
+            ExitCode::from(exit_code_for(&err))
+        }
+    }
+}

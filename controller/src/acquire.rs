@@ -57,7 +57,12 @@ impl std::fmt::Debug for Acquisition {
 
 impl Acquisition {
     /// Acquire from `hub` through `gate`, starting at trigger sequence `first_seq`.
-    pub fn new(hub: Box<dyn HubTransport>, gate: Gate, clock: Arc<dyn Clock>, first_seq: u32) -> Self {
+    pub fn new(
+        hub: Box<dyn HubTransport>,
+        gate: Gate,
+        clock: Arc<dyn Clock>,
+        first_seq: u32,
+    ) -> Self {
         Self {
             hub,
             gate,
@@ -99,24 +104,35 @@ impl Acquisition {
         Ok(())
     }
 
-    /// Process hub events until the gate emits a set, and return it.
-    pub async fn next_set(&mut self) -> Result<FrameSet, HubError> {
-        loop {
-            self.top_up_triggers().await?;
-            let event = self.hub.next_event().await?;
-            if matches!(event, HubEvent::SetEnd { .. }) {
-                self.outstanding = self.outstanding.saturating_sub(1);
-            }
-            let now = self.clock.now_us();
-            let cpu_start = self.cpu_clock.map(|c| c());
-            let emitted = self.gate.push(event, now);
-            self.gate.tick(now);
-            if let (Some(c), Some(start)) = (self.cpu_clock, cpu_start) {
-                self.receive_cpu_ns += c().saturating_sub(start);
-            }
-            if let Some(set) = emitted {
-                return Ok(set);
+    /// Process one hub event (waiting for it on the clock); returns the set it completed if
+    /// the gate emitted one. Callers check their own deadlines between steps, so a run in
+    /// which no set ever passes the gate still ends.
+    pub async fn step(&mut self) -> Result<Option<FrameSet>, HubError> {
+        self.top_up_triggers().await?;
+        let event = self.hub.next_event().await?;
+        if matches!(event, HubEvent::SetEnd { .. }) {
+            self.outstanding = self.outstanding.saturating_sub(1);
+        }
+        let now = self.clock.now_us();
+        let cpu_start = self.cpu_clock.map(|c| c());
+        let emitted = self.gate.push(event, now);
+        self.gate.tick(now);
+        if let (Some(c), Some(start)) = (self.cpu_clock, cpu_start) {
+            self.receive_cpu_ns += c().saturating_sub(start);
+        }
+        Ok(emitted)
+    }
+
+    /// Step until the gate emits a set or the clock passes `deadline_us`.
+    pub async fn next_set_before(
+        &mut self,
+        deadline_us: u64,
+    ) -> Result<Option<FrameSet>, HubError> {
+        while self.clock.now_us() < deadline_us {
+            if let Some(set) = self.step().await? {
+                return Ok(Some(set));
             }
         }
+        Ok(None)
     }
 }

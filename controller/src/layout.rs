@@ -275,7 +275,9 @@ mod tests {
             let id = SensorId::parse(ok).expect(ok);
             assert_eq!(id.to_string(), ok);
         }
-        for bad in ["", "f0.tip", "f1.nail", "f1", "s0", "s01", "hand", "f10.tip"] {
+        for bad in [
+            "", "f0.tip", "f1.nail", "f1", "s0", "s01", "hand", "f10.tip",
+        ] {
             assert!(SensorId::parse(bad).is_none(), "{bad}");
         }
         assert_eq!(
@@ -286,7 +288,8 @@ mod tests {
 
     #[test]
     fn duplicate_ids_and_bad_ranges_name_the_field() {
-        let text = "version = 1\nname = \"x\"\n[[sensors]]\nid = \"palm\"\n[[sensors]]\nid = \"palm\"\n";
+        let text =
+            "version = 1\nname = \"x\"\n[[sensors]]\nid = \"palm\"\n[[sensors]]\nid = \"palm\"\n";
         let err = HandLayout::from_toml("l.toml", text).expect_err("dup");
         assert!(err.to_string().contains("sensors[1].id"), "{err}");
         let text = "version = 1\nname = \"x\"\n[[sensors]]\nid = \"palm\"\nmm_per_px = -1.0\n";
@@ -296,7 +299,10 @@ mod tests {
 
     #[test]
     fn generated_layouts_cover_1_to_32() {
-        assert_eq!(HandLayout::generated(1).map(|l| l.sensors.len()).ok(), Some(1));
+        assert_eq!(
+            HandLayout::generated(1).map(|l| l.sensors.len()).ok(),
+            Some(1)
+        );
         let l = HandLayout::generated(32).expect("32");
         assert_eq!(l.sensors[31].id.to_string(), "s32");
         assert!(HandLayout::generated(0).is_err());

@@ -514,29 +514,72 @@ mod tests {
         let bytes = || proptest::collection::vec(any::<u8>(), 0..300);
         prop_oneof![
             any::<u8>().prop_map(|version| Message::Hello { version }),
-            (any::<u8>(), any::<u8>(), any::<u16>()).prop_map(|(version, sensors, ring_capacity)| {
-                Message::HelloAck { version, sensors, ring_capacity }
+            (any::<u8>(), any::<u8>(), any::<u16>()).prop_map(
+                |(version, sensors, ring_capacity)| {
+                    Message::HelloAck {
+                        version,
+                        sensors,
+                        ring_capacity,
+                    }
+                }
+            ),
+            (any::<u32>(), any::<u32>()).prop_map(|(set_seq, trigger_ts_us)| Message::SetBegin {
+                set_seq,
+                trigger_ts_us
             }),
-            (any::<u32>(), any::<u32>())
-                .prop_map(|(set_seq, trigger_ts_us)| Message::SetBegin { set_seq, trigger_ts_us }),
-            (any::<u32>(), bytes())
-                .prop_map(|(capture_ts_us, spi_frame)| Message::Frame { capture_ts_us, spi_frame }),
-            (any::<u32>(), any::<u8>()).prop_map(|(set_seq, frames)| Message::SetEnd { set_seq, frames }),
+            (any::<u32>(), bytes()).prop_map(|(capture_ts_us, spi_frame)| Message::Frame {
+                capture_ts_us,
+                spi_frame
+            }),
+            (any::<u32>(), any::<u8>())
+                .prop_map(|(set_seq, frames)| Message::SetEnd { set_seq, frames }),
             (any::<u16>(), any::<u8>(), any::<u32>()).prop_map(|(id, trigger_mode, period_us)| {
-                Message::Command { id, command: Command::Start { trigger_mode, period_us } }
+                Message::Command {
+                    id,
+                    command: Command::Start {
+                        trigger_mode,
+                        period_us,
+                    },
+                }
             }),
-            any::<u16>().prop_map(|id| Message::Command { id, command: Command::Stop }),
-            (any::<u16>(), any::<u8>(), any::<u8>(), bytes()).prop_map(|(id, board, register, value)| {
-                Message::Command { id, command: Command::WriteRegister { board, register, value } }
+            any::<u16>().prop_map(|id| Message::Command {
+                id,
+                command: Command::Stop
             }),
-            (any::<u16>(), any::<u8>(), any::<u8>(), any::<u8>()).prop_map(|(id, board, register, len)| {
-                Message::Command { id, command: Command::ReadRegister { board, register, len } }
-            }),
+            (any::<u16>(), any::<u8>(), any::<u8>(), bytes()).prop_map(
+                |(id, board, register, value)| {
+                    Message::Command {
+                        id,
+                        command: Command::WriteRegister {
+                            board,
+                            register,
+                            value,
+                        },
+                    }
+                }
+            ),
+            (any::<u16>(), any::<u8>(), any::<u8>(), any::<u8>()).prop_map(
+                |(id, board, register, len)| {
+                    Message::Command {
+                        id,
+                        command: Command::ReadRegister {
+                            board,
+                            register,
+                            len,
+                        },
+                    }
+                }
+            ),
             (any::<u16>(), any::<u8>(), bytes()).prop_map(|(id, s, data)| {
-                Message::Ack { id, status: AckStatus::from_byte(s), data }
+                Message::Ack {
+                    id,
+                    status: AckStatus::from_byte(s),
+                    data,
+                }
             }),
             any::<u64>().prop_map(|host_us| Message::TimeSyncRequest { host_us }),
-            (any::<u64>(), any::<u32>()).prop_map(|(host_us, hub_us)| Message::TimeSyncReply { host_us, hub_us }),
+            (any::<u64>(), any::<u32>())
+                .prop_map(|(host_us, hub_us)| Message::TimeSyncReply { host_us, hub_us }),
             any::<u32>().prop_map(|last_set_seq| Message::Resume { last_set_seq }),
             (any::<u32>(), any::<u32>()).prop_map(|(first_seq, sets)| {
                 Message::ResumeReply(ResumeReply::Replaying { first_seq, sets })

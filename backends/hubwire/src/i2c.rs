@@ -186,10 +186,7 @@ mod tests {
             })
             .collect();
         // 0x41 << 1 = 0b1000_0010
-        assert_eq!(
-            bits,
-            [true, false, false, false, false, false, true, false]
-        );
+        assert_eq!(bits, [true, false, false, false, false, false, true, false]);
     }
 
     #[test]

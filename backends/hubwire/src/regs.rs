@@ -144,7 +144,10 @@ mod tests {
         let trig: Vec<u8> = (0..MAX_BOARDS).filter_map(trigger_address).collect();
         assert_eq!(regs.len(), 32);
         assert!(regs.iter().all(|a| !trig.contains(a)));
-        assert!(trig.iter().all(|&a| a < 0x78), "7-bit, outside reserved 0x78..");
+        assert!(
+            trig.iter().all(|&a| a < 0x78),
+            "7-bit, outside reserved 0x78.."
+        );
         assert_eq!(register_address(32), None);
     }
 

@@ -109,7 +109,10 @@ struct RawFault {
 
 impl SimConfig {
     /// Validate `section` for `layout`.
-    pub fn from_section(section: &BackendSection, layout: &HandLayout) -> Result<Self, ConfigError> {
+    pub fn from_section(
+        section: &BackendSection,
+        layout: &HandLayout,
+    ) -> Result<Self, ConfigError> {
         let check = &section.check;
         let p = |k: &str| format!("{}.{k}", section.prefix);
         let raw: RawSim = check.parse_table(&section.prefix, &section.table)?;
@@ -129,27 +132,45 @@ impl SimConfig {
                 return Err(check.invalid(&field("sensor"), &f.sensor, &expected));
             };
             faults[idx] = SensorFaults {
-                capture_delay_us: check.range(&field("capture_delay_us"), f.capture_delay_us, 0.0, 1e6)?
-                    as u32,
-                delivery_delay_us: check.range(&field("delivery_delay_us"), f.delivery_delay_us, 0.0, 1e7)?
-                    as u32,
+                capture_delay_us: check.range(
+                    &field("capture_delay_us"),
+                    f.capture_delay_us,
+                    0.0,
+                    1e6,
+                )? as u32,
+                delivery_delay_us: check.range(
+                    &field("delivery_delay_us"),
+                    f.delivery_delay_us,
+                    0.0,
+                    1e7,
+                )? as u32,
                 drop_rate: check.range(&field("drop_rate"), f.drop_rate, 0.0, 1.0)?,
                 corrupt_rate: check.range(&field("corrupt_rate"), f.corrupt_rate, 0.0, 1.0)?,
             };
         }
         Ok(Self {
             seed: raw.seed,
-            jpeg_quality: check.range(&p("jpeg_quality"), raw.jpeg_quality as f64, 1.0, 100.0)? as u8,
+            jpeg_quality: check.range(&p("jpeg_quality"), raw.jpeg_quality as f64, 1.0, 100.0)?
+                as u8,
             spi_clock_hz: check.range(&p("spi_clock_hz"), raw.spi_clock_hz, 1e5, 6e7)? as u32,
             i2c_hz: check.range(&p("i2c_hz"), raw.i2c_hz, 1e4, 1e6)? as u32,
             t_buf_us: check.range(&p("t_buf_us"), raw.t_buf_us, 0.0, 1e6)? as u32,
             t_usb_us: check.range(&p("t_usb_us"), raw.t_usb_us, 0.0, 1e6)? as u32,
-            capture_jitter_us: check.range(&p("capture_jitter_us"), raw.capture_jitter_us, 0.0, 1e4)?
-                as u32,
+            capture_jitter_us: check.range(
+                &p("capture_jitter_us"),
+                raw.capture_jitter_us,
+                0.0,
+                1e4,
+            )? as u32,
             noise_sigma: check.range(&p("noise_sigma"), raw.noise_sigma, 0.0, 64.0)?,
             noise_pool: check.range(&p("noise_pool"), raw.noise_pool as f64, 1.0, 256.0)? as usize,
             hub_clock_start_us: raw.hub_clock_start_us,
-            ball_diameter_mm: check.range(&p("ball_diameter_mm"), raw.ball_diameter_mm, 0.5, 50.0)?,
+            ball_diameter_mm: check.range(
+                &p("ball_diameter_mm"),
+                raw.ball_diameter_mm,
+                0.5,
+                50.0,
+            )?,
             press_depth_mm: check.range(&p("press_depth_mm"), raw.press_depth_mm, 0.0, 3.0)?,
             faults,
         })

@@ -26,11 +26,12 @@ impl HubFactory for SimHubFactory {
         request: OpenRequest<'_>,
     ) -> Result<Box<dyn gelgrip_controller::hub::HubTransport>, OpenError> {
         let cfg = SimConfig::from_section(request.section, request.layout)?;
-        let hub = SimHub::new(request.layout, request.trigger, cfg, request.clock).map_err(|e| {
-            OpenError::Hub(HubError::Config {
-                detail: e.to_string(),
-            })
-        })?;
+        let hub =
+            SimHub::new(request.layout, request.trigger, cfg, request.clock).map_err(|e| {
+                OpenError::Hub(HubError::Config {
+                    detail: e.to_string(),
+                })
+            })?;
         Ok(Box::new(hub))
     }
 }

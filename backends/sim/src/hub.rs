@@ -61,6 +61,8 @@ pub struct SimHub {
     queue: BinaryHeap<Reverse<(u64, u64, usize)>>,
     slots: Vec<Option<Pending>>,
     order: u64,
+    /// Triggers fired so far; picks the pool frame, so sequence numbering changes nothing.
+    triggers_fired: u64,
     bus_free_ns: u64,
     time_map: HubTimeMap,
 }
@@ -125,6 +127,7 @@ impl SimHub {
             queue: BinaryHeap::new(),
             slots: Vec::new(),
             order: 0,
+            triggers_fired: 0,
             bus_free_ns: start * 1000,
         })
     }
@@ -157,20 +160,24 @@ impl SimHub {
 
     fn board_inputs(&mut self, seq: u32) -> Vec<(BoardInput, Option<Vec<u8>>, u32)> {
         let n = self.description.sensors;
+        let nth = self.triggers_fired;
+        self.triggers_fired += 1;
         (0..n)
             .map(|b| {
                 let faults = self.cfg.faults.get(b).cloned().unwrap_or_default();
                 let jitter_ns = if self.cfg.capture_jitter_us > 0 {
-                    self.rng.random_range(0..=u64::from(self.cfg.capture_jitter_us) * 1000)
+                    self.rng
+                        .random_range(0..=u64::from(self.cfg.capture_jitter_us) * 1000)
                 } else {
                     0
                 };
                 let lost = faults.drop_rate > 0.0 && self.rng.random_bool(faults.drop_rate);
-                let corrupt = faults.corrupt_rate > 0.0 && self.rng.random_bool(faults.corrupt_rate);
+                let corrupt =
+                    faults.corrupt_rate > 0.0 && self.rng.random_bool(faults.corrupt_rate);
                 let capture_delay_ns = u64::from(faults.capture_delay_us) * 1000;
                 let offset_us = ((jitter_ns + capture_delay_ns) / 1000) as u32;
                 let wire = (!lost).then(|| {
-                    let jpeg = self.pool.frame(b, seq).cloned().unwrap_or_default();
+                    let jpeg = self.pool.frame(b, nth).cloned().unwrap_or_default();
                     let header = FrameHeader {
                         sensor_id: b as u8,
                         trigger_seq: seq,
@@ -272,23 +279,37 @@ impl HubTransport for SimHub {
                 sent += 1;
                 let trigger_hub_us = self.hub_us(t.trigger_receipt_ns);
                 let board = b as u8;
-                self.enqueue(at, Pending::Frame { board, seq, trigger_hub_us, wire });
+                self.enqueue(
+                    at,
+                    Pending::Frame {
+                        board,
+                        seq,
+                        trigger_hub_us,
+                        wire,
+                    },
+                );
             }
         }
-        let set_end = Pending::SetEnd { seq, frames_sent: sent };
+        let set_end = Pending::SetEnd {
+            seq,
+            frames_sent: sent,
+        };
         self.enqueue(times.set_end_ns, set_end);
         self.bus_free_ns = times.bus_free_ns;
         Ok(())
     }
 
+    /// Cancel-safe: the event stays queued until its time has come, so a caller that drops
+    /// this future (for example in a `select!`) loses nothing.
     async fn next_event(&mut self) -> Result<HubEvent, HubError> {
-        let Reverse((at_ns, _, slot)) = self.queue.pop().ok_or(HubError::Idle)?;
+        let Reverse((at_ns, _, _)) = *self.queue.peek().ok_or(HubError::Idle)?;
+        self.clock.sleep_until(at_ns.div_ceil(1000)).await;
+        let Reverse((_, _, slot)) = self.queue.pop().ok_or(HubError::Idle)?;
         let event = self
             .slots
             .get_mut(slot)
             .and_then(Option::take)
             .ok_or(HubError::Idle)?;
-        self.clock.sleep_until(at_ns.div_ceil(1000)).await;
         Ok(self.receive(event))
     }
 }

@@ -51,7 +51,10 @@ impl FramePool {
             .iter()
             .enumerate()
             .map(|(i, s)| {
-                let (w, h) = (s.resolution.width_px as usize, s.resolution.height_px as usize);
+                let (w, h) = (
+                    s.resolution.width_px as usize,
+                    s.resolution.height_px as usize,
+                );
                 let map = HeightMap::builtin_press(
                     i,
                     w,
@@ -75,10 +78,10 @@ impl FramePool {
         Ok(Self { frames })
     }
 
-    /// The frame sensor `sensor` produces for trigger `seq`.
-    pub fn frame(&self, sensor: usize, seq: u32) -> Option<&Bytes> {
+    /// The frame sensor `sensor` produces for its `nth` capture.
+    pub fn frame(&self, sensor: usize, nth: u64) -> Option<&Bytes> {
         let frames = self.frames.get(sensor)?;
-        frames.get(seq as usize % frames.len().max(1))
+        frames.get((nth % frames.len().max(1) as u64) as usize)
     }
 
     /// Mean JPEG length over all sensors and frames, bytes.
@@ -95,8 +98,8 @@ impl FramePool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use gelgrip_controller::config::{BackendSection, FieldCheck};
     use gelgrip_controller::config::DiskFiles;
+    use gelgrip_controller::config::{BackendSection, FieldCheck};
 
     pub(crate) fn default_config(layout: &HandLayout) -> SimConfig {
         let section = BackendSection {
@@ -116,9 +119,14 @@ mod tests {
         let pool = FramePool::render(&layout, &cfg).expect("render");
         let mean = pool.mean_jpeg_bytes();
         eprintln!("mean JPEG {mean:.0} bytes");
-        assert!((17_000.0..23_000.0).contains(&mean), "mean JPEG {mean} bytes");
+        assert!(
+            (17_000.0..23_000.0).contains(&mean),
+            "mean JPEG {mean} bytes"
+        );
         let jpeg = pool.frame(3, 11).expect("frame");
-        let mut dec = zune_jpeg::JpegDecoder::new(zune_jpeg::zune_core::bytestream::ZCursor::new(jpeg.as_ref()));
+        let mut dec = zune_jpeg::JpegDecoder::new(zune_jpeg::zune_core::bytestream::ZCursor::new(
+            jpeg.as_ref(),
+        ));
         let pixels = dec.decode().expect("valid JPEG");
         assert_eq!(pixels.len(), 320 * 240 * 3);
     }

@@ -69,7 +69,14 @@ impl HeightMap {
         let ry = height_px as f64 * 0.2;
         let cx = width_px as f64 / 2.0 + rx * angle.cos();
         let cy = height_px as f64 / 2.0 + ry * angle.sin();
-        Self::ball_press(width_px, height_px, mm_per_px, (cx, cy), diameter_mm, depth_mm)
+        Self::ball_press(
+            width_px,
+            height_px,
+            mm_per_px,
+            (cx, cy),
+            diameter_mm,
+            depth_mm,
+        )
     }
 
     /// Deepest point, mm.
@@ -89,7 +96,10 @@ mod tests {
         // contact radius sqrt(r² − (r − d)²) = sqrt(9 − 6.25) = 1.658 mm = 26.5 px
         let inside = m.depth_mm.iter().filter(|d| **d > 0.0).count() as f64;
         let expected = std::f64::consts::PI * 26.53f64.powi(2);
-        assert!((inside - expected).abs() / expected < 0.03, "{inside} vs {expected}");
+        assert!(
+            (inside - expected).abs() / expected < 0.03,
+            "{inside} vs {expected}"
+        );
     }
 
     #[test]

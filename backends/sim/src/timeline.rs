@@ -148,7 +148,10 @@ mod tests {
         boards[2].frame_bytes = None;
         let t = schedule_set(&params(TriggerMode::Broadcast), 0, &boards);
         let b1 = t.boards[1];
-        assert_eq!(b1.read_end_ns, Some(43_100 + 6_000_000 + 1_000_000 + 4_000_000));
+        assert_eq!(
+            b1.read_end_ns,
+            Some(43_100 + 6_000_000 + 1_000_000 + 4_000_000)
+        );
         assert_eq!(t.boards[2].delivered_ns, None);
         assert_eq!(t.bus_free_ns, b1.read_end_ns.unwrap_or(0));
     }

@@ -131,7 +131,9 @@ impl FieldCheck {
             file: self.file.clone(),
             field: field.to_string(),
             name: name.to_string(),
-            later: later.map(|l| format!(" (arrives with {l})")).unwrap_or_default(),
+            later: later
+                .map(|l| format!(" (arrives with {l})"))
+                .unwrap_or_default(),
             available: available.join(", "),
         }
     }

@@ -92,6 +92,8 @@ pub struct HubSettings {
     pub transport: String,
     /// Broadcast or sequential trigger.
     pub trigger: TriggerMode,
+    /// Sequence number of the first trigger (u32; set near the wrap to test it).
+    pub first_trigger_seq: u32,
     /// The transport's own section.
     pub section: BackendSection,
 }
@@ -133,6 +135,7 @@ struct RawConfig {
 struct RawHub {
     transport: String,
     trigger: String,
+    first_trigger_seq: u32,
     sim: Option<toml::Table>,
     cdc: Option<toml::Table>,
     ch347: Option<toml::Table>,
@@ -144,6 +147,7 @@ impl Default for RawHub {
         Self {
             transport: "sim".into(),
             trigger: "broadcast".into(),
+            first_trigger_seq: 0,
             sim: None,
             cdc: None,
             ch347: None,
@@ -286,6 +290,7 @@ fn validate_hub(
         },
         transport: raw.transport,
         trigger,
+        first_trigger_seq: raw.first_trigger_seq,
     })
 }
 
@@ -361,11 +366,7 @@ fn validate_servos(check: &FieldCheck, raw: RawServos) -> Result<ServoSettings, 
     }
     for (i, id) in raw.ids.iter().enumerate() {
         if *id > 252 || raw.ids[..i].contains(id) {
-            return Err(check.invalid(
-                &format!("servos.ids[{i}]"),
-                id,
-                "a unique id in [0, 252]",
-            ));
+            return Err(check.invalid(&format!("servos.ids[{i}]"), id, "a unique id in [0, 252]"));
         }
     }
     Ok(ServoSettings {
@@ -377,10 +378,13 @@ fn validate_servos(check: &FieldCheck, raw: RawServos) -> Result<ServoSettings, 
 }
 
 fn validate_http(check: &FieldCheck, raw: RawHttp) -> Result<HttpSettings, ConfigError> {
-    let bind: SocketAddr = raw
-        .bind
-        .parse()
-        .map_err(|_| check.invalid("http.bind", &raw.bind, "an address:port such as 127.0.0.1:8080"))?;
+    let bind: SocketAddr = raw.bind.parse().map_err(|_| {
+        check.invalid(
+            "http.bind",
+            &raw.bind,
+            "an address:port such as 127.0.0.1:8080",
+        )
+    })?;
     let token = Some(raw.token)
         .filter(|t| !t.is_empty())
         .or_else(|| std::env::var(HTTP_TOKEN_ENV).ok().filter(|t| !t.is_empty()));
@@ -388,7 +392,9 @@ fn validate_http(check: &FieldCheck, raw: RawHttp) -> Result<HttpSettings, Confi
         return Err(check.invalid(
             "http.bind",
             bind,
-            &format!("a loopback address, or set http.token / {HTTP_TOKEN_ENV} for a non-loopback bind"),
+            &format!(
+                "a loopback address, or set http.token / {HTTP_TOKEN_ENV} for a non-loopback bind"
+            ),
         ));
     }
     Ok(HttpSettings { bind, token })

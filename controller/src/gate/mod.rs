@@ -131,7 +131,8 @@ impl Gate {
         let at = match self.pending.iter().position(|p| p.seq == seq) {
             Some(at) => at,
             None => {
-                self.pending.push(PendingSet::new(seq, self.sensors, now_us));
+                self.pending
+                    .push(PendingSet::new(seq, self.sensors, now_us));
                 self.pending.len() - 1
             }
         };

@@ -34,15 +34,20 @@ impl Default for GateStats {
             sets: 0,
             first_emit_us: None,
             last_emit_us: None,
-            // 3 significant digits is about 0.1 % resolution.
-            spread_us: Histogram::new(3).expect("3 significant figures is a valid histogram"),
-            latency_us: Histogram::new(3).expect("3 significant figures is a valid histogram"),
+            spread_us: histogram(),
+            latency_us: histogram(),
             drops: ReasonCounts::default(),
             sets_rejected: ReasonCounts::default(),
             frames_in: 0,
             frames_out: 0,
         }
     }
+}
+
+/// Values up to one hour in µs at 3 significant digits (0.1 % resolution); larger values
+/// saturate at the top instead of being lost.
+fn histogram() -> Histogram<u64> {
+    Histogram::new_with_bounds(1, 3_600_000_000, 3).expect("constant bounds are valid")
 }
 
 impl GateStats {
@@ -83,5 +88,29 @@ impl GateStats {
             .map(|v| (v.value_iterated_to(), v.count_since_last_iteration()))
             .filter(|(_, c)| *c > 0)
             .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::frame::FrameSet;
+
+    #[test]
+    fn quantiles_report_recorded_values() {
+        let mut stats = GateStats::default();
+        for i in 0..100u64 {
+            stats.record(&FrameSet {
+                trigger_seq: i as u32,
+                frames: Vec::new(),
+                spread_us: 10,
+                earliest_capture_host_us: i * 30_000,
+                emitted_host_us: i * 30_000 + 29_500,
+            });
+        }
+        let p50 = stats.latency_us_quantile(0.5).unwrap_or(0);
+        assert!((29_450..=29_550).contains(&p50), "{p50}");
+        assert_eq!(stats.spread_us_p99(), Some(10));
+        assert!((stats.set_rate_hz() - 33.333).abs() < 0.01);
     }
 }

@@ -50,7 +50,11 @@ fn complete_sets_in_window_are_emitted() {
         }
     }
     assert_eq!(emitted.len(), 5);
-    assert!(emitted.iter().all(|s| s.spread_us == 50 && s.frames.len() == 3));
+    assert!(
+        emitted
+            .iter()
+            .all(|s| s.spread_us == 50 && s.frames.len() == 3)
+    );
     assert_eq!(gate.stats().drops.total(), 0);
     invariant(&gate);
 }

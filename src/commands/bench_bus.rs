@@ -1,0 +1,176 @@
+//! `gelgrip bench bus`: the simulated hub's set rate, latency and spread as the host observes
+//! them, against the paper's model f = 1/(N·t_spi + t_buf), latency = N·t_spi + t_buf + t_usb.
+//!
+//! Each row runs the default simulated hub with a generated layout of N identical sensors,
+//! warms up, then measures for `--seconds` on the chosen clock (real by default: the bench
+//! measures pacing the host actually achieves). `t_spi` in the model comes from the mean
+//! frame length the simulator actually produced.
+
+use serde::Serialize;
+
+use gelgrip_controller::hub::TriggerMode;
+use gelgrip_controller::layout::HandLayout;
+
+use crate::cli::{BenchBusArgs, ClockArg, TriggerArg};
+use crate::wiring;
+
+/// Sets discarded before measuring (pipeline fill).
+const WARMUP_SETS: usize = 5;
+
+/// One row of the bench.
+#[derive(Debug, Serialize)]
+pub struct BusRow {
+    /// N.
+    pub sensors: u8,
+    /// `broadcast` or `sequential`.
+    pub trigger: &'static str,
+    /// Paper's 1/(N·t_spi + t_buf).
+    pub model_rate_hz: f64,
+    /// Sets per second the gate emitted.
+    pub measured_rate_hz: f64,
+    /// Paper's N·t_spi + t_buf + t_usb.
+    pub model_latency_ms: f64,
+    /// Mean of (set emission − earliest capture).
+    pub measured_latency_ms: f64,
+    /// p99 capture spread.
+    pub spread_us_p99: u64,
+    /// CPU time of the receive path (assembler and gate) per set.
+    pub host_cpu_ms_per_set: f64,
+    /// Mean SPI frame length S (header + JPEG + CRC), bytes.
+    pub mean_frame_bytes: f64,
+    /// I2C time from trigger START to capture, which the paper's formula leaves out, µs.
+    pub i2c_trigger_us: f64,
+    /// (measured − model) / model rate, %.
+    pub rate_diff_pct: f64,
+    /// Sets measured.
+    pub sets: usize,
+    /// Frames dropped during the row.
+    pub frames_dropped: u64,
+    /// `real` or `virtual`.
+    pub clock: &'static str,
+}
+
+fn triggers(filter: Option<TriggerArg>) -> Vec<TriggerMode> {
+    match filter {
+        Some(TriggerArg::Sequential) => vec![TriggerMode::Sequential],
+        Some(TriggerArg::Broadcast) => vec![TriggerMode::Broadcast],
+        None => vec![TriggerMode::Sequential, TriggerMode::Broadcast],
+    }
+}
+
+async fn measure(n: u8, trigger: TriggerMode, args: &BenchBusArgs) -> anyhow::Result<BusRow> {
+    let registry = wiring::registry();
+    let mut config = wiring::load_config(None, &registry)?;
+    config.layout = HandLayout::generated(usize::from(n))?;
+    config.hub.trigger = trigger;
+    let clock = wiring::make_clock(args.clock);
+    let mut acq = wiring::open_acquisition(&config, &registry, clock.clone()).await?;
+    let prediction = acq.hub().describe().prediction;
+    let give_up = clock.now_us() + (args.seconds * 1e6) as u64 + 10_000_000;
+    for _ in 0..WARMUP_SETS {
+        if acq.next_set_before(give_up).await?.is_none() {
+            anyhow::bail!(
+                "no set passed the gate within 10 s ({n} sensors, {} trigger)",
+                trigger.as_str()
+            );
+        }
+    }
+    let cpu_start = acq.receive_cpu_ns();
+    let drops_start = acq.gate().stats().drops.total();
+    let start = clock.now_us();
+    let end = start + (args.seconds * 1e6) as u64;
+    let (mut emitted, mut latency_sum_us) = (Vec::new(), 0u64);
+    let mut spreads = Vec::new();
+    while let Some(set) = acq.next_set_before(end).await? {
+        latency_sum_us += set.latency_us();
+        spreads.push(set.spread_us);
+        emitted.push(set.emitted_host_us);
+    }
+    let sets = emitted.len();
+    let measured_rate_hz = match (emitted.first(), emitted.last()) {
+        (Some(a), Some(b)) if sets > 1 && b > a => (sets - 1) as f64 / ((b - a) as f64 / 1e6),
+        _ => 0.0,
+    };
+    spreads.sort_unstable();
+    let p99 = spreads
+        .get((spreads.len() * 99 / 100).min(spreads.len().saturating_sub(1)))
+        .copied()
+        .unwrap_or(0);
+    let model_rate_hz = prediction.paper_rate_hz;
+    Ok(BusRow {
+        sensors: n,
+        trigger: trigger.as_str(),
+        model_rate_hz,
+        measured_rate_hz,
+        model_latency_ms: prediction.paper_latency_us / 1e3,
+        measured_latency_ms: latency_sum_us as f64 / sets.max(1) as f64 / 1e3,
+        spread_us_p99: u64::from(p99),
+        host_cpu_ms_per_set: (acq.receive_cpu_ns() - cpu_start) as f64 / 1e6 / sets.max(1) as f64,
+        mean_frame_bytes: prediction.mean_frame_bytes,
+        i2c_trigger_us: prediction.set_period_us - (1e6 / prediction.paper_rate_hz),
+        rate_diff_pct: (measured_rate_hz - model_rate_hz) / model_rate_hz * 100.0,
+        sets,
+        frames_dropped: acq.gate().stats().drops.total() - drops_start,
+        clock: match args.clock {
+            ClockArg::Real => "real",
+            ClockArg::Virtual => "virtual",
+        },
+    })
+}
+
+fn table(rows: &[BusRow]) -> String {
+    let mut s = String::from(
+        "  N  trigger     S bytes  model Hz  meas Hz  diff %  model ms  meas ms  spread p99 us  cpu ms/set\n",
+    );
+    for r in rows {
+        s += &format!(
+            "{:>3}  {:<10} {:>8.0} {:>9.2} {:>8.2} {:>7.2} {:>9.2} {:>8.2} {:>14} {:>11.4}\n",
+            r.sensors,
+            r.trigger,
+            r.mean_frame_bytes,
+            r.model_rate_hz,
+            r.measured_rate_hz,
+            r.rate_diff_pct,
+            r.model_latency_ms,
+            r.measured_latency_ms,
+            r.spread_us_p99,
+            r.host_cpu_ms_per_set
+        );
+    }
+    s
+}
+
+/// Run the command; returns the exit code.
+pub async fn run(args: BenchBusArgs) -> anyhow::Result<u8> {
+    let counts: Vec<u8> = match args.sensors {
+        Some(n) => vec![n],
+        None => (1..=16).collect(),
+    };
+    let clock_name = if args.clock == ClockArg::Real {
+        "real (wall-clock)"
+    } else {
+        "virtual"
+    };
+    tracing::info!("bench bus: {clock_name} time, {} s per row", args.seconds);
+    let mut rows = Vec::new();
+    for trigger in triggers(args.trigger) {
+        for &n in &counts {
+            let row = measure(n, trigger, &args).await?;
+            tracing::info!(
+                sensors = n,
+                trigger = trigger.as_str(),
+                measured_rate_hz = format!("{:.2}", row.measured_rate_hz),
+                model_rate_hz = format!("{:.2}", row.model_rate_hz),
+                "row done"
+            );
+            rows.push(row);
+        }
+    }
+    if args.json {
+        println!("{}", serde_json::to_string(&rows)?);
+    } else {
+        println!("bench bus ({clock_name} time, {} s per row)", args.seconds);
+        print!("{}", table(&rows));
+    }
+    Ok(0)
+}

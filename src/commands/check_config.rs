@@ -1,0 +1,20 @@
+//! `gelgrip check-config FILE`: validate a configuration; errors name the file, the field and
+//! the allowed range, and exit 2.
+
+use crate::cli::CheckConfigArgs;
+use crate::wiring;
+
+/// Run the command; returns the exit code.
+pub fn run(args: CheckConfigArgs) -> anyhow::Result<u8> {
+    let registry = wiring::registry();
+    let config = wiring::load_config(Some(&args.file), &registry)?;
+    println!(
+        "{}: ok ({} sensors in layout `{}`, hub transport `{}`, {} trigger)",
+        args.file.display(),
+        config.layout.sensors.len(),
+        config.layout.name,
+        config.hub.transport,
+        config.hub.trigger.as_str()
+    );
+    Ok(0)
+}

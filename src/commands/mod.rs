@@ -1,0 +1,5 @@
+//! One module per subcommand.
+
+pub mod bench_bus;
+pub mod check_config;
+pub mod run;

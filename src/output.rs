@@ -1,0 +1,85 @@
+//! Report shapes printed by commands (`--json` fields from CONTRACTS.md) and their
+//! human-readable forms.
+
+use serde::Serialize;
+
+use gelgrip_controller::gate::{GateStats, ReasonCounts};
+
+/// `run --json`.
+#[derive(Debug, Serialize)]
+pub struct RunReport {
+    /// Sensor count.
+    pub sensors: usize,
+    /// Sets emitted.
+    pub sets: u64,
+    /// (sets − 1) / (t_last − t_first).
+    pub set_rate_hz: f64,
+    /// p99 capture spread, null without sets.
+    pub spread_us_p99: Option<u64>,
+    /// Faults during the run.
+    pub faults: Vec<String>,
+    /// Frames dropped by reason.
+    pub drops: ReasonCounts,
+    /// Sets rejected by reason.
+    pub sets_rejected: ReasonCounts,
+    /// Why the run ended.
+    pub end_reason: &'static str,
+    /// Transport name.
+    pub transport: String,
+    /// Trigger mode.
+    pub trigger: &'static str,
+    /// `real` or `virtual`.
+    pub clock: &'static str,
+    /// Run time on that clock, s.
+    pub elapsed_s: f64,
+    /// Gate window in force, µs.
+    pub max_spread_us: u32,
+    /// Gate age limit in force, µs.
+    pub max_age_us: u64,
+    /// Median set latency (emission − earliest capture), ms.
+    pub set_latency_ms_p50: Option<f64>,
+    /// p99 set latency, ms.
+    pub set_latency_ms_p99: Option<f64>,
+    /// Frames (valid or corrupt) received.
+    pub frames_received: u64,
+}
+
+impl RunReport {
+    /// Human-readable summary.
+    pub fn to_text(&self) -> String {
+        let opt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.2}"));
+        let mut s = format!(
+            "gelgrip run: {} sensors on `{}` ({} trigger, {} clock), {:.1} s, ended: {}\n",
+            self.sensors, self.transport, self.trigger, self.clock, self.elapsed_s, self.end_reason
+        );
+        s += &format!(
+            "  sets {}  rate {:.1} Hz  spread p99 {} us  latency p50/p99 {}/{} ms\n",
+            self.sets,
+            self.set_rate_hz,
+            self.spread_us_p99.map_or("-".into(), |v| v.to_string()),
+            opt(self.set_latency_ms_p50),
+            opt(self.set_latency_ms_p99),
+        );
+        s += &format!(
+            "  gate window: spread <= {} us, age <= {:.1} ms\n",
+            self.max_spread_us,
+            self.max_age_us as f64 / 1e3
+        );
+        s += &format!("  frame drops   {}\n", counts_text(&self.drops));
+        s += &format!("  sets rejected {}\n", counts_text(&self.sets_rejected));
+        s
+    }
+}
+
+/// `late 0, incomplete 0, …`.
+pub fn counts_text(c: &ReasonCounts) -> String {
+    format!(
+        "late {}, incomplete {}, out_of_window {}, corrupt {}, duplicate {}, disconnected {}",
+        c.late, c.incomplete, c.out_of_window, c.corrupt, c.duplicate, c.disconnected
+    )
+}
+
+/// Latency quantile in ms.
+pub fn latency_ms(stats: &GateStats, q: f64) -> Option<f64> {
+    stats.latency_us_quantile(q).map(|us| us as f64 / 1e3)
+}

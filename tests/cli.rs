@@ -1,0 +1,235 @@
+//! End-to-end tests of the `gelgrip` binary against the simulated hub.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+use serde_json::Value;
+
+fn gelgrip(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_gelgrip"))
+        .args(args)
+        .env("RUST_LOG", "warn")
+        .output()
+        .expect("the gelgrip binary runs")
+}
+
+fn fixture(name: &str) -> String {
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/configs")
+        .join(name);
+    p.display().to_string()
+}
+
+fn repo_file(name: &str) -> String {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join(name)
+        .display()
+        .to_string()
+}
+
+fn json(out: &Output) -> Value {
+    assert!(
+        out.status.success(),
+        "exit {:?}\nstderr: {}",
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("stdout is exactly one JSON value")
+}
+
+fn virtual_run(extra: &[&str]) -> Value {
+    let mut args = vec![
+        "run",
+        "--duration",
+        "3",
+        "--headless",
+        "--json",
+        "--clock",
+        "virtual",
+    ];
+    args.extend_from_slice(extra);
+    json(&gelgrip(&args))
+}
+
+const REASONS: [&str; 6] = [
+    "late",
+    "incomplete",
+    "out_of_window",
+    "corrupt",
+    "duplicate",
+    "disconnected",
+];
+
+fn total(v: &Value, key: &str) -> u64 {
+    REASONS
+        .iter()
+        .map(|r| v[key][r].as_u64().expect("count present"))
+        .sum()
+}
+
+#[test]
+fn default_run_reports_seven_sensors_above_30_hz_and_no_drops() {
+    let v = virtual_run(&[]);
+    assert_eq!(v["sensors"], 7);
+    assert!(v["set_rate_hz"].as_f64().unwrap_or(0.0) >= 30.0, "{v}");
+    assert!(v["sets"].as_u64().unwrap_or(0) >= 90, "{v}");
+    assert_eq!(total(&v, "drops"), 0, "{v}");
+    assert_eq!(total(&v, "sets_rejected"), 0, "{v}");
+    assert_eq!(v["end_reason"], "duration");
+    assert_eq!(v["faults"], Value::Array(vec![]));
+    assert!(v["spread_us_p99"].as_u64().is_some());
+}
+
+#[test]
+fn gate_rejects_every_set_with_a_late_sensor() {
+    let v = virtual_run(&["--config", &fixture("late-sensor.toml")]);
+    assert_eq!(v["sets"], 0, "{v}");
+    assert_eq!(v["spread_us_p99"], Value::Null);
+    let rejected = v["sets_rejected"]["out_of_window"].as_u64().unwrap_or(0);
+    assert!(rejected >= 90, "{v}");
+    assert_eq!(
+        total(&v, "sets_rejected"),
+        rejected,
+        "only out_of_window: {v}"
+    );
+    assert_eq!(v["drops"]["out_of_window"].as_u64(), Some(rejected * 7));
+}
+
+#[test]
+fn counters_wrapping_mid_run_change_nothing() {
+    let plain = virtual_run(&[]);
+    let wrapped = virtual_run(&["--config", &fixture("wrap.toml")]);
+    for key in [
+        "sets",
+        "set_rate_hz",
+        "spread_us_p99",
+        "drops",
+        "sets_rejected",
+        "frames_received",
+    ] {
+        assert_eq!(plain[key], wrapped[key], "{key}");
+    }
+}
+
+#[test]
+fn injected_faults_are_all_accounted_for() {
+    let v = virtual_run(&["--config", &fixture("faults.toml")]);
+    let frames = v["frames_received"].as_u64().unwrap_or(0);
+    let delivered = v["sets"].as_u64().unwrap_or(0) * 7;
+    let dropped = total(&v, "drops");
+    // Frames still pending at the end are at most two sets' worth.
+    assert!(
+        frames >= delivered + dropped && frames <= delivered + dropped + 14,
+        "{v}"
+    );
+    assert!(v["drops"]["corrupt"].as_u64().unwrap_or(0) > 0, "{v}");
+    assert!(
+        v["sets_rejected"]["corrupt"].as_u64().unwrap_or(0) > 0,
+        "{v}"
+    );
+    assert!(
+        v["sets_rejected"]["incomplete"].as_u64().unwrap_or(0) > 0,
+        "{v}"
+    );
+    assert!(v["sets"].as_u64().unwrap_or(0) > 50, "{v}");
+}
+
+#[test]
+fn late_delivery_makes_sets_too_old() {
+    let v = virtual_run(&["--config", &fixture("late-delivery.toml")]);
+    assert_eq!(v["sets"], 0, "{v}");
+    let late = v["sets_rejected"]["late"].as_u64().unwrap_or(0);
+    assert!(late >= 90, "{v}");
+    assert_eq!(total(&v, "sets_rejected"), late, "{v}");
+}
+
+#[test]
+fn check_config_accepts_the_shipped_sim_config() {
+    let out = gelgrip(&["check-config", &repo_file("configs/gelgripper-sim.toml")]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).contains("7 sensors"));
+}
+
+#[test]
+fn check_config_names_file_field_and_range() {
+    let out = gelgrip(&["check-config", &fixture("bad-range.toml")]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("bad-range.toml"), "{err}");
+    assert!(err.contains("hub.sim.jpeg_quality"), "{err}");
+    assert!(err.contains("[1, 100]"), "{err}");
+}
+
+#[test]
+fn unbuilt_backends_get_a_clear_error_listing_what_exists() {
+    let out = gelgrip(&["check-config", &repo_file("configs/gelgripper.toml")]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("hub.transport") && err.contains("ch347"),
+        "{err}"
+    );
+    assert!(err.contains("available: sim"), "{err}");
+}
+
+#[test]
+fn missing_config_file_is_a_config_error() {
+    let out = gelgrip(&["run", "--config", "/nonexistent/gelgrip.toml", "--headless"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("/nonexistent/gelgrip.toml"));
+}
+
+#[test]
+fn bad_usage_exits_2() {
+    assert_eq!(gelgrip(&["run", "--duration", "-1"]).status.code(), Some(2));
+    assert_eq!(
+        gelgrip(&["bench", "bus", "--sensors", "40"]).status.code(),
+        Some(2)
+    );
+}
+
+#[test]
+fn bench_bus_rows_match_the_model_in_virtual_time() {
+    let out = gelgrip(&[
+        "bench",
+        "bus",
+        "--sensors",
+        "7",
+        "--json",
+        "--clock",
+        "virtual",
+        "--seconds",
+        "1",
+    ]);
+    let rows = json(&out);
+    let rows = rows.as_array().expect("an array of rows");
+    assert_eq!(rows.len(), 2, "both triggers");
+    for row in rows {
+        for key in [
+            "sensors",
+            "trigger",
+            "model_rate_hz",
+            "measured_rate_hz",
+            "model_latency_ms",
+            "measured_latency_ms",
+            "spread_us_p99",
+            "host_cpu_ms_per_set",
+        ] {
+            assert!(!row[key].is_null(), "{key} missing in {row}");
+        }
+        let model = row["model_rate_hz"].as_f64().unwrap_or(0.0);
+        let measured = row["measured_rate_hz"].as_f64().unwrap_or(0.0);
+        assert!((measured - model).abs() / model < 0.05, "{row}");
+    }
+    let seq = rows
+        .iter()
+        .find(|r| r["trigger"] == "sequential")
+        .expect("sequential row");
+    // 7 boards, 25 us apart: 150 us stagger plus up to 2 us of jitter.
+    let spread = seq["spread_us_p99"].as_u64().unwrap_or(0);
+    assert!((148..=153).contains(&spread), "{seq}");
+}
