@@ -42,6 +42,8 @@ pub struct RunReport {
     pub set_latency_ms_p99: Option<f64>,
     /// Frames (valid or corrupt) received.
     pub frames_received: u64,
+    /// Capture spread histogram: `[upper bound µs, sets]` in power-of-two buckets.
+    pub spread_histogram_us: Vec<(u64, u64)>,
 }
 
 impl RunReport {

@@ -141,6 +141,7 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
         set_latency_ms_p50: latency_ms(stats, 0.5),
         set_latency_ms_p99: latency_ms(stats, 0.99),
         frames_received: stats.frames_in,
+        spread_histogram_us: stats.spread_buckets(),
     };
     if args.json {
         println!("{}", serde_json::to_string(&report)?);

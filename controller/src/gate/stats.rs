@@ -81,10 +81,14 @@ impl GateStats {
         (self.sets > 0).then(|| self.latency_us.value_at_quantile(q))
     }
 
-    /// Spread histogram as (upper bound µs, count) buckets of `step_us`.
-    pub fn spread_buckets(&self, step_us: u64) -> Vec<(u64, u64)> {
+    /// Spread histogram as `(upper bound µs, count)` in power-of-two buckets, empty buckets
+    /// left out.
+    pub fn spread_buckets(&self) -> Vec<(u64, u64)> {
+        if self.sets == 0 {
+            return Vec::new();
+        }
         self.spread_us
-            .iter_linear(step_us.max(1))
+            .iter_log(1, 2.0)
             .map(|v| (v.value_iterated_to(), v.count_since_last_iteration()))
             .filter(|(_, c)| *c > 0)
             .collect()
@@ -112,5 +116,6 @@ mod tests {
         assert!((29_450..=29_550).contains(&p50), "{p50}");
         assert_eq!(stats.spread_us_p99(), Some(10));
         assert!((stats.set_rate_hz() - 33.333).abs() < 0.01);
+        assert_eq!(stats.spread_buckets().iter().map(|b| b.1).sum::<u64>(), 100);
     }
 }
