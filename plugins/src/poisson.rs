@@ -1,0 +1,323 @@
+//! Exact fast Poisson solvers: depth from gradients.
+//!
+//! Conventions (CONTRACTS.md, `tactile.md` §2.4): x along columns, y along rows,
+//! `gx[i][j] = z[i][j+1] − z[i][j]`, `gy[i][j] = z[i+1][j] − z[i][j]`, in pixel units.
+//!
+//! - [`Solver::Dst`]: DST-I with zero Dirichlet border. The divergence is formed by backward
+//!   differences on the `(H−2)×(W−2)` interior, whose exact eigenvalues are
+//!   `2cos(πk/(n+1)) − 2` per axis. It returns `z` with a zero border, exactly for any `z`
+//!   whose border is zero.
+//! - [`Solver::Dct`]: DCT-II with homogeneous Neumann border. `gx`'s last column and `gy`'s
+//!   last row are treated as 0, the divergence uses backward differences with `g[−1] = 0`,
+//!   and the exact eigenvalues are `−4(sin²(πk_x/2W) + sin²(πk_y/2H))` with 0-based `k` and
+//!   the DC term set to 0. It returns the zero-mean `z`.
+//!
+//! The transforms are rustdct's, which are unnormalised: DST-I is its own inverse up to
+//! `(N+1)/2`, and DCT-III inverts DCT-II up to `N/2`. rustdct 0.7.1's DST-I leaves two slots
+//! of a reused scratch buffer dirty (`crates.md` §6), so the scratch is zeroed before every
+//! call. Plans and buffers live in a [`PoissonPlan`] built once per size, so a solve
+//! allocates nothing.
+
+use std::sync::Arc;
+
+use rustdct::num_traits::Float;
+use rustdct::{DctNum, DctPlanner, Dst1, TransformType2And3};
+
+/// Scalar types the solvers run on (`f32` at runtime, `f64` for golden tests).
+pub trait Real: DctNum + Float {}
+impl<T: DctNum + Float> Real for T {}
+
+/// Which boundary condition and transform.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Solver {
+    /// DST-I, zero Dirichlet border.
+    Dst,
+    /// DCT-II, Neumann border, zero-mean result.
+    Dct,
+}
+
+impl Solver {
+    /// Parse `dst` or `dct`.
+    pub fn parse(s: &str) -> Option<Self> {
+        match s {
+            "dst" => Some(Solver::Dst),
+            "dct" => Some(Solver::Dct),
+            _ => None,
+        }
+    }
+
+    /// The config name.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Solver::Dst => "dst",
+            Solver::Dct => "dct",
+        }
+    }
+}
+
+enum Transforms<T: Real> {
+    Dst {
+        rows: Arc<dyn Dst1<T>>,
+        cols: Arc<dyn Dst1<T>>,
+    },
+    Dct {
+        rows: Arc<dyn TransformType2And3<T>>,
+        cols: Arc<dyn TransformType2And3<T>>,
+    },
+}
+
+/// A solver planned for one image size, with its buffers.
+pub struct PoissonPlan<T: Real> {
+    solver: Solver,
+    height: usize,
+    width: usize,
+    transforms: Transforms<T>,
+    /// Spectrum divisor per coefficient (row-major over the transformed grid).
+    eigen: Vec<T>,
+    work: Vec<T>,
+    transposed: Vec<T>,
+    scratch: Vec<T>,
+}
+
+impl<T: Real> std::fmt::Debug for PoissonPlan<T> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PoissonPlan")
+            .field("solver", &self.solver)
+            .field("height", &self.height)
+            .field("width", &self.width)
+            .finish()
+    }
+}
+
+fn t<T: Real>(v: f64) -> T {
+    T::from_f64(v).unwrap_or_else(T::zero)
+}
+
+impl<T: Real> PoissonPlan<T> {
+    /// Plan a solve of `height × width` gradients (each at least 1).
+    pub fn new(solver: Solver, height: usize, width: usize) -> Self {
+        let (h, w) = (height.max(1), width.max(1));
+        let mut planner = DctPlanner::<T>::new();
+        let pi = std::f64::consts::PI;
+        let (grid_h, grid_w, transforms, eigen) = match solver {
+            Solver::Dst => {
+                let (m, n) = (h.saturating_sub(2), w.saturating_sub(2));
+                let ey: Vec<f64> = (1..=m)
+                    .map(|k| 2.0 * (pi * k as f64 / (m + 1) as f64).cos() - 2.0)
+                    .collect();
+                let ex: Vec<f64> = (1..=n)
+                    .map(|k| 2.0 * (pi * k as f64 / (n + 1) as f64).cos() - 2.0)
+                    .collect();
+                let eigen = ey
+                    .iter()
+                    .flat_map(|y| ex.iter().map(move |x| t::<T>(x + y)))
+                    .collect();
+                let tr = Transforms::Dst {
+                    rows: planner.plan_dst1(n.max(1)),
+                    cols: planner.plan_dst1(m.max(1)),
+                };
+                (m, n, tr, eigen)
+            }
+            Solver::Dct => {
+                let sin2 = |k: usize, len: usize| (pi * k as f64 / (2 * len) as f64).sin().powi(2);
+                let eigen = (0..h)
+                    .flat_map(|ky| (0..w).map(move |kx| -4.0 * (sin2(kx, w) + sin2(ky, h))))
+                    .map(|e| if e == 0.0 { T::zero() } else { t::<T>(e) })
+                    .collect();
+                let tr = Transforms::Dct {
+                    rows: planner.plan_dct2(w),
+                    cols: planner.plan_dct2(h),
+                };
+                (h, w, tr, eigen)
+            }
+        };
+        let scratch_len = match &transforms {
+            Transforms::Dst { rows, cols } => rows.get_scratch_len().max(cols.get_scratch_len()),
+            Transforms::Dct { rows, cols } => rows.get_scratch_len().max(cols.get_scratch_len()),
+        };
+        Self {
+            solver,
+            height: h,
+            width: w,
+            transforms,
+            eigen,
+            work: vec![T::zero(); grid_h * grid_w],
+            transposed: vec![T::zero(); grid_h * grid_w],
+            scratch: vec![T::zero(); scratch_len],
+        }
+    }
+
+    /// The solver kind.
+    pub fn solver(&self) -> Solver {
+        self.solver
+    }
+
+    /// `(height, width)` the plan solves.
+    pub fn size(&self) -> (usize, usize) {
+        (self.height, self.width)
+    }
+
+    /// Solve for `z` (row-major `height × width`) from `gx` and `gy` of the same size.
+    /// Non-finite gradients are treated as 0, so the output is always finite.
+    pub fn solve(&mut self, gx: &[T], gy: &[T], z: &mut [T]) {
+        let (h, w) = (self.height, self.width);
+        let n = h * w;
+        if gx.len() < n || gy.len() < n || z.len() < n {
+            return;
+        }
+        z[..n].fill(T::zero());
+        match self.solver {
+            Solver::Dst => self.solve_dst(gx, gy, z),
+            Solver::Dct => self.solve_dct(gx, gy, z),
+        }
+    }
+
+    fn solve_dst(&mut self, gx: &[T], gy: &[T], z: &mut [T]) {
+        let (h, w) = (self.height, self.width);
+        let (m, n) = (h.saturating_sub(2), w.saturating_sub(2));
+        if m == 0 || n == 0 {
+            return;
+        }
+        let g = |v: T| if v.is_finite() { v } else { T::zero() };
+        for i in 0..m {
+            for j in 0..n {
+                let (r, c) = (i + 1, j + 1);
+                let div = g(gx[r * w + c]) - g(gx[r * w + c - 1]) + g(gy[r * w + c])
+                    - g(gy[(r - 1) * w + c]);
+                self.work[i * n + j] = div;
+            }
+        }
+        let Transforms::Dst { rows, cols } = &self.transforms else {
+            return;
+        };
+        let (rows, cols) = (rows.clone(), cols.clone());
+        self.dst_2d(&*rows, &*cols, m, n);
+        for (v, e) in self.work.iter_mut().zip(&self.eigen) {
+            *v = *v / *e;
+        }
+        self.dst_2d(&*rows, &*cols, m, n);
+        let scale = t::<T>(4.0 / ((m + 1) * (n + 1)) as f64);
+        for i in 0..m {
+            for j in 0..n {
+                z[(i + 1) * w + j + 1] = self.work[i * n + j] * scale;
+            }
+        }
+    }
+
+    fn dst_2d(&mut self, rows: &dyn Dst1<T>, cols: &dyn Dst1<T>, m: usize, n: usize) {
+        for row in self.work.chunks_exact_mut(n) {
+            self.scratch.fill(T::zero());
+            rows.process_dst1_with_scratch(row, &mut self.scratch);
+        }
+        transpose(&self.work, &mut self.transposed, m, n);
+        for col in self.transposed.chunks_exact_mut(m) {
+            self.scratch.fill(T::zero());
+            cols.process_dst1_with_scratch(col, &mut self.scratch);
+        }
+        transpose(&self.transposed, &mut self.work, n, m);
+    }
+
+    fn solve_dct(&mut self, gx: &[T], gy: &[T], z: &mut [T]) {
+        let (h, w) = (self.height, self.width);
+        let g = |v: T| if v.is_finite() { v } else { T::zero() };
+        for i in 0..h {
+            for j in 0..w {
+                let gxc = if j + 1 < w {
+                    g(gx[i * w + j])
+                } else {
+                    T::zero()
+                };
+                let gxl = if j > 0 {
+                    g(gx[i * w + j - 1])
+                } else {
+                    T::zero()
+                };
+                let gyc = if i + 1 < h {
+                    g(gy[i * w + j])
+                } else {
+                    T::zero()
+                };
+                let gyu = if i > 0 {
+                    g(gy[(i - 1) * w + j])
+                } else {
+                    T::zero()
+                };
+                self.work[i * w + j] = gxc - gxl + gyc - gyu;
+            }
+        }
+        let Transforms::Dct { rows, cols } = &self.transforms else {
+            return;
+        };
+        let (rows, cols) = (rows.clone(), cols.clone());
+        self.dct_2d(&*rows, &*cols, h, w, false);
+        for (v, e) in self.work.iter_mut().zip(&self.eigen) {
+            *v = if *e == T::zero() { T::zero() } else { *v / *e };
+        }
+        self.dct_2d(&*rows, &*cols, h, w, true);
+        let scale = t::<T>(4.0 / (h * w) as f64);
+        for (o, v) in z.iter_mut().zip(&self.work) {
+            *o = *v * scale;
+        }
+    }
+
+    fn dct_2d(
+        &mut self,
+        rows: &dyn TransformType2And3<T>,
+        cols: &dyn TransformType2And3<T>,
+        h: usize,
+        w: usize,
+        inverse: bool,
+    ) {
+        for row in self.work.chunks_exact_mut(w) {
+            if inverse {
+                rows.process_dct3_with_scratch(row, &mut self.scratch);
+            } else {
+                rows.process_dct2_with_scratch(row, &mut self.scratch);
+            }
+        }
+        transpose(&self.work, &mut self.transposed, h, w);
+        for col in self.transposed.chunks_exact_mut(h) {
+            if inverse {
+                cols.process_dct3_with_scratch(col, &mut self.scratch);
+            } else {
+                cols.process_dct2_with_scratch(col, &mut self.scratch);
+            }
+        }
+        transpose(&self.transposed, &mut self.work, w, h);
+    }
+}
+
+/// `dst[c][r] = src[r][c]` for a `rows × cols` source.
+fn transpose<T: Copy>(src: &[T], dst: &mut [T], rows: usize, cols: usize) {
+    const B: usize = 16;
+    for r0 in (0..rows).step_by(B) {
+        for c0 in (0..cols).step_by(B) {
+            for r in r0..(r0 + B).min(rows) {
+                for c in c0..(c0 + B).min(cols) {
+                    dst[c * rows + r] = src[r * cols + c];
+                }
+            }
+        }
+    }
+}
+
+/// Forward-difference gradients of `z` (`h × w`) per the contract; the last column of `gx`
+/// and the last row of `gy` are 0.
+pub fn gradients_of<T: Real>(z: &[T], h: usize, w: usize) -> (Vec<T>, Vec<T>) {
+    let mut gx = vec![T::zero(); h * w];
+    let mut gy = vec![T::zero(); h * w];
+    for i in 0..h {
+        for j in 0..w {
+            if j + 1 < w {
+                gx[i * w + j] = z[i * w + j + 1] - z[i * w + j];
+            }
+            if i + 1 < h {
+                gy[i * w + j] = z[(i + 1) * w + j] - z[i * w + j];
+            }
+        }
+    }
+    (gx, gy)
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,138 @@
+//! Golden tests: analytic and random surfaces are recovered to 1e-9 in f64.
+
+use rand::{Rng, SeedableRng};
+use rand_pcg::Pcg64Mcg;
+
+use super::*;
+
+fn max_err(a: &[f64], b: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max)
+}
+
+fn solve(solver: Solver, z: &[f64], h: usize, w: usize) -> Vec<f64> {
+    let (gx, gy) = gradients_of(z, h, w);
+    let mut out = vec![0.0; h * w];
+    PoissonPlan::new(solver, h, w).solve(&gx, &gy, &mut out);
+    out
+}
+
+/// A spherical cap: the indentation of a ball pressed `depth_px` deep.
+fn cap(h: usize, w: usize, radius_px: f64, depth_px: f64) -> Vec<f64> {
+    let r_ball = (radius_px * radius_px + depth_px * depth_px) / (2.0 * depth_px);
+    let (cy, cx) = (h as f64 / 2.0, w as f64 / 2.0);
+    (0..h * w)
+        .map(|k| {
+            let (y, x) = ((k / w) as f64 - cy, (k % w) as f64 - cx);
+            let rho2 = x * x + y * y;
+            if rho2 < radius_px * radius_px {
+                (r_ball * r_ball - rho2).sqrt() - (r_ball - depth_px)
+            } else {
+                0.0
+            }
+        })
+        .collect()
+}
+
+#[test]
+fn dst_recovers_a_spherical_cap_exactly() {
+    for (h, w) in [(240, 320), (61, 47)] {
+        let z = cap(h, w, (h.min(w) as f64) / 4.0, 8.0);
+        let got = solve(Solver::Dst, &z, h, w);
+        assert!(max_err(&got, &z) < 1e-9, "{h}x{w}: {}", max_err(&got, &z));
+    }
+    // The smallest image with an interior: one free pixel.
+    let z = [0.0, 0.0, 0.0, 0.0, 2.5, 0.0, 0.0, 0.0, 0.0];
+    assert!(max_err(&solve(Solver::Dst, &z, 3, 3), &z) < 1e-12);
+}
+
+#[test]
+fn dst_recovers_random_zero_border_surfaces() {
+    let mut rng = Pcg64Mcg::seed_from_u64(7);
+    for (h, w) in [(10, 12), (33, 64), (120, 160)] {
+        let z: Vec<f64> = (0..h * w)
+            .map(|k| {
+                let (i, j) = (k / w, k % w);
+                if i == 0 || j == 0 || i == h - 1 || j == w - 1 {
+                    0.0
+                } else {
+                    rng.random_range(-5.0..5.0)
+                }
+            })
+            .collect();
+        let got = solve(Solver::Dst, &z, h, w);
+        assert!(max_err(&got, &z) < 1e-9, "{h}x{w}: {}", max_err(&got, &z));
+    }
+}
+
+#[test]
+fn dct_recovers_zero_mean_surfaces() {
+    let mut rng = Pcg64Mcg::seed_from_u64(9);
+    for (h, w) in [(240, 320), (17, 9), (1, 5), (2, 2)] {
+        let mut z: Vec<f64> = (0..h * w).map(|_| rng.random_range(-3.0..3.0)).collect();
+        let mean = z.iter().sum::<f64>() / z.len() as f64;
+        z.iter_mut().for_each(|v| *v -= mean);
+        let got = solve(Solver::Dct, &z, h, w);
+        assert!(max_err(&got, &z) < 1e-9, "{h}x{w}: {}", max_err(&got, &z));
+    }
+}
+
+#[test]
+fn dct_recovers_a_cap_up_to_its_mean() {
+    let (h, w) = (240, 320);
+    let z = cap(h, w, 30.0, 8.0);
+    let mean = z.iter().sum::<f64>() / z.len() as f64;
+    let want: Vec<f64> = z.iter().map(|v| v - mean).collect();
+    let got = solve(Solver::Dct, &z, h, w);
+    assert!(max_err(&got, &want) < 1e-9, "{}", max_err(&got, &want));
+}
+
+#[test]
+fn repeated_solves_with_one_plan_stay_exact() {
+    // Guards against rustdct 0.7.1's dirty-scratch DST-I bug (seen at N = 320).
+    let (h, w) = (242, 322);
+    let z = cap(h, w, 50.0, 10.0);
+    let (gx, gy) = gradients_of(&z, h, w);
+    let mut plan = PoissonPlan::new(Solver::Dst, h, w);
+    let mut out = vec![0.0; h * w];
+    for _ in 0..50 {
+        plan.solve(&gx, &gy, &mut out);
+    }
+    assert!(max_err(&out, &z) < 1e-9, "{}", max_err(&out, &z));
+}
+
+#[test]
+fn extremes_stay_finite() {
+    for solver in [Solver::Dst, Solver::Dct] {
+        for (h, w) in [(1, 1), (2, 2), (1024, 1024)] {
+            let n = h * w;
+            let mut plan = PoissonPlan::new(solver, h, w);
+            for g in [0.0f32, 1e6, -1e6, f32::NAN, f32::INFINITY] {
+                let gx = vec![g; n];
+                let gy = vec![-g; n];
+                let mut z = vec![0.0f32; n];
+                plan.solve(&gx, &gy, &mut z);
+                assert!(z.iter().all(|v| v.is_finite()), "{solver:?} {h}x{w} g={g}");
+            }
+        }
+    }
+}
+
+#[test]
+fn f32_runtime_is_close_to_f64() {
+    let (h, w) = (120, 160);
+    let z = cap(h, w, 25.0, 6.0);
+    let (gx, gy) = gradients_of(&z, h, w);
+    let gx32: Vec<f32> = gx.iter().map(|v| *v as f32).collect();
+    let gy32: Vec<f32> = gy.iter().map(|v| *v as f32).collect();
+    let mut out = vec![0.0f32; h * w];
+    PoissonPlan::new(Solver::Dst, h, w).solve(&gx32, &gy32, &mut out);
+    let err = out
+        .iter()
+        .zip(&z)
+        .map(|(a, b)| (f64::from(*a) - b).abs())
+        .fold(0.0, f64::max);
+    assert!(err < 1e-3, "{err}");
+}
