@@ -1,4 +1,19 @@
 //! gelgrip's sensing plugins: the per-sensor tactile pipeline that turns a JPEG frame into
 //! gradients, depth in mm and contact.
+//!
+//! - [`pipeline`]: the stages wired per sensor, with their buffers;
+//! - [`decode`], [`undistort`], [`lut`], [`poisson`], [`contact`]: the stages;
+//! - [`dataset`], [`image`], [`model_file`]: the press dataset and model file formats;
+//! - [`npy`]: NumPy `.npy` gradients and depth maps.
 
+pub mod calibrate;
+pub mod contact;
+pub mod dataset;
+pub mod decode;
+pub mod image;
+pub mod lut;
+pub mod model_file;
+pub mod npy;
+pub mod pipeline;
 pub mod poisson;
+pub mod undistort;

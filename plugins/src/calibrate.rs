@@ -1,0 +1,139 @@
+//! Calibration from a press dataset: train a LUT gradient model and evaluate any model with
+//! the contract's metrics (`gx_mae`, `gy_mae` over inside pixels of all presses,
+//! `depth_mae_mm` from the ball geometry).
+
+use crate::dataset::{DatasetError, PressDataset, PressTruth};
+use crate::image::RgbImage;
+use crate::lut::{Input, LutModel, LutTrainer};
+use crate::poisson::{PoissonPlan, Solver};
+
+/// Share of `presses.csv` rows (the last ones) held out for the test MAE.
+pub const TEST_SHARE: f64 = 0.1;
+
+/// Split point: rows before it train, rows from it test (at least one test row when there
+/// are two or more).
+pub fn split_index(rows: usize) -> usize {
+    let test = ((rows as f64 * TEST_SHARE).round() as usize).max(usize::from(rows >= 2));
+    rows - test
+}
+
+fn key(img: &RgbImage, bg: &RgbImage, p: usize, input: Input) -> [f32; 3] {
+    let v = |c: usize| f32::from(img.data[p * 3 + c]);
+    match input {
+        Input::Diff => [0, 1, 2].map(|c| v(c) - f32::from(bg.data[p * 3 + c])),
+        Input::Raw => [v(0), v(1), v(2)],
+    }
+}
+
+/// Train a LUT on the dataset's training rows (every row but the held-out last 10%).
+/// Background pixels are added with zero gradient, one in five of the contact pixels' count,
+/// so that the no-contact colours map to zero.
+pub fn train_lut(ds: &PressDataset, input: Input, bins: usize) -> Result<LutModel, DatasetError> {
+    let (w, h) = (ds.background.width, ds.background.height);
+    let mut trainer = LutTrainer::new(input, bins);
+    let r = ds.ball_radius_px();
+    for press in &ds.presses[..split_index(ds.presses.len())] {
+        let img = ds.press_image(press)?;
+        let truth = PressTruth::new(press, r, w, h);
+        let (gx, gy) = truth.gradients(w, h);
+        let inside = truth.inside.iter().filter(|v| **v).count().max(1);
+        let outside = (w * h - inside).max(1);
+        let stride = (outside * 5 / inside).max(1);
+        for p in 0..w * h {
+            if truth.inside[p] {
+                trainer.add(
+                    key(&img, &ds.background, p, input),
+                    gx[p] as f32,
+                    gy[p] as f32,
+                );
+            } else if p % stride == 0 && truth.depth_px[p] == 0.0 {
+                trainer.add(key(&img, &ds.background, p, input), 0.0, 0.0);
+            }
+        }
+    }
+    Ok(trainer.finish(w, h))
+}
+
+/// Metrics of a model on some presses.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EvalReport {
+    /// Mean |gx − truth| over inside pixels.
+    pub gx_mae: f64,
+    /// Mean |gy − truth| over inside pixels.
+    pub gy_mae: f64,
+    /// Mean |depth − truth| over inside pixels, mm (`None` with no solver).
+    pub depth_mae_mm: Option<f64>,
+    /// Presses evaluated.
+    pub presses: usize,
+    /// Inside pixels evaluated.
+    pub pixels: usize,
+}
+
+/// Evaluate `model` on `rows` of the dataset; depth uses `solver` over the whole frame.
+pub fn evaluate(
+    model: &LutModel,
+    ds: &PressDataset,
+    rows: std::ops::Range<usize>,
+    solver: Option<Solver>,
+) -> Result<EvalReport, DatasetError> {
+    let (w, h) = (ds.background.width, ds.background.height);
+    let r = ds.ball_radius_px();
+    let mut plan = solver.map(|s| PoissonPlan::<f64>::new(s, h, w));
+    let (mut ex, mut ey, mut ed, mut n, mut presses) = (0.0, 0.0, 0.0, 0usize, 0usize);
+    let (mut px, mut py, mut z) = (vec![0.0; w * h], vec![0.0; w * h], vec![0.0; w * h]);
+    for press in ds.presses.get(rows).unwrap_or(&[]) {
+        let img = ds.press_image(press)?;
+        let truth = PressTruth::new(press, r, w, h);
+        let (gx, gy) = truth.gradients(w, h);
+        for p in 0..w * h {
+            let [a, b] = model.predict(key(&img, &ds.background, p, model.input));
+            px[p] = f64::from(a);
+            py[p] = f64::from(b);
+        }
+        if let Some(plan) = plan.as_mut() {
+            plan.solve(&px, &py, &mut z);
+            if plan.solver() == Solver::Dct {
+                let border = mean_outside(&z, &truth.inside);
+                z.iter_mut().for_each(|v| *v -= border);
+            }
+        }
+        for p in (0..w * h).filter(|p| truth.inside[*p]) {
+            ex += (px[p] - gx[p]).abs();
+            ey += (py[p] - gy[p]).abs();
+            ed += (z[p] - truth.depth_px[p]).abs() * ds.info.mm_per_px;
+            n += 1;
+        }
+        presses += 1;
+    }
+    let d = n.max(1) as f64;
+    Ok(EvalReport {
+        gx_mae: ex / d,
+        gy_mae: ey / d,
+        depth_mae_mm: solver.map(|_| ed / d),
+        presses,
+        pixels: n,
+    })
+}
+
+fn mean_outside(z: &[f64], inside: &[bool]) -> f64 {
+    let (s, n) = z
+        .iter()
+        .zip(inside)
+        .filter(|(_, i)| !**i)
+        .fold((0.0, 0usize), |(s, n), (v, _)| (s + v, n + 1));
+    if n == 0 { 0.0 } else { s / n as f64 }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::split_index;
+
+    #[test]
+    fn holds_out_the_last_tenth() {
+        assert_eq!(split_index(50), 45);
+        assert_eq!(split_index(10), 9);
+        assert_eq!(split_index(2), 1);
+        assert_eq!(split_index(1), 1);
+        assert_eq!(split_index(0), 0);
+    }
+}

@@ -1,0 +1,366 @@
+//! The per-sensor tactile pipeline: JPEG → (undistort) → difference against the reference →
+//! gradients → depth → contact.
+//!
+//! Stages are chosen by name ([`StageChoice`]) and a stage runs only when something
+//! downstream consumes it. If the caller needs only contact presence and area
+//! ([`Needs::depth`] false), gradients and depth are skipped and contact comes from the
+//! block activity alone. Depth is solved only over the bounding box of the active blocks
+//! plus a margin, where the depth outside is zero (DST) or the window border is taken as
+//! zero (DCT). All buffers are allocated up front; a solver plan is built the first time a
+//! window size appears (sizes are rounded up to multiples of 32 px, so there are few).
+
+use std::collections::HashMap;
+use std::sync::Arc;
+
+use thiserror::Error;
+
+use crate::contact::{self, BLOCK_PX, ContactSummary, NoiseModel};
+use crate::decode::{DecodeError, JpegStage};
+use crate::lut::{Input, LutModel};
+use crate::poisson::{PoissonPlan, Solver};
+use crate::undistort::{Fisheye, Remap};
+
+/// Registered stage names, per slot.
+pub const STAGES: [(&str, &[&str]); 7] = [
+    ("decode", &["jpeg"]),
+    ("undistort", &["none", "fisheye"]),
+    ("reference", &["static", "drift"]),
+    ("diff", &["diff"]),
+    ("gradient", &["lut"]),
+    ("depth", &["dst", "dct", "none"]),
+    ("contact", &["threshold"]),
+];
+
+/// The stage choices for one sensor.
+#[derive(Debug, Clone)]
+pub struct StageChoice {
+    /// JPEG decode scale: 1, 2 or 4.
+    pub decode_scale: usize,
+    /// Lens model, `None` for the identity.
+    pub undistort: Option<Fisheye>,
+    /// Reference refresh rate per no-contact frame (0 = `static`).
+    pub reference_alpha: f32,
+    /// The gradient model.
+    pub lut: Arc<LutModel>,
+    /// Depth solver (`None` = stage `none`).
+    pub solver: Option<Solver>,
+    /// Force proxy stiffness, N/mm³.
+    pub stiffness_n_per_mm3: f64,
+}
+
+/// What the consumer reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Needs {
+    /// Depth, volume and force (otherwise only presence and area).
+    pub depth: bool,
+}
+
+/// A frame the pipeline could not process.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+pub enum PipelineError {
+    /// Decoding failed.
+    #[error(transparent)]
+    Decode(#[from] DecodeError),
+    /// Asked to process before a reference frame was captured.
+    #[error("no reference frame yet: capture one with nothing touching the sensor")]
+    NoReference,
+}
+
+/// Margin around the active blocks for the depth window, px (the depth must have fallen to
+/// zero inside it).
+const WINDOW_MARGIN_PX: usize = 16;
+/// Window sizes are rounded up to multiples of this, px.
+const WINDOW_QUANTUM_PX: usize = 32;
+
+/// One sensor's pipeline with its buffers.
+pub struct SensorPipeline {
+    choice: StageChoice,
+    width: usize,
+    height: usize,
+    mm_per_px: f64,
+    jpeg: JpegStage,
+    remap: Option<Remap>,
+    rgb: Vec<u8>,
+    rgb_undistorted: Vec<u8>,
+    reference: Option<Vec<f32>>,
+    diff: Vec<f32>,
+    blocks: Vec<f32>,
+    gx: Vec<f32>,
+    gy: Vec<f32>,
+    depth_px: Vec<f32>,
+    plans: HashMap<(usize, usize), PoissonPlan<f32>>,
+    noise: Option<NoiseModel>,
+    last_window: (usize, usize, usize, usize),
+}
+
+impl std::fmt::Debug for SensorPipeline {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SensorPipeline")
+            .field("width", &self.width)
+            .field("height", &self.height)
+            .field("solver", &self.choice.solver)
+            .field("noise", &self.noise)
+            .finish()
+    }
+}
+
+impl SensorPipeline {
+    /// A pipeline for frames of `width × height` px of `mm_per_px`.
+    pub fn new(choice: StageChoice, width: usize, height: usize, mm_per_px: f64) -> Self {
+        let jpeg = JpegStage::new(width, height, choice.decode_scale);
+        let (w, h) = jpeg.output_size();
+        let scale = (width / w.max(1)) as f64;
+        let remap = choice.undistort.as_ref().map(|c| Remap::fisheye(c, w, h));
+        let (bw, bh) = (w.div_ceil(BLOCK_PX), h.div_ceil(BLOCK_PX));
+        Self {
+            width: w,
+            height: h,
+            mm_per_px: mm_per_px * scale,
+            jpeg,
+            remap,
+            rgb: vec![0; w * h * 3],
+            rgb_undistorted: vec![0; w * h * 3],
+            reference: None,
+            diff: vec![0.0; w * h * 3],
+            blocks: vec![0.0; bw * bh],
+            gx: vec![0.0; w * h],
+            gy: vec![0.0; w * h],
+            depth_px: vec![0.0; w * h],
+            plans: HashMap::new(),
+            noise: None,
+            last_window: (0, 0, 0, 0),
+            choice,
+        }
+    }
+
+    /// Processed image size `(width, height)`.
+    pub fn size(&self) -> (usize, usize) {
+        (self.width, self.height)
+    }
+
+    /// Pixel size after decode scaling, mm.
+    pub fn mm_per_px(&self) -> f64 {
+        self.mm_per_px
+    }
+
+    /// The noise thresholds in force.
+    pub fn noise(&self) -> Option<NoiseModel> {
+        self.noise
+    }
+
+    fn load(&mut self, jpeg: &[u8]) -> Result<(), PipelineError> {
+        self.jpeg.decode(jpeg, &mut self.rgb)?;
+        if let Some(remap) = &self.remap {
+            remap.apply(&self.rgb, &mut self.rgb_undistorted);
+            std::mem::swap(&mut self.rgb, &mut self.rgb_undistorted);
+        }
+        Ok(())
+    }
+
+    /// Capture the reference from no-contact frames (their mean), then measure the noise
+    /// thresholds on the same frames.
+    pub fn calibrate(&mut self, no_contact: &[&[u8]]) -> Result<(), PipelineError> {
+        let mut sum = vec![0.0f32; self.rgb.len()];
+        for jpeg in no_contact {
+            self.load(jpeg)?;
+            sum.iter_mut()
+                .zip(&self.rgb)
+                .for_each(|(s, v)| *s += f32::from(*v));
+        }
+        let n = no_contact.len().max(1) as f32;
+        sum.iter_mut().for_each(|s| *s /= n);
+        self.reference = Some(sum);
+        let (mut activity, mut depth) = (Vec::new(), Vec::new());
+        let window = self.central_window();
+        let mm = self.mm_per_px as f32;
+        for jpeg in no_contact {
+            self.load(jpeg)?;
+            self.difference();
+            self.block_activity();
+            activity.extend_from_slice(&self.blocks);
+            if self.choice.solver.is_some() {
+                let d = self.solve_window(window);
+                depth.extend(d.iter().map(|v| (v * mm).abs()));
+            }
+        }
+        self.noise = Some(NoiseModel::measure(&activity, &depth));
+        Ok(())
+    }
+
+    fn central_window(&self) -> (usize, usize, usize, usize) {
+        let w = (4 * WINDOW_QUANTUM_PX).min(self.width);
+        let h = (4 * WINDOW_QUANTUM_PX).min(self.height);
+        ((self.width - w) / 2, (self.height - h) / 2, w, h)
+    }
+
+    fn difference(&mut self) {
+        if let Some(reference) = &self.reference {
+            for ((d, v), r) in self.diff.iter_mut().zip(&self.rgb).zip(reference) {
+                *d = f32::from(*v) - r;
+            }
+        }
+    }
+
+    fn block_activity(&mut self) {
+        let (w, h) = (self.width, self.height);
+        let bw = w.div_ceil(BLOCK_PX);
+        self.blocks.fill(0.0);
+        for by in 0..h.div_ceil(BLOCK_PX) {
+            for bx in 0..bw {
+                let mut sum = [0.0f32; 3];
+                let mut n = 0.0f32;
+                for y in by * BLOCK_PX..((by + 1) * BLOCK_PX).min(h) {
+                    for x in bx * BLOCK_PX..((bx + 1) * BLOCK_PX).min(w) {
+                        let i = (y * w + x) * 3;
+                        sum[0] += self.diff[i];
+                        sum[1] += self.diff[i + 1];
+                        sum[2] += self.diff[i + 2];
+                        n += 1.0;
+                    }
+                }
+                self.blocks[by * bw + bx] = sum.iter().map(|s| (s / n.max(1.0)).abs()).sum();
+            }
+        }
+    }
+
+    /// Bounding box `(x, y, w, h)` of active blocks plus the margin, rounded up.
+    fn active_window(&self, threshold: f32) -> Option<(usize, usize, usize, usize)> {
+        let bw = self.width.div_ceil(BLOCK_PX);
+        let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
+        for (k, a) in self.blocks.iter().enumerate() {
+            if *a > threshold {
+                let (bx, by) = (k % bw, k / bw);
+                x0 = x0.min(bx * BLOCK_PX);
+                y0 = y0.min(by * BLOCK_PX);
+                x1 = x1.max((bx + 1) * BLOCK_PX);
+                y1 = y1.max((by + 1) * BLOCK_PX);
+            }
+        }
+        if x0 == usize::MAX {
+            return None;
+        }
+        let fit = |lo: usize, hi: usize, limit: usize| {
+            let lo = lo.saturating_sub(WINDOW_MARGIN_PX);
+            let hi = (hi + WINDOW_MARGIN_PX).min(limit);
+            let len = (hi - lo).div_ceil(WINDOW_QUANTUM_PX) * WINDOW_QUANTUM_PX;
+            let len = len.min(limit);
+            (lo.min(limit - len), len)
+        };
+        let (x, w) = fit(x0, x1, self.width);
+        let (y, h) = fit(y0, y1, self.height);
+        Some((x, y, w, h))
+    }
+
+    /// Gradients and depth (px) over window `(x, y, w, h)`; returns the window's depth.
+    fn solve_window(&mut self, (x0, y0, w, h): (usize, usize, usize, usize)) -> &[f32] {
+        let lut = &self.choice.lut;
+        let width = self.width;
+        for y in 0..h {
+            for x in 0..w {
+                let p = (y0 + y) * width + x0 + x;
+                let key = match lut.input {
+                    Input::Diff => [self.diff[p * 3], self.diff[p * 3 + 1], self.diff[p * 3 + 2]],
+                    Input::Raw => [
+                        f32::from(self.rgb[p * 3]),
+                        f32::from(self.rgb[p * 3 + 1]),
+                        f32::from(self.rgb[p * 3 + 2]),
+                    ],
+                };
+                let [gx, gy] = lut.predict(key);
+                self.gx[y * w + x] = gx;
+                self.gy[y * w + x] = gy;
+            }
+        }
+        let solver = self.choice.solver.unwrap_or(Solver::Dst);
+        let plan = self
+            .plans
+            .entry((h, w))
+            .or_insert_with(|| PoissonPlan::new(solver, h, w));
+        let depth = &mut self.depth_px[..w * h];
+        plan.solve(&self.gx[..w * h], &self.gy[..w * h], depth);
+        if solver == Solver::Dct {
+            // Neumann leaves a free constant: take the window border as zero depth.
+            let border = border_mean(depth, w, h);
+            depth.iter_mut().for_each(|d| *d -= border);
+        }
+        self.last_window = (x0, y0, w, h);
+        &self.depth_px[..w * h]
+    }
+
+    /// Process one frame.
+    pub fn process(&mut self, jpeg: &[u8], needs: Needs) -> Result<ContactSummary, PipelineError> {
+        let noise = self.noise.ok_or(PipelineError::NoReference)?;
+        self.load(jpeg)?;
+        self.difference();
+        self.block_activity();
+        let window = self.active_window(noise.block_threshold);
+        if window.is_none() && self.choice.reference_alpha > 0.0 {
+            self.refresh_reference();
+        }
+        let Some(window) = window else {
+            return Ok(ContactSummary::default());
+        };
+        let scale = self.jpeg_scale();
+        if !needs.depth || self.choice.solver.is_none() {
+            let active = self
+                .blocks
+                .iter()
+                .filter(|a| **a > noise.block_threshold)
+                .count();
+            let block_mm = BLOCK_PX as f64 * self.mm_per_px;
+            return Ok(ContactSummary {
+                in_contact: true,
+                area_mm2: active as f64 * block_mm * block_mm,
+                ..Default::default()
+            });
+        }
+        let (x0, y0, w, _) = window;
+        let mm = self.mm_per_px as f32;
+        self.solve_window(window);
+        let (_, _, ww, wh) = self.last_window;
+        let depth = &mut self.depth_px[..ww * wh];
+        depth.iter_mut().for_each(|d| *d *= mm);
+        Ok(contact::summarize(
+            depth,
+            w,
+            (x0, y0),
+            self.mm_per_px,
+            scale,
+            &noise,
+            self.choice.stiffness_n_per_mm3,
+        ))
+    }
+
+    fn jpeg_scale(&self) -> f64 {
+        self.choice.decode_scale.max(1) as f64
+    }
+
+    fn refresh_reference(&mut self) {
+        let a = self.choice.reference_alpha.clamp(0.0, 1.0);
+        if let Some(reference) = &mut self.reference {
+            for (r, v) in reference.iter_mut().zip(&self.rgb) {
+                *r += a * (f32::from(*v) - *r);
+            }
+        }
+    }
+
+    /// Depth (mm) of the last window processed with depth, and its `(x, y, w, h)`.
+    pub fn last_depth_mm(&self) -> (&[f32], (usize, usize, usize, usize)) {
+        let (_, _, w, h) = self.last_window;
+        (&self.depth_px[..w * h], self.last_window)
+    }
+}
+
+fn border_mean(d: &[f32], w: usize, h: usize) -> f32 {
+    let mut sum = 0.0;
+    let mut n = 0.0;
+    for y in 0..h {
+        for x in 0..w {
+            if y == 0 || x == 0 || y + 1 == h || x + 1 == w {
+                sum += d[y * w + x];
+                n += 1.0;
+            }
+        }
+    }
+    if n > 0.0 { sum / n } else { 0.0 }
+}
