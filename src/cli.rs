@@ -32,6 +32,144 @@ pub enum Command {
     /// Benchmarks.
     #[command(subcommand)]
     Bench(BenchCommand),
+    /// Calibration: press datasets, gradient-model training and evaluation.
+    #[command(subcommand)]
+    Calibrate(CalibrateCommand),
+    /// Integrate a gradient array (.npy, H×W×2) into a depth map (.npy, H×W).
+    Depth(DepthArgs),
+}
+
+/// A usage error found after parsing (exit code 2).
+#[derive(Debug)]
+pub struct UsageError(pub String);
+
+impl std::fmt::Display for UsageError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for UsageError {}
+
+/// `gelgrip calibrate …`.
+#[derive(Debug, Subcommand)]
+pub enum CalibrateCommand {
+    /// Collect a press dataset on the simulator: ball presses at random places and depths.
+    Collect(CollectArgs),
+    /// Train a gradient model on a press dataset (the last 10% of rows are held out).
+    Train(TrainArgs),
+    /// Evaluate a gradient model on a press dataset: gx_mae, gy_mae, depth_mae_mm.
+    Eval(EvalArgs),
+}
+
+/// `gelgrip calibrate collect`.
+#[derive(Debug, Args)]
+pub struct CollectArgs {
+    /// Sensor id (e.g. f1.tip).
+    #[arg(long)]
+    pub sensor: String,
+    /// Number of presses.
+    #[arg(long, default_value = "50", value_parser = clap::value_parser!(u32).range(1..=10_000))]
+    pub presses: u32,
+    /// Output directory.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Configuration (default: the embedded simulated gripper).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+}
+
+/// Gradient model kinds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ModelKind {
+    /// Binned colour → mean gradient.
+    Lut,
+    /// Multi-layer perceptron (arrives with the MLP calibration issue).
+    Mlp,
+}
+
+/// `gelgrip calibrate train`.
+#[derive(Debug, Args)]
+pub struct TrainArgs {
+    /// Press dataset directory.
+    #[arg(long)]
+    pub data: PathBuf,
+    /// Model kind.
+    #[arg(long, value_enum, default_value = "lut")]
+    pub model: ModelKind,
+    /// Colour key: the difference image or the raw frame.
+    #[arg(long, default_value = "diff", value_parser = ["diff", "raw"])]
+    pub input: String,
+    /// LUT bins per channel.
+    #[arg(long, default_value = "64", value_parser = clap::value_parser!(u16).range(2..=256))]
+    pub bins: u16,
+    /// Output model file (.safetensors).
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+/// `gelgrip calibrate eval`.
+#[derive(Debug, Args)]
+pub struct EvalArgs {
+    /// Model file.
+    #[arg(long)]
+    pub model: PathBuf,
+    /// Press dataset directory.
+    #[arg(long)]
+    pub data: PathBuf,
+    /// Depth solver for depth_mae_mm (`none` skips depth).
+    #[arg(long, default_value = "dst", value_parser = ["dst", "dct", "none"])]
+    pub solver: String,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `gelgrip depth`.
+#[derive(Debug, Args)]
+pub struct DepthArgs {
+    /// Gradients, H×W×2 `<f4` or `<f8` in C order.
+    #[arg(long)]
+    pub gradients: PathBuf,
+    /// Output depth map (H×W `<f4`, pixel units).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Solver: dst (zero border) or dct (zero mean).
+    #[arg(long, default_value = "dst", value_parser = ["dst", "dct"])]
+    pub solver: String,
+}
+
+/// `gelgrip bench pipeline`.
+#[derive(Debug, Args)]
+pub struct BenchPipelineArgs {
+    /// Sensors per set.
+    #[arg(long, default_value = "7", value_parser = clap::value_parser!(u8).range(1..=32))]
+    pub sensors: u8,
+    /// Gradient model kind (lut; mlp arrives with its issue).
+    #[arg(long, value_enum, default_value = "lut")]
+    pub model: ModelKind,
+    /// Use this trained model for every sensor instead of calibrating each one.
+    #[arg(long)]
+    pub model_file: Option<PathBuf>,
+    /// Depth solver.
+    #[arg(long, default_value = "dct", value_parser = ["dst", "dct"])]
+    pub solver: String,
+    /// JPEG decode scale (1, 2 or 4).
+    #[arg(long, default_value = "1", value_parser = ["1", "2", "4"])]
+    pub scale_arg: String,
+    /// Timed sets (the median needs at least 200).
+    #[arg(long, default_value = "200", value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    pub sets: u32,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+impl BenchPipelineArgs {
+    /// The decode scale as a number.
+    pub fn scale(&self) -> usize {
+        self.scale_arg.parse().unwrap_or(1)
+    }
 }
 
 /// Benchmarks.
@@ -39,6 +177,8 @@ pub enum Command {
 pub enum BenchCommand {
     /// Hub bus: measured set rate, latency and spread against the paper's model.
     Bus(BenchBusArgs),
+    /// Tactile pipeline: wall-clock cost of one set from JPEG to contact.
+    Pipeline(BenchPipelineArgs),
 }
 
 /// Time source.

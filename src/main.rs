@@ -5,6 +5,7 @@ mod cli;
 mod commands;
 mod embedded;
 mod output;
+mod simcam;
 mod wiring;
 
 use std::process::ExitCode;
@@ -45,6 +46,9 @@ fn main() -> ExitCode {
             Command::Run(args) => commands::run::run(args).await,
             Command::CheckConfig(args) => commands::check_config::run(args),
             Command::Bench(BenchCommand::Bus(args)) => commands::bench_bus::run(args).await,
+            Command::Bench(BenchCommand::Pipeline(args)) => commands::bench_pipeline::run(args),
+            Command::Calibrate(cmd) => commands::calibrate::run(cmd),
+            Command::Depth(args) => commands::depth::run(args),
         }
     });
     match result {

@@ -82,6 +82,7 @@ pub async fn open_acquisition(
 pub fn is_config_error(err: &anyhow::Error) -> bool {
     err.chain().any(|e| {
         e.downcast_ref::<ConfigError>().is_some()
+            || e.downcast_ref::<crate::cli::UsageError>().is_some()
             || matches!(e.downcast_ref::<OpenError>(), Some(OpenError::Config(_)))
     })
 }

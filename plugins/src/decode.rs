@@ -65,12 +65,9 @@ impl JpegStage {
         dec.decode_headers().map_err(|e| DecodeError::Jpeg {
             detail: format!("{e:?}"),
         })?;
-        let (w, h) = dec
-            .dimensions()
-            .map(|(w, h)| (w, h))
-            .ok_or_else(|| DecodeError::Jpeg {
-                detail: "no dimensions".into(),
-            })?;
+        let (w, h) = dec.dimensions().ok_or_else(|| DecodeError::Jpeg {
+            detail: "no dimensions".into(),
+        })?;
         if w != self.width || h != self.height {
             return Err(DecodeError::Size {
                 expected_w: self.width,

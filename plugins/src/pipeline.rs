@@ -7,7 +7,7 @@
 //! block activity alone. Depth is solved only over the bounding box of the active blocks
 //! plus a margin, where the depth outside is zero (DST) or the window border is taken as
 //! zero (DCT). All buffers are allocated up front; a solver plan is built the first time a
-//! window size appears (sizes are rounded up to multiples of 32 px, so there are few).
+//! window size appears (sizes are rounded up to multiples of 16 px, so there are few).
 
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -67,10 +67,12 @@ pub enum PipelineError {
 }
 
 /// Margin around the active blocks for the depth window, px (the depth must have fallen to
-/// zero inside it).
-const WINDOW_MARGIN_PX: usize = 16;
-/// Window sizes are rounded up to multiples of this, px.
-const WINDOW_QUANTUM_PX: usize = 32;
+/// zero inside it; the blocks next to active ones are already integrated, so one block).
+const WINDOW_MARGIN_PX: usize = 8;
+/// Window sizes are multiples of this (DCT-II: N = k × 16) or one more (DST-I: its
+/// interior has N + 1 = k × 16), so every transform has a smooth FFT size. Sizes with a
+/// large prime factor, such as 97, 127 or 239, are several times slower.
+const WINDOW_QUANTUM_PX: usize = 16;
 
 /// One sensor's pipeline with its buffers.
 pub struct SensorPipeline {
@@ -83,8 +85,9 @@ pub struct SensorPipeline {
     rgb: Vec<u8>,
     rgb_undistorted: Vec<u8>,
     reference: Option<Vec<f32>>,
-    diff: Vec<f32>,
     blocks: Vec<f32>,
+    /// Blocks within one block of an active block: gradients outside them are set to 0.
+    near_active: Vec<bool>,
     gx: Vec<f32>,
     gy: Vec<f32>,
     depth_px: Vec<f32>,
@@ -121,8 +124,8 @@ impl SensorPipeline {
             rgb: vec![0; w * h * 3],
             rgb_undistorted: vec![0; w * h * 3],
             reference: None,
-            diff: vec![0.0; w * h * 3],
             blocks: vec![0.0; bw * bh],
+            near_active: vec![true; bw * bh],
             gx: vec![0.0; w * h],
             gy: vec![0.0; w * h],
             depth_px: vec![0.0; w * h],
@@ -175,8 +178,8 @@ impl SensorPipeline {
         let mm = self.mm_per_px as f32;
         for jpeg in no_contact {
             self.load(jpeg)?;
-            self.difference();
             self.block_activity();
+            self.mark_near_active(None);
             activity.extend_from_slice(&self.blocks);
             if self.choice.solver.is_some() {
                 let d = self.solve_window(window);
@@ -188,34 +191,33 @@ impl SensorPipeline {
     }
 
     fn central_window(&self) -> (usize, usize, usize, usize) {
-        let w = (4 * WINDOW_QUANTUM_PX).min(self.width);
-        let h = (4 * WINDOW_QUANTUM_PX).min(self.height);
+        let extra = usize::from(self.choice.solver != Some(Solver::Dct));
+        let w = (8 * WINDOW_QUANTUM_PX + extra).min(self.width);
+        let h = (8 * WINDOW_QUANTUM_PX + extra).min(self.height);
         ((self.width - w) / 2, (self.height - h) / 2, w, h)
     }
 
-    fn difference(&mut self) {
-        if let Some(reference) = &self.reference {
-            for ((d, v), r) in self.diff.iter_mut().zip(&self.rgb).zip(reference) {
-                *d = f32::from(*v) - r;
-            }
-        }
-    }
-
+    /// Per 8×8 block: the sum over channels of |mean(frame − reference)|, in one pass over
+    /// the frame (the full difference image is never materialised).
     fn block_activity(&mut self) {
         let (w, h) = (self.width, self.height);
         let bw = w.div_ceil(BLOCK_PX);
-        self.blocks.fill(0.0);
+        let Some(reference) = &self.reference else {
+            return;
+        };
         for by in 0..h.div_ceil(BLOCK_PX) {
             for bx in 0..bw {
                 let mut sum = [0.0f32; 3];
-                let mut n = 0.0f32;
-                for y in by * BLOCK_PX..((by + 1) * BLOCK_PX).min(h) {
-                    for x in bx * BLOCK_PX..((bx + 1) * BLOCK_PX).min(w) {
-                        let i = (y * w + x) * 3;
-                        sum[0] += self.diff[i];
-                        sum[1] += self.diff[i + 1];
-                        sum[2] += self.diff[i + 2];
-                        n += 1.0;
+                let (xs, xe) = (bx * BLOCK_PX, ((bx + 1) * BLOCK_PX).min(w));
+                let ys = by * BLOCK_PX..((by + 1) * BLOCK_PX).min(h);
+                let n = ((xe - xs) * ys.len()) as f32;
+                for y in ys {
+                    let row = &self.rgb[(y * w + xs) * 3..(y * w + xe) * 3];
+                    let refs = &reference[(y * w + xs) * 3..(y * w + xe) * 3];
+                    for (px, rf) in row.chunks_exact(3).zip(refs.chunks_exact(3)) {
+                        sum[0] += f32::from(px[0]) - rf[0];
+                        sum[1] += f32::from(px[1]) - rf[1];
+                        sum[2] += f32::from(px[2]) - rf[2];
                     }
                 }
                 self.blocks[by * bw + bx] = sum.iter().map(|s| (s / n.max(1.0)).abs()).sum();
@@ -239,10 +241,13 @@ impl SensorPipeline {
         if x0 == usize::MAX {
             return None;
         }
+        let extra = usize::from(self.choice.solver != Some(Solver::Dct));
         let fit = |lo: usize, hi: usize, limit: usize| {
             let lo = lo.saturating_sub(WINDOW_MARGIN_PX);
             let hi = (hi + WINDOW_MARGIN_PX).min(limit);
-            let len = (hi - lo).div_ceil(WINDOW_QUANTUM_PX) * WINDOW_QUANTUM_PX;
+            let len = (hi - lo).saturating_sub(extra).div_ceil(WINDOW_QUANTUM_PX)
+                * WINDOW_QUANTUM_PX
+                + extra;
             let len = len.min(limit);
             (lo.min(limit - len), len)
         };
@@ -251,15 +256,49 @@ impl SensorPipeline {
         Some((x, y, w, h))
     }
 
+    /// Mark blocks within one block of an active one (all blocks when `threshold` is None).
+    fn mark_near_active(&mut self, threshold: Option<f32>) {
+        let bw = self.width.div_ceil(BLOCK_PX);
+        let bh = self.height.div_ceil(BLOCK_PX);
+        let Some(t) = threshold else {
+            self.near_active.fill(true);
+            return;
+        };
+        self.near_active.fill(false);
+        for by in 0..bh {
+            for bx in 0..bw {
+                if self.blocks[by * bw + bx] > t {
+                    for ny in by.saturating_sub(1)..(by + 2).min(bh) {
+                        for nx in bx.saturating_sub(1)..(bx + 2).min(bw) {
+                            self.near_active[ny * bw + nx] = true;
+                        }
+                    }
+                }
+            }
+        }
+    }
+
     /// Gradients and depth (px) over window `(x, y, w, h)`; returns the window's depth.
+    /// Pixels away from any active block get zero gradient: only the contact is integrated.
     fn solve_window(&mut self, (x0, y0, w, h): (usize, usize, usize, usize)) -> &[f32] {
         let lut = &self.choice.lut;
         let width = self.width;
+        let bw = self.width.div_ceil(BLOCK_PX);
+        let Some(reference) = &self.reference else {
+            return &[];
+        };
         for y in 0..h {
             for x in 0..w {
                 let p = (y0 + y) * width + x0 + x;
+                if !self.near_active[((y0 + y) / BLOCK_PX) * bw + (x0 + x) / BLOCK_PX] {
+                    self.gx[y * w + x] = 0.0;
+                    self.gy[y * w + x] = 0.0;
+                    continue;
+                }
                 let key = match lut.input {
-                    Input::Diff => [self.diff[p * 3], self.diff[p * 3 + 1], self.diff[p * 3 + 2]],
+                    Input::Diff => {
+                        [0, 1, 2].map(|c| f32::from(self.rgb[p * 3 + c]) - reference[p * 3 + c])
+                    }
                     Input::Raw => [
                         f32::from(self.rgb[p * 3]),
                         f32::from(self.rgb[p * 3 + 1]),
@@ -291,7 +330,6 @@ impl SensorPipeline {
     pub fn process(&mut self, jpeg: &[u8], needs: Needs) -> Result<ContactSummary, PipelineError> {
         let noise = self.noise.ok_or(PipelineError::NoReference)?;
         self.load(jpeg)?;
-        self.difference();
         self.block_activity();
         let window = self.active_window(noise.block_threshold);
         if window.is_none() && self.choice.reference_alpha > 0.0 {
@@ -316,6 +354,7 @@ impl SensorPipeline {
         }
         let (x0, y0, w, _) = window;
         let mm = self.mm_per_px as f32;
+        self.mark_near_active(Some(noise.block_threshold));
         self.solve_window(window);
         let (_, _, ww, wh) = self.last_window;
         let depth = &mut self.depth_px[..ww * wh];

@@ -1,5 +1,8 @@
 //! One module per subcommand.
 
 pub mod bench_bus;
+pub mod bench_pipeline;
+pub mod calibrate;
 pub mod check_config;
+pub mod depth;
 pub mod run;

@@ -37,6 +37,68 @@ pub fn encode_jpeg(
     Ok(out)
 }
 
+/// One simulated sensor's camera: its unit variation, optics and encoder.
+#[derive(Debug, Clone)]
+pub struct SensorCamera {
+    index: usize,
+    /// Image width, px.
+    pub width: usize,
+    /// Image height, px.
+    pub height: usize,
+    /// Pixel size, mm.
+    pub mm_per_px: f64,
+    unit: UnitVariation,
+    seed: u64,
+    noise_sigma: f64,
+    quality: u8,
+}
+
+impl SensorCamera {
+    /// The camera of sensor `index` of `layout` under `cfg`.
+    pub fn new(layout: &HandLayout, index: usize, cfg: &SimConfig) -> Option<Self> {
+        let s = layout.sensors.get(index)?;
+        Some(Self {
+            index,
+            width: s.resolution.width_px as usize,
+            height: s.resolution.height_px as usize,
+            mm_per_px: s.mm_per_px,
+            unit: UnitVariation::draw(cfg.seed, index),
+            seed: cfg.seed,
+            noise_sigma: cfg.noise_sigma,
+            quality: cfg.jpeg_quality,
+        })
+    }
+
+    /// The built-in press of this sensor (what `hub.sim` serves).
+    pub fn builtin_press(&self, cfg: &SimConfig) -> HeightMap {
+        HeightMap::builtin_press(
+            self.index,
+            self.width,
+            self.height,
+            self.mm_per_px,
+            cfg.ball_diameter_mm,
+            cfg.press_depth_mm,
+        )
+    }
+
+    /// Render `map` as RGB with the noise of frame number `frame`.
+    pub fn rgb(&self, map: &HeightMap, frame: u64) -> Vec<u8> {
+        let mut rng = rng_for(self.seed, ((self.index as u64) << 40) ^ frame);
+        render(map, self.mm_per_px, &self.unit, self.noise_sigma, &mut rng)
+    }
+
+    /// Render `map` and encode it as the sensor's JPEG.
+    pub fn jpeg(&self, map: &HeightMap, frame: u64) -> Result<Vec<u8>, EncodeError> {
+        let rgb = self.rgb(map, frame);
+        encode_jpeg(&rgb, self.width as u16, self.height as u16, self.quality).map_err(|source| {
+            EncodeError {
+                sensor: self.index,
+                source,
+            }
+        })
+    }
+}
+
 /// Pre-rendered frames per sensor.
 #[derive(Debug, Clone)]
 pub struct FramePool {
@@ -46,32 +108,12 @@ pub struct FramePool {
 impl FramePool {
     /// Render and encode the pool for every sensor of `layout`.
     pub fn render(layout: &HandLayout, cfg: &SimConfig) -> Result<Self, EncodeError> {
-        let frames = layout
-            .sensors
-            .iter()
-            .enumerate()
-            .map(|(i, s)| {
-                let (w, h) = (
-                    s.resolution.width_px as usize,
-                    s.resolution.height_px as usize,
-                );
-                let map = HeightMap::builtin_press(
-                    i,
-                    w,
-                    h,
-                    s.mm_per_px,
-                    cfg.ball_diameter_mm,
-                    cfg.press_depth_mm,
-                );
-                let unit = UnitVariation::draw(cfg.seed, i);
-                (0..cfg.noise_pool)
-                    .map(|k| {
-                        let mut rng = rng_for(cfg.seed, ((i as u64) << 32) | k as u64);
-                        let rgb = render(&map, s.mm_per_px, &unit, cfg.noise_sigma, &mut rng);
-                        encode_jpeg(&rgb, w as u16, h as u16, cfg.jpeg_quality)
-                            .map(Bytes::from)
-                            .map_err(|source| EncodeError { sensor: i, source })
-                    })
+        let frames = (0..layout.sensors.len())
+            .filter_map(|i| SensorCamera::new(layout, i, cfg))
+            .map(|cam| {
+                let map = cam.builtin_press(cfg);
+                (0..cfg.noise_pool as u64)
+                    .map(|k| cam.jpeg(&map, k).map(Bytes::from))
                     .collect::<Result<Vec<_>, _>>()
             })
             .collect::<Result<Vec<_>, _>>()?;
@@ -96,7 +138,7 @@ impl FramePool {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use gelgrip_controller::config::DiskFiles;
     use gelgrip_controller::config::{BackendSection, FieldCheck};
