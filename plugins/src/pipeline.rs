@@ -403,3 +403,6 @@ fn border_mean(d: &[f32], w: usize, h: usize) -> f32 {
     }
     if n > 0.0 { sum / n } else { 0.0 }
 }
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,125 @@
+//! Extremes: black, saturated, constant and pure-noise frames, and 1×1, 2×2 and 1024×1024
+//! images, must give finite results (no NaN or Inf) and never panic.
+
+use std::sync::Arc;
+
+use jpeg_encoder::{ColorType, Encoder};
+use rand::{Rng, SeedableRng};
+use rand_pcg::Pcg64Mcg;
+
+use super::*;
+use crate::lut::LutTrainer;
+
+fn jpeg(w: usize, h: usize, pixel: impl Fn(usize, usize, usize) -> u8) -> Vec<u8> {
+    let rgb: Vec<u8> = (0..w * h * 3).map(|k| pixel((k / 3) % w, (k / 3) / w, k % 3)).collect();
+    let mut out = Vec::new();
+    Encoder::new(&mut out, 85)
+        .encode(&rgb, w as u16, h as u16, ColorType::Rgb)
+        .expect("encodes");
+    out
+}
+
+fn extreme_lut() -> Arc<LutModel> {
+    // A model whose table holds huge gradients, the worst case for the solvers.
+    let mut t = LutTrainer::new(Input::Diff, 8);
+    t.add([0.0; 3], 0.0, 0.0);
+    t.add([120.0, -120.0, 120.0], 1e6, -1e6);
+    Arc::new(t.finish(4, 4))
+}
+
+fn pipeline(w: usize, h: usize, solver: Option<Solver>) -> SensorPipeline {
+    let choice = StageChoice {
+        decode_scale: 1,
+        undistort: None,
+        reference_alpha: 0.05,
+        lut: extreme_lut(),
+        solver,
+        stiffness_n_per_mm3: 0.1,
+    };
+    SensorPipeline::new(choice, w, h, 0.0625)
+}
+
+fn finite(s: &ContactSummary) -> bool {
+    let opt = |v: Option<f64>| v.is_none_or(f64::is_finite);
+    s.area_mm2.is_finite()
+        && opt(s.max_depth_mm)
+        && opt(s.mean_depth_mm)
+        && opt(s.volume_mm3)
+        && opt(s.force_n)
+        && s.centroid_px.is_none_or(|(x, y)| x.is_finite() && y.is_finite())
+}
+
+#[test]
+fn extreme_frames_give_finite_results() {
+    let (w, h) = (64, 48);
+    let mut rng = Pcg64Mcg::seed_from_u64(3);
+    let noise: Vec<u8> = (0..w * h * 3).map(|_| rng.random()).collect();
+    let frames = [
+        jpeg(w, h, |_, _, _| 0),
+        jpeg(w, h, |_, _, _| 255),
+        jpeg(w, h, |_, _, _| 128),
+        jpeg(w, h, |x, y, c| noise[(y * w + x) * 3 + c]),
+        jpeg(w, h, |x, _, c| if x < w / 2 { 0 } else { [255, 0, 255][c] }),
+    ];
+    for solver in [Some(Solver::Dst), Some(Solver::Dct), None] {
+        for reference in &frames {
+            let mut p = pipeline(w, h, solver);
+            p.calibrate(&[reference, reference]).expect("calibrates");
+            for frame in &frames {
+                for depth in [true, false] {
+                    let s = p.process(frame, Needs { depth }).expect("processes");
+                    assert!(finite(&s), "{solver:?} {s:?}");
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn tiny_and_large_images_work() {
+    for (w, h) in [(1, 1), (2, 2), (1024, 1024)] {
+        let frame = jpeg(w, h, |x, y, c| ((x * 7 + y * 3 + c * 50) % 256) as u8);
+        let flat = jpeg(w, h, |_, _, _| 100);
+        for solver in [Solver::Dst, Solver::Dct] {
+            let mut p = pipeline(w, h, Some(solver));
+            p.calibrate(&[&flat]).expect("calibrates");
+            let s = p.process(&frame, Needs { depth: true }).expect("processes");
+            assert!(finite(&s), "{w}x{h} {solver:?} {s:?}");
+        }
+    }
+}
+
+#[test]
+fn bad_input_is_a_typed_error() {
+    let mut p = pipeline(64, 48, Some(Solver::Dct));
+    let frame = jpeg(64, 48, |_, _, _| 9);
+    assert_eq!(
+        p.process(&frame, Needs { depth: true }),
+        Err(PipelineError::NoReference)
+    );
+    p.calibrate(&[&frame]).expect("calibrates");
+    assert!(matches!(
+        p.process(b"not a jpeg", Needs { depth: true }),
+        Err(PipelineError::Decode(_))
+    ));
+    let wrong = jpeg(32, 32, |_, _, _| 9);
+    assert!(matches!(
+        p.process(&wrong, Needs { depth: true }),
+        Err(PipelineError::Decode(DecodeError::Size { .. }))
+    ));
+    let truncated = &frame[..frame.len() / 2];
+    let _ = p.process(truncated, Needs { depth: true }); // an error or a partial image, never a panic
+}
+
+#[test]
+fn reference_never_drifts_during_contact() {
+    let (w, h) = (64, 48);
+    let flat = jpeg(w, h, |_, _, _| 100);
+    let pressed = jpeg(w, h, |x, y, _| if (24..40).contains(&x) && (16..32).contains(&y) { 200 } else { 100 });
+    let mut p = pipeline(w, h, Some(Solver::Dct));
+    p.calibrate(&[&flat, &flat]).expect("calibrates");
+    for _ in 0..200 {
+        let s = p.process(&pressed, Needs { depth: false }).expect("processes");
+        assert!(s.in_contact, "contact faded: the reference absorbed it");
+    }
+}

@@ -1,0 +1,115 @@
+//! End-to-end tests of the sensing commands: calibrate collect/train/eval and depth.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use gelgrip_plugins::npy;
+use serde_json::Value;
+
+fn gelgrip(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_gelgrip"))
+        .args(args)
+        .env("RUST_LOG", "warn")
+        .output()
+        .expect("the gelgrip binary runs")
+}
+
+fn ok(out: &Output) -> String {
+    assert!(
+        out.status.success(),
+        "exit {:?}\nstderr: {}",
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("gelgrip-e2e-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("scratch dir");
+    dir
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().expect("utf-8 path")
+}
+
+#[test]
+fn collect_train_eval_round_trip() {
+    let dir = scratch("cal");
+    let data = dir.join("presses");
+    let model = dir.join("lut.safetensors");
+    ok(&gelgrip(&["calibrate", "collect", "--sensor", "f1.tip", "--presses", "12", "--out", s(&data)]));
+    for f in ["dataset.toml", "background.png", "presses.csv", "press_000.png", "press_011.png"] {
+        assert!(data.join(f).exists(), "{f} missing");
+    }
+    let csv = std::fs::read_to_string(data.join("presses.csv")).expect("csv");
+    assert!(csv.starts_with("file,center_x_px,center_y_px,contact_radius_px\n"));
+    let train = ok(&gelgrip(&["calibrate", "train", "--data", s(&data), "--model", "lut", "--out", s(&model)]));
+    assert!(train.contains("test  MAE"), "{train}");
+    let eval: Value = serde_json::from_str(&ok(&gelgrip(&[
+        "calibrate", "eval", "--model", s(&model), "--data", s(&data), "--json",
+    ])))
+    .expect("one JSON object");
+    let gx = eval["gx_mae"].as_f64().expect("gx_mae");
+    let depth = eval["depth_mae_mm"].as_f64().expect("depth_mae_mm");
+    assert!(gx > 0.0 && gx < 0.1, "{eval}");
+    assert!(depth < 0.05, "depth error {depth} mm: {eval}");
+    let none: Value = serde_json::from_str(&ok(&gelgrip(&[
+        "calibrate", "eval", "--model", s(&model), "--data", s(&data), "--json", "--solver", "none",
+    ])))
+    .expect("json");
+    assert!(none["depth_mae_mm"].is_null(), "{none}");
+}
+
+#[test]
+fn bad_inputs_are_clear_errors() {
+    let dir = scratch("bad");
+    let out = gelgrip(&["calibrate", "eval", "--model", s(&dir.join("missing.safetensors")), "--data", s(&dir)]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("missing.safetensors"));
+    let out = gelgrip(&["calibrate", "collect", "--sensor", "f9.tip", "--out", s(&dir)]);
+    assert!(String::from_utf8_lossy(&out.stderr).contains("no sensor `f9.tip`"));
+    let out = gelgrip(&["calibrate", "train", "--data", s(&dir), "--model", "mlp", "--out", s(&dir.join("m"))]);
+    assert_eq!(out.status.code(), Some(2));
+}
+
+#[test]
+fn depth_command_integrates_gradients() {
+    let dir = scratch("depth");
+    let (h, w) = (24usize, 32usize);
+    // z = a bump with a zero border; gradients by the contract's forward differences.
+    let z: Vec<f64> = (0..h * w)
+        .map(|k| {
+            let (i, j) = ((k / w) as f64, (k % w) as f64);
+            let b = (i * (h as f64 - 1.0 - i) * j * (w as f64 - 1.0 - j)).max(0.0);
+            b / 1e4
+        })
+        .collect();
+    let mut g = vec![0.0f32; h * w * 2];
+    for i in 0..h {
+        for j in 0..w {
+            let k = i * w + j;
+            if j + 1 < w {
+                g[k * 2] = (z[k + 1] - z[k]) as f32;
+            }
+            if i + 1 < h {
+                g[k * 2 + 1] = (z[k + w] - z[k]) as f32;
+            }
+        }
+    }
+    let gpath = dir.join("g.npy");
+    let dpath = dir.join("d.npy");
+    npy::write_f32(&gpath, &[h, w, 2], &g).expect("write gradients");
+    ok(&gelgrip(&["depth", "--gradients", s(&gpath), "--out", s(&dpath), "--solver", "dst"]));
+    let d = npy::read(&dpath).expect("depth npy");
+    assert_eq!(d.shape, vec![h, w]);
+    let err = d.data.iter().zip(&z).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+    assert!(err < 1e-4, "max error {err}");
+    let bad = dir.join("bad.npy");
+    npy::write_f32(&bad, &[5], &[0.0; 5]).expect("write");
+    let out = gelgrip(&["depth", "--gradients", s(&bad), "--out", s(&dpath)]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("H x W x 2"));
+}
