@@ -35,6 +35,7 @@ pub fn load_config(path: Option<&Path>, registry: &TransportRegistry) -> anyhow:
             registry,
         )?,
     };
+    gelgrip_plugins::config::PipelineConfig::from_section(&config.pipeline, &config.layout)?;
     Ok(config)
 }
 

@@ -40,16 +40,46 @@ fn collect_train_eval_round_trip() {
     let dir = scratch("cal");
     let data = dir.join("presses");
     let model = dir.join("lut.safetensors");
-    ok(&gelgrip(&["calibrate", "collect", "--sensor", "f1.tip", "--presses", "12", "--out", s(&data)]));
-    for f in ["dataset.toml", "background.png", "presses.csv", "press_000.png", "press_011.png"] {
+    ok(&gelgrip(&[
+        "calibrate",
+        "collect",
+        "--sensor",
+        "f1.tip",
+        "--presses",
+        "12",
+        "--out",
+        s(&data),
+    ]));
+    for f in [
+        "dataset.toml",
+        "background.png",
+        "presses.csv",
+        "press_000.png",
+        "press_011.png",
+    ] {
         assert!(data.join(f).exists(), "{f} missing");
     }
     let csv = std::fs::read_to_string(data.join("presses.csv")).expect("csv");
     assert!(csv.starts_with("file,center_x_px,center_y_px,contact_radius_px\n"));
-    let train = ok(&gelgrip(&["calibrate", "train", "--data", s(&data), "--model", "lut", "--out", s(&model)]));
+    let train = ok(&gelgrip(&[
+        "calibrate",
+        "train",
+        "--data",
+        s(&data),
+        "--model",
+        "lut",
+        "--out",
+        s(&model),
+    ]));
     assert!(train.contains("test  MAE"), "{train}");
     let eval: Value = serde_json::from_str(&ok(&gelgrip(&[
-        "calibrate", "eval", "--model", s(&model), "--data", s(&data), "--json",
+        "calibrate",
+        "eval",
+        "--model",
+        s(&model),
+        "--data",
+        s(&data),
+        "--json",
     ])))
     .expect("one JSON object");
     let gx = eval["gx_mae"].as_f64().expect("gx_mae");
@@ -57,7 +87,15 @@ fn collect_train_eval_round_trip() {
     assert!(gx > 0.0 && gx < 0.1, "{eval}");
     assert!(depth < 0.05, "depth error {depth} mm: {eval}");
     let none: Value = serde_json::from_str(&ok(&gelgrip(&[
-        "calibrate", "eval", "--model", s(&model), "--data", s(&data), "--json", "--solver", "none",
+        "calibrate",
+        "eval",
+        "--model",
+        s(&model),
+        "--data",
+        s(&data),
+        "--json",
+        "--solver",
+        "none",
     ])))
     .expect("json");
     assert!(none["depth_mae_mm"].is_null(), "{none}");
@@ -66,12 +104,35 @@ fn collect_train_eval_round_trip() {
 #[test]
 fn bad_inputs_are_clear_errors() {
     let dir = scratch("bad");
-    let out = gelgrip(&["calibrate", "eval", "--model", s(&dir.join("missing.safetensors")), "--data", s(&dir)]);
+    let out = gelgrip(&[
+        "calibrate",
+        "eval",
+        "--model",
+        s(&dir.join("missing.safetensors")),
+        "--data",
+        s(&dir),
+    ]);
     assert_eq!(out.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&out.stderr).contains("missing.safetensors"));
-    let out = gelgrip(&["calibrate", "collect", "--sensor", "f9.tip", "--out", s(&dir)]);
+    let out = gelgrip(&[
+        "calibrate",
+        "collect",
+        "--sensor",
+        "f9.tip",
+        "--out",
+        s(&dir),
+    ]);
     assert!(String::from_utf8_lossy(&out.stderr).contains("no sensor `f9.tip`"));
-    let out = gelgrip(&["calibrate", "train", "--data", s(&dir), "--model", "mlp", "--out", s(&dir.join("m"))]);
+    let out = gelgrip(&[
+        "calibrate",
+        "train",
+        "--data",
+        s(&dir),
+        "--model",
+        "mlp",
+        "--out",
+        s(&dir.join("m")),
+    ]);
     assert_eq!(out.status.code(), Some(2));
 }
 
@@ -102,10 +163,23 @@ fn depth_command_integrates_gradients() {
     let gpath = dir.join("g.npy");
     let dpath = dir.join("d.npy");
     npy::write_f32(&gpath, &[h, w, 2], &g).expect("write gradients");
-    ok(&gelgrip(&["depth", "--gradients", s(&gpath), "--out", s(&dpath), "--solver", "dst"]));
+    ok(&gelgrip(&[
+        "depth",
+        "--gradients",
+        s(&gpath),
+        "--out",
+        s(&dpath),
+        "--solver",
+        "dst",
+    ]));
     let d = npy::read(&dpath).expect("depth npy");
     assert_eq!(d.shape, vec![h, w]);
-    let err = d.data.iter().zip(&z).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+    let err = d
+        .data
+        .iter()
+        .zip(&z)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
     assert!(err < 1e-4, "max error {err}");
     let bad = dir.join("bad.npy");
     npy::write_f32(&bad, &[5], &[0.0; 5]).expect("write");

@@ -7,6 +7,7 @@
 //! - [`npy`]: NumPy `.npy` gradients and depth maps.
 
 pub mod calibrate;
+pub mod config;
 pub mod contact;
 pub mod dataset;
 pub mod decode;

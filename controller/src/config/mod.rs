@@ -113,6 +113,8 @@ pub struct AppConfig {
     pub servos: ServoSettings,
     /// The dashboard.
     pub http: HttpSettings,
+    /// `[pipeline]`: the tactile pipeline's stage choices, validated by the sensing plugins.
+    pub pipeline: BackendSection,
 }
 
 #[derive(Deserialize)]
@@ -128,6 +130,8 @@ struct RawConfig {
     servos: RawServos,
     #[serde(default)]
     http: RawHttp,
+    #[serde(default)]
+    pipeline: toml::Table,
 }
 
 #[derive(Deserialize)]
@@ -246,6 +250,13 @@ impl AppConfig {
         let layout_path = base_dir.join(&raw.layout);
         let layout_text = files.read(&layout_path)?;
         let layout = HandLayout::from_toml(&layout_path.display().to_string(), &layout_text)?;
+        let pipeline = BackendSection {
+            check: check.clone(),
+            prefix: "pipeline".into(),
+            table: raw.pipeline,
+            base_dir: base_dir.to_path_buf(),
+            files: files.clone(),
+        };
         let hub = validate_hub(&check, raw.hub, base_dir, files, registry)?;
         registry.validate(&hub.transport, &hub.section, &layout)?;
         Ok(Self {
@@ -255,6 +266,7 @@ impl AppConfig {
             gate: validate_gate(&check, raw.gate)?,
             servos: validate_servos(&check, raw.servos)?,
             http: validate_http(&check, raw.http)?,
+            pipeline,
         })
     }
 }

@@ -11,7 +11,9 @@ use super::*;
 use crate::lut::LutTrainer;
 
 fn jpeg(w: usize, h: usize, pixel: impl Fn(usize, usize, usize) -> u8) -> Vec<u8> {
-    let rgb: Vec<u8> = (0..w * h * 3).map(|k| pixel((k / 3) % w, (k / 3) / w, k % 3)).collect();
+    let rgb: Vec<u8> = (0..w * h * 3)
+        .map(|k| pixel((k / 3) % w, (k / 3) / w, k % 3))
+        .collect();
     let mut out = Vec::new();
     Encoder::new(&mut out, 85)
         .encode(&rgb, w as u16, h as u16, ColorType::Rgb)
@@ -46,7 +48,8 @@ fn finite(s: &ContactSummary) -> bool {
         && opt(s.mean_depth_mm)
         && opt(s.volume_mm3)
         && opt(s.force_n)
-        && s.centroid_px.is_none_or(|(x, y)| x.is_finite() && y.is_finite())
+        && s.centroid_px
+            .is_none_or(|(x, y)| x.is_finite() && y.is_finite())
 }
 
 #[test]
@@ -115,11 +118,19 @@ fn bad_input_is_a_typed_error() {
 fn reference_never_drifts_during_contact() {
     let (w, h) = (64, 48);
     let flat = jpeg(w, h, |_, _, _| 100);
-    let pressed = jpeg(w, h, |x, y, _| if (24..40).contains(&x) && (16..32).contains(&y) { 200 } else { 100 });
+    let pressed = jpeg(w, h, |x, y, _| {
+        if (24..40).contains(&x) && (16..32).contains(&y) {
+            200
+        } else {
+            100
+        }
+    });
     let mut p = pipeline(w, h, Some(Solver::Dct));
     p.calibrate(&[&flat, &flat]).expect("calibrates");
     for _ in 0..200 {
-        let s = p.process(&pressed, Needs { depth: false }).expect("processes");
+        let s = p
+            .process(&pressed, Needs { depth: false })
+            .expect("processes");
         assert!(s.in_contact, "contact faded: the reference absorbed it");
     }
 }
