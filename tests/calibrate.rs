@@ -187,3 +187,38 @@ fn depth_command_integrates_gradients() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("H x W x 2"));
 }
+
+/// The tolerances documented in docs/pipeline.md, checked on simulated 6 mm / 0.5 mm presses
+/// through the whole pipeline (JPEG → LUT → DCT-II → contact), each sensor calibrated first.
+#[test]
+fn pipeline_accuracy_is_within_documented_tolerances() {
+    let out = ok(&gelgrip(&[
+        "bench",
+        "pipeline",
+        "--sensors",
+        "3",
+        "--sets",
+        "3",
+        "--json",
+    ]));
+    let v: Value = serde_json::from_str(&out).expect("one JSON object");
+    for key in [
+        "ms_per_set",
+        "ms_per_set_p99",
+        "full_frame_dst_ms",
+        "full_frame_dct_ms",
+    ] {
+        assert!(v[key].as_f64().is_some_and(f64::is_finite), "{key}: {v}");
+    }
+    let rows = v["per_sensor"].as_array().expect("per_sensor");
+    assert_eq!(rows.len(), 3);
+    for r in rows {
+        let f = |k: &str| r[k].as_f64().unwrap_or(f64::NAN);
+        let depth_err = (f("max_depth_mm") - f("true_max_depth_mm")).abs() / f("true_max_depth_mm");
+        let area_err = f("area_err_pct").abs();
+        let volume_err = (f("volume_mm3") - f("true_volume_mm3")).abs() / f("true_volume_mm3");
+        assert!(depth_err <= 0.15, "max depth error {depth_err}: {r}");
+        assert!(area_err <= 30.0, "area error {area_err} %: {r}");
+        assert!(volume_err <= 0.20, "volume error {volume_err}: {r}");
+    }
+}
