@@ -390,6 +390,36 @@ impl SensorPipeline {
     }
 }
 
+impl StageChoice {
+    /// The stage choice for one sensor's validated config, with its loaded gradient model.
+    pub fn from_config(stages: &crate::config::SensorStages, lut: Arc<LutModel>) -> Self {
+        Self {
+            decode_scale: stages.decode_scale,
+            undistort: stages.undistort,
+            reference_alpha: stages.reference_alpha,
+            lut,
+            solver: stages.solver,
+            stiffness_n_per_mm3: stages.stiffness_n_per_mm3,
+        }
+    }
+}
+
+/// Process one synchronized set: frame `i` through pipeline `i`, the sensors in parallel
+/// (rayon), results into `out` (one per sensor).
+pub fn process_set(
+    pipes: &mut [SensorPipeline],
+    frames: &[&[u8]],
+    needs: Needs,
+    out: &mut [Result<ContactSummary, PipelineError>],
+) {
+    use rayon::prelude::*;
+    pipes
+        .par_iter_mut()
+        .zip(frames.par_iter())
+        .zip(out.par_iter_mut())
+        .for_each(|((pipe, frame), slot)| *slot = pipe.process(frame, needs));
+}
+
 fn border_mean(d: &[f32], w: usize, h: usize) -> f32 {
     let mut sum = 0.0;
     let mut n = 0.0;

@@ -5,20 +5,20 @@
 //! Every sensor is pressed by a 6 mm ball 0.5 mm deep. Each sensor is calibrated first, as it
 //! would be on hardware: 50 simulated presses, a LUT trained on them, then a 20-frame
 //! no-contact capture for the reference and the noise thresholds. The timed loop processes
-//! the sensors of each set in parallel (rayon, one task per sensor) and measures wall-clock
-//! time per set.
+//! the sensors of each set in parallel (`process_set`: rayon, one task per sensor) and
+//! measures wall-clock time per set.
 
 use std::sync::Arc;
 use std::time::Instant;
 
-use rayon::prelude::*;
 use serde::Serialize;
 
 use gelgrip_controller::layout::HandLayout;
 use gelgrip_plugins::calibrate;
-use gelgrip_plugins::contact::{ContactSummary, DEFAULT_STIFFNESS_N_PER_MM3};
+use gelgrip_plugins::config::{PipelineConfig, SensorStages};
+use gelgrip_plugins::contact::ContactSummary;
 use gelgrip_plugins::lut::{Input, LutModel};
-use gelgrip_plugins::pipeline::{Needs, SensorPipeline, StageChoice};
+use gelgrip_plugins::pipeline::{Needs, SensorPipeline, StageChoice, process_set};
 use gelgrip_plugins::poisson::{PoissonPlan, Solver};
 use gelgrip_sim::scene::HeightMap;
 
@@ -118,6 +118,8 @@ pub fn run(args: BenchPipelineArgs) -> anyhow::Result<u8> {
         ));
     }
     let solver = Solver::parse(&args.solver).unwrap_or(Solver::Dst);
+    // The embedded default [pipeline] section, with the bench's solver and scale on top.
+    let pipeline_config = PipelineConfig::from_section(&config.pipeline, &config.layout)?;
     let tmp = std::env::temp_dir().join(format!("gelgrip-bench-pipeline-{}", std::process::id()));
     let mut pipes = Vec::new();
     let mut frames = Vec::new();
@@ -133,14 +135,12 @@ pub fn run(args: BenchPipelineArgs) -> anyhow::Result<u8> {
                 calibrate::train_lut(&ds, Input::Diff, gelgrip_plugins::lut::DEFAULT_BINS)?
             }
         };
-        let choice = StageChoice {
+        let stages = SensorStages {
             decode_scale: args.scale(),
-            undistort: None,
-            reference_alpha: 0.0,
-            lut: Arc::new(lut),
             solver: Some(solver),
-            stiffness_n_per_mm3: DEFAULT_STIFFNESS_N_PER_MM3,
+            ..pipeline_config.sensors[0].clone()
         };
+        let choice = StageChoice::from_config(&stages, Arc::new(lut));
         let mut pipe = SensorPipeline::new(choice, cam.width, cam.height, cam.mm_per_px);
         let quiet = simcam::no_contact_frames(&cam, 3_000_000, NOISE_FRAMES)?;
         let quiet: Vec<&[u8]> = quiet.iter().map(Vec::as_slice).collect();
@@ -156,25 +156,18 @@ pub fn run(args: BenchPipelineArgs) -> anyhow::Result<u8> {
     }
     let _ = std::fs::remove_dir_all(&tmp);
     let needs = Needs { depth: true };
-    let mut results = vec![ContactSummary::default(); pipes.len()];
+    let mut results = vec![Ok(ContactSummary::default()); pipes.len()];
     let sets = args.sets as usize;
     let mut times = Vec::with_capacity(sets);
     for set in 0..WARMUP_SETS + sets {
+        let set_frames: Vec<&[u8]> = frames.iter().map(|f| f[set % f.len()].as_slice()).collect();
         let start = Instant::now();
-        pipes
-            .par_iter_mut()
-            .zip(results.par_iter_mut())
-            .zip(frames.par_iter())
-            .try_for_each(
-                |((pipe, out), fr)| -> Result<(), gelgrip_plugins::pipeline::PipelineError> {
-                    *out = pipe.process(&fr[set % fr.len()], needs)?;
-                    Ok(())
-                },
-            )?;
+        process_set(&mut pipes, &set_frames, needs, &mut results);
         if set >= WARMUP_SETS {
             times.push(start.elapsed().as_secs_f64() * 1e3);
         }
     }
+    let results = results.into_iter().collect::<Result<Vec<_>, _>>()?;
     times.sort_by(f64::total_cmp);
     let per_sensor = truths
         .into_iter()
