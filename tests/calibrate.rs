@@ -1,28 +1,11 @@
 //! End-to-end tests of the sensing commands: calibrate collect/train/eval and depth.
 
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
+use common::{gelgrip, json, ok};
 use gelgrip_plugins::npy;
-use serde_json::Value;
-
-fn gelgrip(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_gelgrip"))
-        .args(args)
-        .env("RUST_LOG", "warn")
-        .output()
-        .expect("the gelgrip binary runs")
-}
-
-fn ok(out: &Output) -> String {
-    assert!(
-        out.status.success(),
-        "exit {:?}\nstderr: {}",
-        out.status.code(),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
 
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("gelgrip-e2e-{}-{name}", std::process::id()));
@@ -72,7 +55,7 @@ fn collect_train_eval_round_trip() {
         s(&model),
     ]));
     assert!(train.contains("test  MAE"), "{train}");
-    let eval: Value = serde_json::from_str(&ok(&gelgrip(&[
+    let eval = json(&gelgrip(&[
         "calibrate",
         "eval",
         "--model",
@@ -80,13 +63,12 @@ fn collect_train_eval_round_trip() {
         "--data",
         s(&data),
         "--json",
-    ])))
-    .expect("one JSON object");
+    ]));
     let gx = eval["gx_mae"].as_f64().expect("gx_mae");
     let depth = eval["depth_mae_mm"].as_f64().expect("depth_mae_mm");
     assert!(gx > 0.0 && gx < 0.1, "{eval}");
     assert!(depth < 0.05, "depth error {depth} mm: {eval}");
-    let none: Value = serde_json::from_str(&ok(&gelgrip(&[
+    let none = json(&gelgrip(&[
         "calibrate",
         "eval",
         "--model",
@@ -96,8 +78,7 @@ fn collect_train_eval_round_trip() {
         "--json",
         "--solver",
         "none",
-    ])))
-    .expect("json");
+    ]));
     assert!(none["depth_mae_mm"].is_null(), "{none}");
 }
 
@@ -192,7 +173,7 @@ fn depth_command_integrates_gradients() {
 /// through the whole pipeline (JPEG → LUT → DCT-II → contact), each sensor calibrated first.
 #[test]
 fn pipeline_accuracy_is_within_documented_tolerances() {
-    let out = ok(&gelgrip(&[
+    let v = json(&gelgrip(&[
         "bench",
         "pipeline",
         "--sensors",
@@ -201,7 +182,6 @@ fn pipeline_accuracy_is_within_documented_tolerances() {
         "3",
         "--json",
     ]));
-    let v: Value = serde_json::from_str(&out).expect("one JSON object");
     for key in [
         "ms_per_set",
         "ms_per_set_p99",

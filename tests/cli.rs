@@ -1,17 +1,11 @@
 //! End-to-end tests of the `gelgrip` binary against the simulated hub.
 
+mod common;
+
 use std::path::PathBuf;
-use std::process::{Command, Output};
 
+use common::{gelgrip, json};
 use serde_json::Value;
-
-fn gelgrip(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_gelgrip"))
-        .args(args)
-        .env("RUST_LOG", "warn")
-        .output()
-        .expect("the gelgrip binary runs")
-}
 
 fn fixture(name: &str) -> String {
     let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -25,16 +19,6 @@ fn repo_file(name: &str) -> String {
         .join(name)
         .display()
         .to_string()
-}
-
-fn json(out: &Output) -> Value {
-    assert!(
-        out.status.success(),
-        "exit {:?}\nstderr: {}",
-        out.status.code(),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).expect("stdout is exactly one JSON value")
 }
 
 fn virtual_run(extra: &[&str]) -> Value {

@@ -14,11 +14,12 @@ use std::sync::Arc;
 
 use thiserror::Error;
 
+use crate::config::SensorStages;
 use crate::contact::{self, BLOCK_PX, ContactSummary, NoiseModel};
 use crate::decode::{DecodeError, JpegStage};
 use crate::lut::{Input, LutModel};
 use crate::poisson::{PoissonPlan, Solver};
-use crate::undistort::{Fisheye, Remap};
+use crate::undistort::Remap;
 
 /// Registered stage names, per slot.
 pub const STAGES: [(&str, &[&str]); 7] = [
@@ -31,21 +32,13 @@ pub const STAGES: [(&str, &[&str]); 7] = [
     ("contact", &["threshold"]),
 ];
 
-/// The stage choices for one sensor.
+/// The stage choices for one sensor: its validated config and its loaded gradient model.
 #[derive(Debug, Clone)]
 pub struct StageChoice {
-    /// JPEG decode scale: 1, 2 or 4.
-    pub decode_scale: usize,
-    /// Lens model, `None` for the identity.
-    pub undistort: Option<Fisheye>,
-    /// Reference refresh rate per no-contact frame (0 = `static`).
-    pub reference_alpha: f32,
+    /// Stage names and parameters (see [`crate::config`]).
+    pub stages: SensorStages,
     /// The gradient model.
     pub lut: Arc<LutModel>,
-    /// Depth solver (`None` = stage `none`).
-    pub solver: Option<Solver>,
-    /// Force proxy stiffness, N/mm³.
-    pub stiffness_n_per_mm3: f64,
 }
 
 /// What the consumer reads.
@@ -101,7 +94,7 @@ impl std::fmt::Debug for SensorPipeline {
         f.debug_struct("SensorPipeline")
             .field("width", &self.width)
             .field("height", &self.height)
-            .field("solver", &self.choice.solver)
+            .field("solver", &self.choice.stages.solver)
             .field("noise", &self.noise)
             .finish()
     }
@@ -110,10 +103,14 @@ impl std::fmt::Debug for SensorPipeline {
 impl SensorPipeline {
     /// A pipeline for frames of `width × height` px of `mm_per_px`.
     pub fn new(choice: StageChoice, width: usize, height: usize, mm_per_px: f64) -> Self {
-        let jpeg = JpegStage::new(width, height, choice.decode_scale);
+        let jpeg = JpegStage::new(width, height, choice.stages.decode_scale);
         let (w, h) = jpeg.output_size();
         let scale = (width / w.max(1)) as f64;
-        let remap = choice.undistort.as_ref().map(|c| Remap::fisheye(c, w, h));
+        let remap = choice
+            .stages
+            .undistort
+            .as_ref()
+            .map(|c| Remap::fisheye(c, w, h));
         let (bw, bh) = (w.div_ceil(BLOCK_PX), h.div_ceil(BLOCK_PX));
         Self {
             width: w,
@@ -181,7 +178,7 @@ impl SensorPipeline {
             self.block_activity();
             self.mark_near_active(None);
             activity.extend_from_slice(&self.blocks);
-            if self.choice.solver.is_some() {
+            if self.choice.stages.solver.is_some() {
                 let d = self.solve_window(window);
                 depth.extend(d.iter().map(|v| (v * mm).abs()));
             }
@@ -191,7 +188,7 @@ impl SensorPipeline {
     }
 
     fn central_window(&self) -> (usize, usize, usize, usize) {
-        let extra = usize::from(self.choice.solver != Some(Solver::Dct));
+        let extra = usize::from(self.choice.stages.solver != Some(Solver::Dct));
         let w = (8 * WINDOW_QUANTUM_PX + extra).min(self.width);
         let h = (8 * WINDOW_QUANTUM_PX + extra).min(self.height);
         ((self.width - w) / 2, (self.height - h) / 2, w, h)
@@ -241,7 +238,7 @@ impl SensorPipeline {
         if x0 == usize::MAX {
             return None;
         }
-        let extra = usize::from(self.choice.solver != Some(Solver::Dct));
+        let extra = usize::from(self.choice.stages.solver != Some(Solver::Dct));
         let fit = |lo: usize, hi: usize, limit: usize| {
             let lo = lo.saturating_sub(WINDOW_MARGIN_PX);
             let hi = (hi + WINDOW_MARGIN_PX).min(limit);
@@ -310,7 +307,7 @@ impl SensorPipeline {
                 self.gy[y * w + x] = gy;
             }
         }
-        let solver = self.choice.solver.unwrap_or(Solver::Dst);
+        let solver = self.choice.stages.solver.unwrap_or(Solver::Dst);
         let plan = self
             .plans
             .entry((h, w))
@@ -332,14 +329,14 @@ impl SensorPipeline {
         self.load(jpeg)?;
         self.block_activity();
         let window = self.active_window(noise.block_threshold);
-        if window.is_none() && self.choice.reference_alpha > 0.0 {
+        if window.is_none() && self.choice.stages.reference_alpha > 0.0 {
             self.refresh_reference();
         }
         let Some(window) = window else {
             return Ok(ContactSummary::default());
         };
         let scale = self.jpeg_scale();
-        if !needs.depth || self.choice.solver.is_none() {
+        if !needs.depth || self.choice.stages.solver.is_none() {
             let active = self
                 .blocks
                 .iter()
@@ -366,16 +363,16 @@ impl SensorPipeline {
             self.mm_per_px,
             scale,
             &noise,
-            self.choice.stiffness_n_per_mm3,
+            self.choice.stages.stiffness_n_per_mm3,
         ))
     }
 
     fn jpeg_scale(&self) -> f64 {
-        self.choice.decode_scale.max(1) as f64
+        self.choice.stages.decode_scale.max(1) as f64
     }
 
     fn refresh_reference(&mut self) {
-        let a = self.choice.reference_alpha.clamp(0.0, 1.0);
+        let a = self.choice.stages.reference_alpha.clamp(0.0, 1.0);
         if let Some(reference) = &mut self.reference {
             for (r, v) in reference.iter_mut().zip(&self.rgb) {
                 *r += a * (f32::from(*v) - *r);
@@ -387,20 +384,6 @@ impl SensorPipeline {
     pub fn last_depth_mm(&self) -> (&[f32], (usize, usize, usize, usize)) {
         let (_, _, w, h) = self.last_window;
         (&self.depth_px[..w * h], self.last_window)
-    }
-}
-
-impl StageChoice {
-    /// The stage choice for one sensor's validated config, with its loaded gradient model.
-    pub fn from_config(stages: &crate::config::SensorStages, lut: Arc<LutModel>) -> Self {
-        Self {
-            decode_scale: stages.decode_scale,
-            undistort: stages.undistort,
-            reference_alpha: stages.reference_alpha,
-            lut,
-            solver: stages.solver,
-            stiffness_n_per_mm3: stages.stiffness_n_per_mm3,
-        }
     }
 }
 

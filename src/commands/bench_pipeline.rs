@@ -140,7 +140,10 @@ pub fn run(args: BenchPipelineArgs) -> anyhow::Result<u8> {
             solver: Some(solver),
             ..pipeline_config.sensors[0].clone()
         };
-        let choice = StageChoice::from_config(&stages, Arc::new(lut));
+        let choice = StageChoice {
+            stages,
+            lut: Arc::new(lut),
+        };
         let mut pipe = SensorPipeline::new(choice, cam.width, cam.height, cam.mm_per_px);
         let quiet = simcam::no_contact_frames(&cam, 3_000_000, NOISE_FRAMES)?;
         let quiet: Vec<&[u8]> = quiet.iter().map(Vec::as_slice).collect();

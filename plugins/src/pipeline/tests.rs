@@ -31,12 +31,15 @@ fn extreme_lut() -> Arc<LutModel> {
 
 fn pipeline(w: usize, h: usize, solver: Option<Solver>) -> SensorPipeline {
     let choice = StageChoice {
-        decode_scale: 1,
-        undistort: None,
-        reference_alpha: 0.05,
+        stages: SensorStages {
+            decode_scale: 1,
+            undistort: None,
+            reference_alpha: 0.05,
+            model: None,
+            solver,
+            stiffness_n_per_mm3: 0.1,
+        },
         lut: extreme_lut(),
-        solver,
-        stiffness_n_per_mm3: 0.1,
     };
     SensorPipeline::new(choice, w, h, 0.0625)
 }
