@@ -206,6 +206,14 @@ impl LutModel {
             })
         };
         let (width, height, bins) = (num("width")?, num("height")?, num("bins")?);
+        if !(2..=256).contains(&bins) {
+            return Err(ModelFileError::Metadata {
+                path: p,
+                key: "bins".into(),
+                actual: Some(bins.to_string()),
+                expected: "an integer in [2, 256]".into(),
+            });
+        }
         let offset_rgb = parse_offset(file.metadata.get("offset_rgb").map(String::as_str))
             .ok_or_else(|| ModelFileError::Metadata {
                 path: p.clone(),
@@ -282,6 +290,12 @@ mod tests {
         let path = dir.join("m.safetensors");
         m.save(&path).expect("save");
         assert_eq!(LutModel::load(&path).expect("load"), m);
+        let mut bad = m.clone();
+        bad.bins = 0;
+        bad.table.clear();
+        bad.save(&path).expect("save");
+        let err = LutModel::load(&path).expect_err("zero bins");
+        assert!(err.to_string().contains("bins"), "{err}");
         std::fs::write(&path, b"not a model").expect("write");
         let err = LutModel::load(&path).expect_err("garbage");
         assert!(err.to_string().contains("m.safetensors"), "{err}");

@@ -44,6 +44,10 @@ pub enum NpyError {
     },
 }
 
+/// Largest array read (2 × 8192 × 8192: far beyond any tactile image), so a corrupt header
+/// cannot make the reader allocate without bound.
+pub const MAX_ELEMENTS: u64 = 2 * 8192 * 8192;
+
 /// An array of f64 values with its shape.
 #[derive(Debug, Clone, PartialEq)]
 pub struct NpyArray {
@@ -66,6 +70,14 @@ pub fn read(path: &Path) -> Result<NpyArray, NpyError> {
         return Err(NpyError::Order { path: p });
     }
     let shape: Vec<usize> = npy.shape().iter().map(|d| *d as usize).collect();
+    let elements = npy.shape().iter().try_fold(1u64, |n, d| n.checked_mul(*d));
+    if elements.is_none_or(|n| n > MAX_ELEMENTS) {
+        return Err(NpyError::Shape {
+            path: p,
+            actual: npy.shape().to_vec(),
+            expected: format!("at most {MAX_ELEMENTS} elements"),
+        });
+    }
     let descr = match npy.dtype() {
         npyz::DType::Plain(ts) => ts.to_string(),
         other => other.descr(),
