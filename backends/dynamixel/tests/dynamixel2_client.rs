@@ -1,0 +1,86 @@
+//! The wire codec against a real Protocol 2.0 client: `dynamixel2::Bus` on the slave end of
+//! a pseudo-terminal pair, a minimal device on the master end that speaks through
+//! [`gelgrip_dynamixel::protocol`]. Every packet dynamixel2 sends must decode, and every
+//! reply we encode must be accepted.
+
+use std::io::{Read, Write};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+use gelgrip_dynamixel::protocol::{Packet, PacketDecoder, instruction};
+use serialport::{SerialPort, TTYPort};
+
+/// A one-servo device: model 1020 (XM430-W350), firmware 45, a 256-byte control table.
+fn serve(mut master: TTYPort, stop: Arc<AtomicBool>) -> Vec<Packet> {
+    let mut table = [0u8; 256];
+    table[0..2].copy_from_slice(&1020u16.to_le_bytes());
+    table[6] = 45;
+    table[7] = 1;
+    let mut seen = Vec::new();
+    let mut dec = PacketDecoder::new();
+    let mut buf = [0u8; 256];
+    while !stop.load(Ordering::SeqCst) {
+        let n = match master.read(&mut buf) {
+            Ok(n) => n,
+            Err(e) if e.kind() == std::io::ErrorKind::TimedOut => continue,
+            Err(_) => break,
+        };
+        dec.push(&buf[..n]);
+        while let Some(Ok(p)) = dec.next_packet() {
+            seen.push(p.clone());
+            let reply = match (p.id, p.instruction) {
+                (1 | 0xFE, instruction::PING) => Some(Packet::status(1, 0, &[0xFC, 0x03, 45])),
+                (1, instruction::READ) => {
+                    let addr = usize::from(u16::from_le_bytes([p.params[0], p.params[1]]));
+                    let len = usize::from(u16::from_le_bytes([p.params[2], p.params[3]]));
+                    Some(Packet::status(1, 0, &table[addr..addr + len]))
+                }
+                (1, instruction::WRITE) => {
+                    let addr = usize::from(u16::from_le_bytes([p.params[0], p.params[1]]));
+                    let data = &p.params[2..];
+                    table[addr..addr + data.len()].copy_from_slice(data);
+                    Some(Packet::status(1, 0, &[]))
+                }
+                (1, _) => Some(Packet::status(1, 0x02, &[])),
+                _ => None,
+            };
+            if let Some(r) = reply {
+                master.write_all(&r.encode()).expect("reply written");
+            }
+        }
+    }
+    seen
+}
+
+#[test]
+fn dynamixel2_client_accepts_our_packets_over_a_pty() {
+    let (mut master, slave) = TTYPort::pair().expect("pseudo-terminal pair");
+    master
+        .set_timeout(Duration::from_millis(20))
+        .expect("timeout");
+    let path = slave.name().expect("slave path");
+    let stop = Arc::new(AtomicBool::new(false));
+    let device = std::thread::spawn({
+        let stop = stop.clone();
+        move || serve(master, stop)
+    });
+    let mut bus = dynamixel2::Bus::open(&path, 1_000_000).expect("bus opens");
+    let ping = bus.ping(1).expect("ping answered");
+    assert_eq!(ping.data.model, 1020);
+    assert_eq!(ping.data.firmware, 45);
+    bus.write_u32(1, 116, 0x01FD_FFFF).expect("write answered"); // LE bytes FF FF FD 01: stuffed both ways
+    assert_eq!(
+        bus.read_u32(1, 116).expect("read answered").data,
+        0x01FD_FFFF
+    );
+    assert_eq!(bus.read_u16(1, 0).expect("model").data, 1020);
+    let err = bus.action(1).expect_err("instruction error");
+    assert!(err.to_string().contains("0x2"), "{err}");
+    stop.store(true, Ordering::SeqCst);
+    drop(bus);
+    let seen = device.join().expect("device thread");
+    assert_eq!(seen.len(), 5);
+    assert_eq!(seen[1].params, vec![116, 0, 0xFF, 0xFF, 0xFD, 0x01]);
+    drop(slave);
+}
