@@ -1,22 +1,19 @@
 //! The wire codec against a real Protocol 2.0 client: `dynamixel2::Bus` on the slave end of
-//! a pseudo-terminal pair, a minimal device on the master end that speaks through
-//! [`gelgrip_dynamixel::protocol`]. Every packet dynamixel2 sends must decode, and every
-//! reply we encode must be accepted.
+//! a pseudo-terminal pair, the servo emulator on the master end. Every packet dynamixel2
+//! sends must decode, and every reply the emulator encodes must be accepted.
 
 use std::io::{Read, Write};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
-use gelgrip_dynamixel::protocol::{Packet, PacketDecoder, instruction};
+use gelgrip_dynamixel::emu::ServoBusEmulator;
+use gelgrip_dynamixel::protocol::{Packet, PacketDecoder};
 use serialport::{SerialPort, TTYPort};
 
-/// A one-servo device: model 1020 (XM430-W350), firmware 45, a 256-byte control table.
+/// The emulated bus on the master end: decode, dispatch, reply.
 fn serve(mut master: TTYPort, stop: Arc<AtomicBool>) -> Vec<Packet> {
-    let mut table = [0u8; 256];
-    table[0..2].copy_from_slice(&1020u16.to_le_bytes());
-    table[6] = 45;
-    table[7] = 1;
+    let mut bus = ServoBusEmulator::new(&[1]);
     let mut seen = Vec::new();
     let mut dec = PacketDecoder::new();
     let mut buf = [0u8; 256];
@@ -28,26 +25,10 @@ fn serve(mut master: TTYPort, stop: Arc<AtomicBool>) -> Vec<Packet> {
         };
         dec.push(&buf[..n]);
         while let Some(Ok(p)) = dec.next_packet() {
-            seen.push(p.clone());
-            let reply = match (p.id, p.instruction) {
-                (1 | 0xFE, instruction::PING) => Some(Packet::status(1, 0, &[0xFC, 0x03, 45])),
-                (1, instruction::READ) => {
-                    let addr = usize::from(u16::from_le_bytes([p.params[0], p.params[1]]));
-                    let len = usize::from(u16::from_le_bytes([p.params[2], p.params[3]]));
-                    Some(Packet::status(1, 0, &table[addr..addr + len]))
-                }
-                (1, instruction::WRITE) => {
-                    let addr = usize::from(u16::from_le_bytes([p.params[0], p.params[1]]));
-                    let data = &p.params[2..];
-                    table[addr..addr + data.len()].copy_from_slice(data);
-                    Some(Packet::status(1, 0, &[]))
-                }
-                (1, _) => Some(Packet::status(1, 0x02, &[])),
-                _ => None,
-            };
-            if let Some(r) = reply {
-                master.write_all(&r.encode()).expect("reply written");
+            for reply in bus.handle(&p) {
+                master.write_all(&reply.encode()).expect("reply written");
             }
+            seen.push(p);
         }
     }
     seen
@@ -69,6 +50,7 @@ fn dynamixel2_client_accepts_our_packets_over_a_pty() {
     let ping = bus.ping(1).expect("ping answered");
     assert_eq!(ping.data.model, 1020);
     assert_eq!(ping.data.firmware, 45);
+    bus.write_u8(1, 11, 5).expect("operating mode, torque off");
     bus.write_u32(1, 116, 0x01FD_FFFF).expect("write answered"); // LE bytes FF FF FD 01: stuffed both ways
     assert_eq!(
         bus.read_u32(1, 116).expect("read answered").data,
@@ -80,7 +62,7 @@ fn dynamixel2_client_accepts_our_packets_over_a_pty() {
     stop.store(true, Ordering::SeqCst);
     drop(bus);
     let seen = device.join().expect("device thread");
-    assert_eq!(seen.len(), 5);
-    assert_eq!(seen[1].params, vec![116, 0, 0xFF, 0xFF, 0xFD, 0x01]);
+    assert_eq!(seen.len(), 6);
+    assert_eq!(seen[2].params, vec![116, 0, 0xFF, 0xFF, 0xFD, 0x01]);
     drop(slave);
 }

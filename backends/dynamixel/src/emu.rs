@@ -1,0 +1,300 @@
+//! XM430 servo emulator: the instruction dispatcher of a bus of emulated servos.
+//!
+//! It answers the Protocol 2.0 instructions as the e-Manual specifies: ping (unicast and
+//! broadcast), read, write, registered write and action, reboot, and sync and bulk read and
+//! write. A packet with a bad CRC is ignored (the codec drops it). An unknown instruction
+//! gets an Instruction Error. A write outside the table, to a read-only register, or to
+//! EEPROM with torque on gets an Access Error. The alert bit is set while Hardware Error
+//! Status is not 0. Status Return Level is honoured, and broadcasts are answered only by
+//! ping and the read instructions.
+//!
+//! Not modelled yet (actuation issue): the motor (Present Position following Goal Position
+//! under Goal Current, Moving, temperature, overload), wire time at the configured baud, and
+//! the `gelgrip emulate servos` pseudo-terminal server.
+
+use crate::control_table::{self, addr, factory_table};
+use crate::protocol::{BROADCAST_ID, Packet, instruction as ins, status_error as err};
+
+/// One emulated servo.
+#[derive(Debug, Clone)]
+pub struct EmulatedServo {
+    table: Vec<u8>,
+    registered: Option<(u16, Vec<u8>)>,
+}
+
+impl EmulatedServo {
+    /// A factory-fresh XM430-W350 with `id`.
+    pub fn new(id: u8) -> Self {
+        Self {
+            table: factory_table(id),
+            registered: None,
+        }
+    }
+
+    /// Its id.
+    pub fn id(&self) -> u8 {
+        self.table[usize::from(addr::ID)]
+    }
+
+    /// Bytes at `address`.
+    pub fn bytes(&self, address: u16, len: usize) -> Option<&[u8]> {
+        self.table
+            .get(usize::from(address)..usize::from(address) + len)
+    }
+
+    /// Set Hardware Error Status (fault injection); shutdown bits also cut torque.
+    pub fn inject_hardware_error(&mut self, bits: u8) {
+        self.table[usize::from(addr::HARDWARE_ERROR_STATUS)] |= bits;
+        if bits & self.table[usize::from(addr::SHUTDOWN)] != 0 {
+            self.table[usize::from(addr::TORQUE_ENABLE)] = 0;
+        }
+    }
+
+    fn alert(&self) -> u8 {
+        if self.table[usize::from(addr::HARDWARE_ERROR_STATUS)] != 0 {
+            err::ALERT
+        } else {
+            0
+        }
+    }
+
+    fn status(&self, error: u8, params: &[u8]) -> Packet {
+        Packet::status(self.id(), error | self.alert(), params)
+    }
+
+    fn read(&self, address: u16, len: usize) -> Result<Vec<u8>, u8> {
+        if !control_table::readable(address, len) {
+            return Err(err::ACCESS);
+        }
+        Ok(self.table[usize::from(address)..usize::from(address) + len].to_vec())
+    }
+
+    fn check_write(&self, address: u16, data: &[u8]) -> Result<(), u8> {
+        if !control_table::writable(address, data.len()) {
+            return Err(err::ACCESS);
+        }
+        let torque_on = self.table[usize::from(addr::TORQUE_ENABLE)] != 0;
+        if torque_on && control_table::touches_eeprom(address) {
+            return Err(err::ACCESS);
+        }
+        if address <= addr::ID && addr::ID < address + data.len() as u16 {
+            let id = data[usize::from(addr::ID - address)];
+            if id > 252 {
+                return Err(err::DATA_RANGE);
+            }
+        }
+        Ok(())
+    }
+
+    fn write(&mut self, address: u16, data: &[u8]) -> Result<(), u8> {
+        self.check_write(address, data)?;
+        self.table[usize::from(address)..usize::from(address) + data.len()].copy_from_slice(data);
+        Ok(())
+    }
+
+    fn reboot(&mut self) {
+        let keep: Vec<(u16, Vec<u8>)> = [
+            addr::ID,
+            addr::BAUD_RATE,
+            addr::OPERATING_MODE,
+            addr::CURRENT_LIMIT,
+        ]
+        .iter()
+        .map(|a| {
+            (
+                *a,
+                self.table[usize::from(*a)..usize::from(*a) + 2].to_vec(),
+            )
+        })
+        .collect();
+        let mut fresh = factory_table(self.id());
+        for (a, v) in keep {
+            fresh[usize::from(a)..usize::from(a) + 2].copy_from_slice(&v);
+        }
+        self.table = fresh;
+        self.registered = None;
+    }
+
+    /// Whether this servo replies to `instruction` at its Status Return Level.
+    fn replies_to(&self, instruction: u8) -> bool {
+        match self.table[usize::from(addr::STATUS_RETURN_LEVEL)] {
+            0 => instruction == ins::PING,
+            1 => matches!(
+                instruction,
+                ins::PING | ins::READ | ins::SYNC_READ | ins::BULK_READ
+            ),
+            _ => true,
+        }
+    }
+}
+
+fn u16_at(p: &[u8], at: usize) -> Option<u16> {
+    Some(u16::from_le_bytes([*p.get(at)?, *p.get(at + 1)?]))
+}
+
+/// A bus of emulated servos.
+#[derive(Debug, Clone)]
+pub struct ServoBusEmulator {
+    servos: Vec<EmulatedServo>,
+}
+
+impl ServoBusEmulator {
+    /// Servos with `ids`, factory-fresh.
+    pub fn new(ids: &[u8]) -> Self {
+        Self {
+            servos: ids.iter().map(|id| EmulatedServo::new(*id)).collect(),
+        }
+    }
+
+    /// The servo with `id`.
+    pub fn servo_mut(&mut self, id: u8) -> Option<&mut EmulatedServo> {
+        self.servos.iter_mut().find(|s| s.id() == id)
+    }
+
+    fn find(&self, id: u8) -> Option<usize> {
+        self.servos.iter().position(|s| s.id() == id)
+    }
+
+    /// Handle one instruction packet; returns the status packets to send, in order.
+    pub fn handle(&mut self, p: &Packet) -> Vec<Packet> {
+        match p.instruction {
+            ins::PING => self.ping(p.id),
+            ins::SYNC_READ => self.sync_read(p),
+            ins::SYNC_WRITE => {
+                self.sync_write(p);
+                Vec::new()
+            }
+            ins::BULK_READ => self.bulk_read(p),
+            ins::BULK_WRITE => {
+                self.bulk_write(p);
+                Vec::new()
+            }
+            _ if p.id == BROADCAST_ID => {
+                for i in 0..self.servos.len() {
+                    let _ = self.unicast(i, p);
+                }
+                Vec::new()
+            }
+            _ => match self.find(p.id) {
+                Some(i) => self.unicast(i, p).into_iter().collect(),
+                None => Vec::new(),
+            },
+        }
+    }
+
+    fn ping(&self, id: u8) -> Vec<Packet> {
+        self.servos
+            .iter()
+            .filter(|s| id == BROADCAST_ID || s.id() == id)
+            .map(|s| {
+                let mut params = s.table[0..2].to_vec();
+                params.push(s.table[usize::from(addr::FIRMWARE_VERSION)]);
+                s.status(0, &params)
+            })
+            .collect()
+    }
+
+    fn unicast(&mut self, i: usize, p: &Packet) -> Option<Packet> {
+        let s = &mut self.servos[i];
+        let reply = |s: &EmulatedServo, r: Result<Vec<u8>, u8>| match r {
+            Ok(data) => s.status(0, &data),
+            Err(e) => s.status(e, &[]),
+        };
+        let result: Result<Vec<u8>, u8> = match p.instruction {
+            ins::READ => match (u16_at(&p.params, 0), u16_at(&p.params, 2)) {
+                (Some(a), Some(n)) => s.read(a, usize::from(n)),
+                _ => Err(err::DATA_LENGTH),
+            },
+            ins::WRITE => match u16_at(&p.params, 0) {
+                Some(a) => s.write(a, &p.params[2..]).map(|()| Vec::new()),
+                None => Err(err::DATA_LENGTH),
+            },
+            ins::REG_WRITE => match u16_at(&p.params, 0) {
+                Some(a) => s.check_write(a, &p.params[2..]).map(|()| {
+                    s.registered = Some((a, p.params[2..].to_vec()));
+                    s.table[usize::from(addr::REGISTERED_INSTRUCTION)] = 1;
+                    Vec::new()
+                }),
+                None => Err(err::DATA_LENGTH),
+            },
+            ins::ACTION => match s.registered.take() {
+                Some((a, data)) => {
+                    s.table[usize::from(addr::REGISTERED_INSTRUCTION)] = 0;
+                    s.write(a, &data).map(|()| Vec::new())
+                }
+                None => Err(err::INSTRUCTION),
+            },
+            ins::REBOOT => {
+                s.reboot();
+                Ok(Vec::new())
+            }
+            _ => Err(err::INSTRUCTION),
+        };
+        (s.replies_to(p.instruction) && p.id != BROADCAST_ID).then(|| reply(s, result))
+    }
+
+    fn sync_read(&self, p: &Packet) -> Vec<Packet> {
+        let (Some(a), Some(n)) = (u16_at(&p.params, 0), u16_at(&p.params, 2)) else {
+            return Vec::new();
+        };
+        p.params
+            .get(4..)
+            .unwrap_or(&[])
+            .iter()
+            .filter_map(|id| self.find(*id).map(|i| &self.servos[i]))
+            .filter(|s| s.replies_to(ins::SYNC_READ))
+            .map(|s| match s.read(a, usize::from(n)) {
+                Ok(d) => s.status(0, &d),
+                Err(e) => s.status(e, &[]),
+            })
+            .collect()
+    }
+
+    fn sync_write(&mut self, p: &Packet) {
+        let (Some(a), Some(n)) = (u16_at(&p.params, 0), u16_at(&p.params, 2)) else {
+            return;
+        };
+        let n = usize::from(n);
+        for chunk in p.params.get(4..).unwrap_or(&[]).chunks_exact(n + 1) {
+            if let Some(i) = self.find(chunk[0]) {
+                let _ = self.servos[i].write(a, &chunk[1..]);
+            }
+        }
+    }
+
+    fn bulk_read(&self, p: &Packet) -> Vec<Packet> {
+        p.params
+            .chunks_exact(5)
+            .filter_map(|c| {
+                let s = &self.servos[self.find(c[0])?];
+                let (a, n) = (u16_at(c, 1)?, u16_at(c, 3)?);
+                s.replies_to(ins::BULK_READ)
+                    .then(|| match s.read(a, usize::from(n)) {
+                        Ok(d) => s.status(0, &d),
+                        Err(e) => s.status(e, &[]),
+                    })
+            })
+            .collect()
+    }
+
+    fn bulk_write(&mut self, p: &Packet) {
+        let mut rest = p.params.as_slice();
+        while rest.len() >= 5 {
+            let (id, a, n) = (
+                rest[0],
+                u16_at(rest, 1).unwrap_or(0),
+                usize::from(u16_at(rest, 3).unwrap_or(0)),
+            );
+            let Some(data) = rest.get(5..5 + n) else {
+                return;
+            };
+            if let Some(i) = self.find(id) {
+                let _ = self.servos[i].write(a, data);
+            }
+            rest = &rest[5 + n..];
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;
