@@ -37,6 +37,30 @@ pub enum Command {
     Calibrate(CalibrateCommand),
     /// Integrate a gradient array (.npy, H×W×2) into a depth map (.npy, H×W).
     Depth(DepthArgs),
+    /// Serve emulated devices on a pseudo-terminal.
+    #[command(subcommand)]
+    Emulate(EmulateCommand),
+}
+
+/// `gelgrip emulate …`.
+#[derive(Debug, Subcommand)]
+pub enum EmulateCommand {
+    /// XM430-W350 servos over Dynamixel Protocol 2.0.
+    Servos(EmulateServosArgs),
+}
+
+/// `gelgrip emulate servos`.
+#[derive(Debug, Args)]
+pub struct EmulateServosArgs {
+    /// Symlink to create to the pseudo-terminal (removed on SIGINT/SIGTERM).
+    #[arg(long)]
+    pub link: String,
+    /// Servo ids.
+    #[arg(long, value_delimiter = ',', default_value = "1,2,3", value_parser = clap::value_parser!(u8).range(0..=252))]
+    pub ids: Vec<u8>,
+    /// Baud rate whose wire time each reply is charged.
+    #[arg(long, default_value = "1000000", value_parser = clap::value_parser!(u32).range(9600..=4_500_000))]
+    pub baud: u32,
 }
 
 /// A usage error found after parsing (exit code 2).

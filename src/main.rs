@@ -12,7 +12,7 @@ use std::process::ExitCode;
 
 use clap::Parser;
 
-use cli::{BenchCommand, Cli, Command};
+use cli::{BenchCommand, Cli, Command, EmulateCommand};
 
 fn init_logging() {
     let filter = tracing_subscriber::EnvFilter::try_from_default_env()
@@ -49,6 +49,7 @@ fn main() -> ExitCode {
             Command::Bench(BenchCommand::Pipeline(args)) => commands::bench_pipeline::run(args),
             Command::Calibrate(cmd) => commands::calibrate::run(cmd),
             Command::Depth(args) => commands::depth::run(args),
+            Command::Emulate(EmulateCommand::Servos(args)) => commands::emulate::run(args).await,
         }
     });
     match result {

@@ -5,4 +5,5 @@ pub mod bench_pipeline;
 pub mod calibrate;
 pub mod check_config;
 pub mod depth;
+pub mod emulate;
 pub mod run;
