@@ -50,6 +50,7 @@ fn main() -> ExitCode {
             Command::Calibrate(cmd) => commands::calibrate::run(cmd),
             Command::Depth(args) => commands::depth::run(args),
             Command::Emulate(EmulateCommand::Servos(args)) => commands::emulate::run(args).await,
+            Command::Servo(args) => commands::servo::run(args),
         }
     });
     match result {

@@ -67,6 +67,8 @@ fn dynamixel2_talks_to_the_emulated_servos_through_the_link() {
         drop(bus); // the client closes; the next loop reopens the port
     }
 
+    field_tools(link.to_str().expect("utf-8"));
+
     let status = Command::new("kill")
         .args(["-TERM", &child.id().to_string()])
         .status()
@@ -75,4 +77,59 @@ fn dynamixel2_talks_to_the_emulated_servos_through_the_link() {
     let exit = child.wait().expect("emulator exits");
     assert!(exit.success(), "{exit:?}");
     assert!(!link.exists(), "the link is removed on SIGTERM");
+}
+
+fn servo(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_gelgrip"))
+        .arg("servo")
+        .args(args)
+        .env("RUST_LOG", "warn")
+        .output()
+        .expect("gelgrip servo runs")
+}
+
+fn json_of(out: &std::process::Output) -> serde_json::Value {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("one JSON value")
+}
+
+/// `gelgrip servo scan|ping|read|write` against the emulator.
+fn field_tools(port: &str) {
+    let scan = json_of(&servo(&["scan", "--port", port, "--json"]));
+    assert_eq!(scan.as_array().map(Vec::len), Some(3), "{scan}");
+    let ping = json_of(&servo(&["ping", "--port", port, "--id", "2", "--json"]));
+    assert_eq!(ping["model"], 1020);
+    json_of(&servo(&[
+        "write", "--port", port, "--id", "1", "--addr", "116", "--len", "4", "--value", "2048",
+        "--json",
+    ]));
+    let read = json_of(&servo(&[
+        "read", "--port", port, "--id", "1", "--addr", "116", "--len", "4", "--json",
+    ]));
+    assert_eq!(read["value"], 2048, "{read}");
+    let missing = servo(&["ping", "--port", port, "--id", "9"]);
+    assert_eq!(missing.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&missing.stderr).contains("no reply from servo 9"));
+    json_of(&servo(&[
+        "write", "--port", port, "--id", "3", "--addr", "64", "--value", "1", "--json",
+    ]));
+    let eeprom = servo(&[
+        "write", "--port", port, "--id", "3", "--addr", "11", "--value", "5",
+    ]);
+    assert_eq!(eeprom.status.code(), Some(1));
+    assert!(
+        String::from_utf8_lossy(&eeprom.stderr).contains("Access Error"),
+        "{}",
+        String::from_utf8_lossy(&eeprom.stderr)
+    );
+    assert_eq!(
+        servo(&["read", "--port", port, "--addr", "7"])
+            .status
+            .code(),
+        Some(2)
+    );
 }

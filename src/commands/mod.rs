@@ -7,3 +7,4 @@ pub mod check_config;
 pub mod depth;
 pub mod emulate;
 pub mod run;
+pub mod servo;

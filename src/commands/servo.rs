@@ -1,0 +1,149 @@
+//! `gelgrip servo scan|ping|read|write`: field tools for a Dynamixel bus, through the
+//! `dynamixel2` client. Timeouts, CRC failures and servo errors each get a message that says
+//! what happened and what to check.
+
+use anyhow::Context;
+use serde_json::json;
+
+use dynamixel2::{ReadError, TransferError};
+
+use crate::cli::{ServoAction, ServoArgs, UsageError};
+
+fn motor_error_name(n: u8) -> &'static str {
+    match n {
+        1 => "Result Fail: the servo could not run the instruction",
+        2 => "Instruction Error: unknown instruction, or action without a registered write",
+        3 => "CRC Error: the servo received a corrupt packet",
+        4 => "Data Range Error: value out of range",
+        5 => "Data Length Error: wrong number of bytes",
+        6 => "Data Limit Error: value outside the configured limits",
+        7 => {
+            "Access Error: read-only address, address outside the table, or EEPROM write with torque on"
+        }
+        _ => "unknown error number",
+    }
+}
+
+/// Turn a dynamixel2 error into a message with the likely cause.
+fn explain(id: u8, e: TransferError) -> anyhow::Error {
+    match e {
+        TransferError::ReadError(ReadError::Io(io))
+            if io.kind() == std::io::ErrorKind::TimedOut =>
+        {
+            anyhow::anyhow!(
+                "no reply from servo {id} before the deadline (reply wire time + 34 ms): check that it is powered, its id, and the baud rate"
+            )
+        }
+        TransferError::ReadError(ReadError::InvalidMessage(m)) => {
+            anyhow::anyhow!(
+                "corrupt reply from servo {id}: {m} (noise on the bus, or two servos with one id?)"
+            )
+        }
+        TransferError::ReadError(ReadError::MotorError(m)) => {
+            let n = m.error_number();
+            anyhow::anyhow!(
+                "servo {id} reported error {n:#04x}, {}{}",
+                motor_error_name(n),
+                if m.alert() {
+                    "; hardware alert is set: read address 70"
+                } else {
+                    ""
+                }
+            )
+        }
+        other => anyhow::anyhow!("bus error talking to servo {id}: {other}"),
+    }
+}
+
+fn need<T>(v: Option<T>, flag: &str, action: &str) -> anyhow::Result<T> {
+    v.ok_or_else(|| anyhow::Error::new(UsageError(format!("`servo {action}` needs {flag}"))))
+}
+
+fn print(args: &ServoArgs, value: serde_json::Value, text: String) {
+    if args.json {
+        println!("{value}");
+    } else {
+        println!("{text}");
+    }
+}
+
+/// Run the command; returns the exit code.
+pub fn run(args: ServoArgs) -> anyhow::Result<u8> {
+    let mut bus = dynamixel2::Bus::open(&args.port, args.baud)
+        .with_context(|| format!("opening {} at {} baud", args.port, args.baud))?;
+    match args.action {
+        ServoAction::Scan => {
+            let found: Vec<serde_json::Value> = bus
+                .scan()
+                .map_err(|e| anyhow::anyhow!("scan failed to send: {e}"))?
+                .into_iter()
+                .filter_map(Result::ok)
+                .map(|r| json!({"id": r.motor_id, "model": r.data.model, "firmware": r.data.firmware}))
+                .collect();
+            let text = format!(
+                "{} servo(s): {}",
+                found.len(),
+                serde_json::Value::Array(found.clone())
+            );
+            print(&args, serde_json::Value::Array(found), text);
+        }
+        ServoAction::Ping => {
+            let id = need(args.id, "--id", "ping")?;
+            let r = bus.ping(id).map_err(|e| explain(id, e))?;
+            let text = format!(
+                "servo {id}: model {}, firmware {}",
+                r.data.model, r.data.firmware
+            );
+            print(
+                &args,
+                json!({"id": id, "model": r.data.model, "firmware": r.data.firmware, "alert": r.alert}),
+                text,
+            );
+        }
+        ServoAction::Read => {
+            let (id, a) = (
+                need(args.id, "--id", "read")?,
+                need(args.addr, "--addr", "read")?,
+            );
+            let len = args.len.unwrap_or(1);
+            let r = bus.read(id, a, len).map_err(|e| explain(id, e))?;
+            let value = (len <= 4).then(|| {
+                r.data
+                    .iter()
+                    .rev()
+                    .fold(0u64, |v, b| v << 8 | u64::from(*b))
+            });
+            let text = format!(
+                "servo {id} @{a} [{len}]: {:?}{}",
+                r.data,
+                value.map_or(String::new(), |v| format!(" = {v}"))
+            );
+            print(
+                &args,
+                json!({"id": id, "addr": a, "len": len, "bytes": r.data, "value": value, "alert": r.alert}),
+                text,
+            );
+        }
+        ServoAction::Write => {
+            let (id, a) = (
+                need(args.id, "--id", "write")?,
+                need(args.addr, "--addr", "write")?,
+            );
+            let v = need(args.value, "--value", "write")?;
+            let len = usize::from(args.len.unwrap_or(1));
+            if !(1..=4).contains(&len) || (len < 4 && v >= 1u64 << (8 * len)) {
+                anyhow::bail!(UsageError(format!(
+                    "--value {v} does not fit in --len {len} bytes (1 to 4)"
+                )));
+            }
+            let bytes = &v.to_le_bytes()[..len];
+            bus.write(id, a, bytes).map_err(|e| explain(id, e))?;
+            print(
+                &args,
+                json!({"id": id, "addr": a, "len": len, "value": v}),
+                format!("servo {id} @{a} [{len}] <- {v}"),
+            );
+        }
+    }
+    Ok(0)
+}
