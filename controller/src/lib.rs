@@ -7,6 +7,7 @@
 //! code runs in real time or in deterministic virtual time.
 
 pub mod acquire;
+pub mod actuator;
 pub mod clock;
 pub mod config;
 pub mod frame;

@@ -1,0 +1,99 @@
+//! The actuator port: what the controller needs from the finger servos.
+//!
+//! One servo per finger, in current-based position mode: a goal is a position, a goal
+//! current (the hard force cap) and a profile velocity. Blocking, because the servo buses are
+//! (dynamixel2 is); the run loop calls it from a blocking task. Every call returns within a
+//! deadline the implementation documents.
+
+use thiserror::Error;
+
+/// A goal for one finger's servo.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FingerGoal {
+    /// Goal position, degrees of servo shaft rotation.
+    pub position_deg: f64,
+    /// Goal current, the force cap, mA.
+    pub goal_current_ma: f64,
+    /// Profile velocity, rpm (0 = as fast as possible).
+    pub profile_velocity_rpm: f64,
+}
+
+/// What one finger's servo reports.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ServoState {
+    /// Present position, degrees.
+    pub position_deg: f64,
+    /// Present velocity, rpm.
+    pub velocity_rpm: f64,
+    /// Present current, mA (signed).
+    pub current_ma: f64,
+    /// Present temperature, °C.
+    pub temperature_c: f64,
+    /// Hardware Error Status bits (0 = none).
+    pub hardware_error: u8,
+    /// A motion is in progress.
+    pub moving: bool,
+}
+
+/// A servo-bus failure, with the servo and the evidence.
+#[derive(Debug, Error)]
+pub enum ServoError {
+    /// No reply within the deadline.
+    #[error("servo {id}: no reply within the deadline ({detail})")]
+    Timeout {
+        /// Servo id.
+        id: u8,
+        /// What was attempted.
+        detail: String,
+    },
+    /// A reply that failed its checks.
+    #[error("servo {id}: corrupt reply: {detail}")]
+    Corrupt {
+        /// Servo id.
+        id: u8,
+        /// The decoder's evidence.
+        detail: String,
+    },
+    /// The servo answered with an instruction error.
+    #[error("servo {id}: error {error:#04x} ({detail})")]
+    Instruction {
+        /// Servo id.
+        id: u8,
+        /// Error number (bits 0–6 of the status error byte).
+        error: u8,
+        /// Its meaning.
+        detail: String,
+    },
+    /// A hardware fault that recovery did not clear.
+    #[error("servo {id}: hardware error {bits:#04x} persists after {tries} reboot(s)")]
+    HardwareFault {
+        /// Servo id.
+        id: u8,
+        /// Hardware Error Status bits.
+        bits: u8,
+        /// Reboots tried.
+        tries: u32,
+    },
+    /// The bus itself failed (port gone, write failed).
+    #[error("servo bus: {0}")]
+    Bus(String),
+    /// A request the bus cannot carry out.
+    #[error("servo bus: {0}")]
+    Invalid(String),
+}
+
+/// One finger servo per finger, in finger order.
+pub trait ServoBus: Send {
+    /// Number of fingers (servos).
+    fn fingers(&self) -> usize;
+    /// Bring every servo to its operating configuration and enable torque.
+    fn configure(&mut self) -> Result<(), ServoError>;
+    /// Torque on or off for every servo.
+    fn set_torque(&mut self, on: bool) -> Result<(), ServoError>;
+    /// Send one goal per finger.
+    fn write_goals(&mut self, goals: &[FingerGoal]) -> Result<(), ServoError>;
+    /// Read every servo's state.
+    fn read_state(&mut self) -> Result<Vec<ServoState>, ServoError>;
+    /// Reboot one finger's servo and restore its configuration.
+    fn reboot(&mut self, finger: usize) -> Result<(), ServoError>;
+}
