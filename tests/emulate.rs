@@ -132,4 +132,21 @@ fn field_tools(port: &str) {
             .code(),
         Some(2)
     );
+    // The motor model: torque on, goal 1024 pulses (90°); the shaft gets there.
+    json_of(&servo(&[
+        "write", "--port", port, "--id", "1", "--addr", "116", "--len", "4", "--value", "1024",
+        "--json",
+    ]));
+    json_of(&servo(&[
+        "write", "--port", port, "--id", "1", "--addr", "64", "--value", "1", "--json",
+    ]));
+    std::thread::sleep(std::time::Duration::from_millis(1200));
+    let pos = json_of(&servo(&[
+        "read", "--port", port, "--id", "1", "--addr", "132", "--len", "4", "--json",
+    ]));
+    let pulses = pos["value"].as_u64().unwrap_or(0);
+    assert!(
+        (1010..=1030).contains(&pulses),
+        "present position {pulses}: {pos}"
+    );
 }

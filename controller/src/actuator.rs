@@ -97,3 +97,43 @@ pub trait ServoBus: Send {
     /// Reboot one finger's servo and restore its configuration.
     fn reboot(&mut self, finger: usize) -> Result<(), ServoError>;
 }
+
+/// What a servo's controller asks of its motor in one step.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct MotorCommand {
+    /// Torque enabled.
+    pub torque_on: bool,
+    /// Goal position, degrees.
+    pub goal_position_deg: f64,
+    /// Goal current (the cap of current-based position mode), mA.
+    pub goal_current_ma: f64,
+    /// Profile velocity, rpm (0 = no profile: as fast as the motor goes).
+    pub profile_velocity_rpm: f64,
+}
+
+/// What a motor reports after a step.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct MotorReading {
+    /// Shaft position, degrees.
+    pub position_deg: f64,
+    /// Shaft velocity, rpm.
+    pub velocity_rpm: f64,
+    /// Motor current, mA (signed).
+    pub current_ma: f64,
+    /// Winding temperature, °C.
+    pub temperature_c: f64,
+    /// A motion is in progress.
+    pub moving: bool,
+    /// Hardware Error Status bits the motor raised (overload, overheating).
+    pub hardware_error: u8,
+}
+
+/// The physics of one servo motor: the port that the simulator implements and that both the
+/// in-process simulated servo bus and the Protocol 2.0 emulator drive.
+pub trait MotorModel: Send {
+    /// Advance by `dt_s` seconds under `command`, with `load_torque_nm` resisting the shaft
+    /// (from the cable and what the finger presses on).
+    fn step(&mut self, command: &MotorCommand, load_torque_nm: f64, dt_s: f64) -> MotorReading;
+    /// Clear raised faults (a reboot).
+    fn reboot(&mut self);
+}

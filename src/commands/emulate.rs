@@ -6,20 +6,22 @@
 //! stdout. The link is removed on SIGINT or SIGTERM. The server keeps the slave end open, so
 //! a client may close and reopen the port. Each reply waits for the wire time of the
 //! instruction and of the reply at the configured baud (10 bits per byte), plus the servo's
-//! Return Delay Time.
+//! Return Delay Time. Motion comes from the simulator's XM430 motor model, stepped on the
+//! wall clock.
 
 use std::io::{Read, Write};
 use std::path::Path;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use serialport::{SerialPort, TTYPort};
 
 use gelgrip_dynamixel::control_table::addr;
-use gelgrip_dynamixel::emu::ServoBusEmulator;
+use gelgrip_dynamixel::emu::{EmulatedServo, ServoBusEmulator};
 use gelgrip_dynamixel::protocol::PacketDecoder;
+use gelgrip_sim::motor::Xm430Motor;
 
 use crate::cli::EmulateServosArgs;
 
@@ -34,7 +36,11 @@ fn wire_time(bytes: usize, baud: u32) -> Duration {
 fn serve(mut master: TTYPort, mut bus: ServoBusEmulator, baud: u32, stop: Arc<AtomicBool>) {
     let mut dec = PacketDecoder::new();
     let mut buf = [0u8; 1024];
+    let mut last = Instant::now();
     while !stop.load(Ordering::SeqCst) {
+        let now = Instant::now();
+        bus.advance(now.duration_since(last).as_secs_f64());
+        last = now;
         match master.read(&mut buf) {
             Ok(0) => continue,
             Ok(n) => dec.push(&buf[..n]),
@@ -83,7 +89,11 @@ pub async fn run(args: EmulateServosArgs) -> anyhow::Result<u8> {
     let stop = Arc::new(AtomicBool::new(false));
     let server = std::thread::spawn({
         let stop = stop.clone();
-        let bus = ServoBusEmulator::new(&ids);
+        let bus = ServoBusEmulator::from_servos(
+            ids.iter()
+                .map(|id| EmulatedServo::new(*id).with_motor(Box::new(Xm430Motor::default())))
+                .collect(),
+        );
         let baud = args.baud;
         move || serve(master, bus, baud, stop)
     });

@@ -110,6 +110,7 @@ pub fn factory_table(id: u8) -> Vec<u8> {
     put(addr::CURRENT_LIMIT, &1193u16.to_le_bytes());
     put(addr::SHUTDOWN, &[0x34]);
     put(addr::STATUS_RETURN_LEVEL, &[2]);
+    put(addr::GOAL_CURRENT, &1193u16.to_le_bytes()); // boots equal to Current Limit
     put(addr::PRESENT_TEMPERATURE, &[25]);
     t
 }

@@ -8,18 +8,32 @@
 //! Status is not 0. Status Return Level is honoured, and broadcasts are answered only by
 //! ping and the read instructions.
 //!
-//! Not modelled yet (actuation issue): the motor (Present Position following Goal Position
-//! under Goal Current, Moving, temperature, overload), wire time at the configured baud, and
-//! the `gelgrip emulate servos` pseudo-terminal server.
+//! Motion comes from a [`MotorModel`] per servo (the port the simulator implements):
+//! [`ServoBusEmulator::advance`] maps Torque Enable, Goal Position, Goal Current and Profile
+//! Velocity to a motor command, steps the motor, and writes Present Position, Velocity,
+//! Current, Temperature and Moving back. Faults the motor raises set Hardware Error Status,
+//! and a shutdown fault cuts torque, as on the servo.
+
+use gelgrip_controller::actuator::{MotorCommand, MotorModel};
 
 use crate::control_table::{self, addr, factory_table};
+use crate::driver::{DEG_PER_PULSE, MA_PER_UNIT, RPM_PER_UNIT};
 use crate::protocol::{BROADCAST_ID, Packet, instruction as ins, status_error as err};
 
 /// One emulated servo.
-#[derive(Debug, Clone)]
 pub struct EmulatedServo {
     table: Vec<u8>,
     registered: Option<(u16, Vec<u8>)>,
+    motor: Option<Box<dyn MotorModel>>,
+}
+
+impl std::fmt::Debug for EmulatedServo {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("EmulatedServo")
+            .field("id", &self.id())
+            .field("motor", &self.motor.is_some())
+            .finish()
+    }
 }
 
 impl EmulatedServo {
@@ -28,6 +42,67 @@ impl EmulatedServo {
         Self {
             table: factory_table(id),
             registered: None,
+            motor: None,
+        }
+    }
+
+    /// Drive this servo's motion with `motor`.
+    pub fn with_motor(mut self, motor: Box<dyn MotorModel>) -> Self {
+        self.motor = Some(motor);
+        self
+    }
+
+    fn u32_at(&self, a: u16) -> u32 {
+        let i = usize::from(a);
+        u32::from_le_bytes([
+            self.table[i],
+            self.table[i + 1],
+            self.table[i + 2],
+            self.table[i + 3],
+        ])
+    }
+
+    fn put(&mut self, a: u16, bytes: &[u8]) {
+        self.table[usize::from(a)..usize::from(a) + bytes.len()].copy_from_slice(bytes);
+    }
+
+    /// Step the motor by `dt_s` and refresh the present-value registers.
+    pub fn advance(&mut self, dt_s: f64, load_torque_nm: f64) {
+        let Some(mut motor) = self.motor.take() else {
+            return;
+        };
+        let i = |a: u16| usize::from(a);
+        let goal_current = i16::from_le_bytes([
+            self.table[i(addr::GOAL_CURRENT)],
+            self.table[i(addr::GOAL_CURRENT) + 1],
+        ]);
+        let command = MotorCommand {
+            torque_on: self.table[i(addr::TORQUE_ENABLE)] != 0,
+            goal_position_deg: f64::from(self.u32_at(addr::GOAL_POSITION) as i32) * DEG_PER_PULSE,
+            goal_current_ma: f64::from(goal_current) * MA_PER_UNIT,
+            profile_velocity_rpm: f64::from(self.u32_at(addr::PROFILE_VELOCITY)) * RPM_PER_UNIT,
+        };
+        let r = motor.step(&command, load_torque_nm, dt_s);
+        self.motor = Some(motor);
+        self.put(
+            addr::PRESENT_POSITION,
+            &((r.position_deg / DEG_PER_PULSE).round() as i32).to_le_bytes(),
+        );
+        self.put(
+            addr::PRESENT_VELOCITY,
+            &((r.velocity_rpm / RPM_PER_UNIT).round() as i32).to_le_bytes(),
+        );
+        self.put(
+            addr::PRESENT_CURRENT,
+            &((r.current_ma / MA_PER_UNIT).round() as i16).to_le_bytes(),
+        );
+        self.put(
+            addr::PRESENT_TEMPERATURE,
+            &[r.temperature_c.round().clamp(0.0, 255.0) as u8],
+        );
+        self.put(addr::MOVING, &[u8::from(r.moving)]);
+        if r.hardware_error != 0 {
+            self.inject_hardware_error(r.hardware_error);
         }
     }
 
@@ -113,6 +188,9 @@ impl EmulatedServo {
         }
         self.table = fresh;
         self.registered = None;
+        if let Some(m) = self.motor.as_mut() {
+            m.reboot();
+        }
     }
 
     /// Whether this servo replies to `instruction` at its Status Return Level.
@@ -133,7 +211,7 @@ fn u16_at(p: &[u8], at: usize) -> Option<u16> {
 }
 
 /// A bus of emulated servos.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub struct ServoBusEmulator {
     servos: Vec<EmulatedServo>,
 }
@@ -143,6 +221,18 @@ impl ServoBusEmulator {
     pub fn new(ids: &[u8]) -> Self {
         Self {
             servos: ids.iter().map(|id| EmulatedServo::new(*id)).collect(),
+        }
+    }
+
+    /// Servos built by the caller (for example with motors).
+    pub fn from_servos(servos: Vec<EmulatedServo>) -> Self {
+        Self { servos }
+    }
+
+    /// Step every servo's motor by `dt_s` (no external load).
+    pub fn advance(&mut self, dt_s: f64) {
+        for s in &mut self.servos {
+            s.advance(dt_s, 0.0);
         }
     }
 

@@ -15,6 +15,7 @@
 pub mod config;
 pub mod factory;
 pub mod hub;
+pub mod motor;
 pub mod optics;
 pub mod pool;
 pub mod scene;

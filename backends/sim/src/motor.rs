@@ -1,0 +1,196 @@
+//! The XM430-W350-T motor model: current-limited position control, a torque–speed line,
+//! thermal heating and overload detection. It implements the controller's `MotorModel` port.
+//!
+//! Quasi-static and first order, at the servo's own control rate:
+//! - **Position control.** The current command is `Kp × position error`, clamped to ± the
+//!   goal current (current-based position mode). The shaft torque is `Kt × current`.
+//! - **Speed.** The shaft moves toward the goal at the lowest of the profile velocity, the
+//!   speed the torque–speed line allows for the net torque (no-load speed 46 rpm at 12 V,
+//!   stall torque 4.1 N·m at 2.3 A), and what closes the error within the step.
+//! - **Heat.** Temperature rises with I²R and relaxes to 25 °C ambient (τ = 300 s).
+//!   Overheating is flagged above the 80 °C limit.
+//! - **Overload.** The current is held at its cap while the shaft cannot move for 1 s.
+//!
+//! Ratings come from the ROBOTIS e-Manual (see `../shared/reference/dynamixel.md` §2).
+
+use gelgrip_controller::actuator::{MotorCommand, MotorModel, MotorReading};
+
+/// Stall torque at 12 V, N·m.
+pub const STALL_TORQUE_NM: f64 = 4.1;
+/// Stall current at 12 V, mA.
+pub const STALL_CURRENT_MA: f64 = 2300.0;
+/// No-load speed at 12 V, rpm.
+pub const NO_LOAD_RPM: f64 = 46.0;
+/// Position gain: mA of command per degree of error (saturates quickly, as the servo does).
+const KP_MA_PER_DEG: f64 = 200.0;
+/// Winding resistance giving realistic heating, Ω (12 V / 2.3 A stall).
+const R_OHM: f64 = 5.2;
+/// Thermal capacity, J/K, and time constant, s.
+const HEAT_CAPACITY_J_PER_K: f64 = 40.0;
+const THERMAL_TAU_S: f64 = 300.0;
+const AMBIENT_C: f64 = 25.0;
+const TEMPERATURE_LIMIT_C: f64 = 80.0;
+/// Stalled at the current cap this long raises Overload, s.
+const OVERLOAD_AFTER_S: f64 = 1.0;
+/// Below this speed the shaft counts as stopped, rpm.
+const MOVING_THRESHOLD_RPM: f64 = 2.29;
+
+const OVERHEATING: u8 = 1 << 2;
+const OVERLOAD: u8 = 1 << 5;
+
+/// One simulated XM430-W350.
+#[derive(Debug, Clone)]
+pub struct Xm430Motor {
+    position_deg: f64,
+    temperature_c: f64,
+    stalled_s: f64,
+    faults: u8,
+}
+
+impl Default for Xm430Motor {
+    fn default() -> Self {
+        Self {
+            position_deg: 0.0,
+            temperature_c: AMBIENT_C,
+            stalled_s: 0.0,
+            faults: 0,
+        }
+    }
+}
+
+impl Xm430Motor {
+    /// A motor at `position_deg`.
+    pub fn at(position_deg: f64) -> Self {
+        Self {
+            position_deg,
+            ..Self::default()
+        }
+    }
+}
+
+impl MotorModel for Xm430Motor {
+    fn step(&mut self, cmd: &MotorCommand, load_torque_nm: f64, dt_s: f64) -> MotorReading {
+        let dt = if dt_s.is_finite() {
+            dt_s.clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let enabled = cmd.torque_on && self.faults & OVERLOAD == 0;
+        let cap = cmd.goal_current_ma.abs().min(STALL_CURRENT_MA);
+        let error = if enabled {
+            cmd.goal_position_deg - self.position_deg
+        } else {
+            0.0
+        };
+        let current = (KP_MA_PER_DEG * error).clamp(-cap, cap);
+        let kt = STALL_TORQUE_NM / STALL_CURRENT_MA; // N·m per mA
+        let load = if load_torque_nm.is_finite() {
+            load_torque_nm
+        } else {
+            0.0
+        };
+        let net = current * kt - load * error.signum();
+        let free_rpm = (NO_LOAD_RPM * (net.abs() / STALL_TORQUE_NM).min(1.0)).max(0.0);
+        let mut rpm = if net * error > 0.0 { free_rpm } else { 0.0 };
+        if cmd.profile_velocity_rpm > 0.0 {
+            rpm = rpm.min(cmd.profile_velocity_rpm);
+        }
+        let max_step = rpm * 6.0 * dt; // deg
+        let step = error.clamp(-max_step, max_step);
+        self.position_deg += step;
+        let velocity_rpm = if dt > 0.0 { step / (6.0 * dt) } else { 0.0 };
+        let at_cap = cap > 0.0 && current.abs() >= cap * 0.999;
+        self.stalled_s = if at_cap && velocity_rpm.abs() < MOVING_THRESHOLD_RPM {
+            self.stalled_s + dt
+        } else {
+            0.0
+        };
+        if self.stalled_s >= OVERLOAD_AFTER_S {
+            self.faults |= OVERLOAD;
+        }
+        let power_w = (current / 1000.0).powi(2) * R_OHM;
+        let decay = (self.temperature_c - AMBIENT_C) / THERMAL_TAU_S;
+        self.temperature_c += (power_w / HEAT_CAPACITY_J_PER_K - decay) * dt;
+        if self.temperature_c > TEMPERATURE_LIMIT_C {
+            self.faults |= OVERHEATING;
+        }
+        MotorReading {
+            position_deg: self.position_deg,
+            velocity_rpm,
+            current_ma: if enabled { current } else { 0.0 },
+            temperature_c: self.temperature_c,
+            moving: velocity_rpm.abs() >= MOVING_THRESHOLD_RPM,
+            hardware_error: self.faults,
+        }
+    }
+
+    fn reboot(&mut self) {
+        self.faults = 0;
+        self.stalled_s = 0.0;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cmd(goal: f64, current: f64) -> MotorCommand {
+        MotorCommand {
+            torque_on: true,
+            goal_position_deg: goal,
+            goal_current_ma: current,
+            profile_velocity_rpm: 0.0,
+        }
+    }
+
+    #[test]
+    fn reaches_the_goal_at_no_load_speed() {
+        let mut m = Xm430Motor::default();
+        let mut r = MotorReading::default();
+        let mut t = 0.0;
+        while (r.position_deg - 90.0).abs() > 0.01 && t < 5.0 {
+            r = m.step(&cmd(90.0, 1000.0), 0.0, 0.001);
+            t += 0.001;
+        }
+        // 90° at up to 46 rpm × 1000/2300 torque share ≈ 20 rpm = 120°/s → about 0.75 s.
+        assert!((0.3..2.0).contains(&t), "took {t} s");
+        let r = m.step(&cmd(90.0, 1000.0), 0.0, 0.001);
+        assert!(!r.moving);
+    }
+
+    #[test]
+    fn a_blocked_shaft_holds_the_current_cap_then_overloads() {
+        let mut m = Xm430Motor::default();
+        let mut r = MotorReading::default();
+        for _ in 0..500 {
+            r = m.step(&cmd(90.0, 300.0), 10.0, 0.001);
+        }
+        assert!((r.current_ma - 300.0).abs() < 1e-6, "{r:?}");
+        assert_eq!(r.hardware_error, 0);
+        for _ in 0..600 {
+            r = m.step(&cmd(90.0, 300.0), 10.0, 0.001);
+        }
+        assert_eq!(r.hardware_error, OVERLOAD);
+        assert_eq!(
+            m.step(&cmd(90.0, 300.0), 0.0, 0.001).current_ma,
+            0.0,
+            "overload cuts torque"
+        );
+        m.reboot();
+        assert_eq!(m.step(&cmd(90.0, 300.0), 0.0, 0.001).hardware_error, 0);
+    }
+
+    #[test]
+    fn torque_off_does_nothing_and_bad_inputs_stay_finite() {
+        let mut m = Xm430Motor::at(10.0);
+        let off = MotorCommand {
+            torque_on: false,
+            ..cmd(90.0, 1000.0)
+        };
+        assert_eq!(m.step(&off, 0.0, 0.01).position_deg, 10.0);
+        let r = m.step(&cmd(f64::MAX, f64::INFINITY), f64::NAN, f64::NAN);
+        assert!(
+            r.position_deg.is_finite() && r.current_ma.is_finite() && r.temperature_c.is_finite()
+        );
+    }
+}
