@@ -55,30 +55,25 @@ fn collect_train_eval_round_trip() {
         s(&model),
     ]));
     assert!(train.contains("test  MAE"), "{train}");
-    let eval = json(&gelgrip(&[
-        "calibrate",
-        "eval",
-        "--model",
-        s(&model),
-        "--data",
-        s(&data),
-        "--json",
-    ]));
+    let eval_with = |solver: &str| {
+        json(&gelgrip(&[
+            "calibrate",
+            "eval",
+            "--model",
+            s(&model),
+            "--data",
+            s(&data),
+            "--json",
+            "--solver",
+            solver,
+        ]))
+    };
+    let eval = eval_with("dst");
     let gx = eval["gx_mae"].as_f64().expect("gx_mae");
     let depth = eval["depth_mae_mm"].as_f64().expect("depth_mae_mm");
     assert!(gx > 0.0 && gx < 0.1, "{eval}");
     assert!(depth < 0.05, "depth error {depth} mm: {eval}");
-    let none = json(&gelgrip(&[
-        "calibrate",
-        "eval",
-        "--model",
-        s(&model),
-        "--data",
-        s(&data),
-        "--json",
-        "--solver",
-        "none",
-    ]));
+    let none = eval_with("none");
     assert!(none["depth_mae_mm"].is_null(), "{none}");
 }
 

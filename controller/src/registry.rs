@@ -80,20 +80,21 @@ impl TransportRegistry {
         self.factories.iter().map(|f| f.name()).collect()
     }
 
-    fn get(&self, name: &str) -> Option<&dyn HubFactory> {
+    /// The factory named `name`, or an error naming the field and listing what exists.
+    fn factory(&self, check: &FieldCheck, name: &str) -> Result<&dyn HubFactory, ConfigError> {
         self.factories
             .iter()
             .find(|f| f.name() == name)
             .map(|f| f.as_ref())
+            .ok_or_else(|| {
+                let later = PLANNED.iter().find(|(n, _)| *n == name).map(|(_, l)| *l);
+                check.unavailable("hub.transport", name, later, &self.names())
+            })
     }
 
     /// Error unless `name` is registered.
     pub fn check_name(&self, check: &FieldCheck, name: &str) -> Result<(), ConfigError> {
-        if self.get(name).is_some() {
-            return Ok(());
-        }
-        let later = PLANNED.iter().find(|(n, _)| *n == name).map(|(_, l)| *l);
-        Err(check.unavailable("hub.transport", name, later, &self.names()))
+        self.factory(check, name).map(|_| ())
     }
 
     /// Let transport `name` validate its section.
@@ -103,11 +104,8 @@ impl TransportRegistry {
         section: &BackendSection,
         layout: &HandLayout,
     ) -> Result<(), ConfigError> {
-        self.check_name(&section.check, name)?;
-        match self.get(name) {
-            Some(f) => f.validate(section, layout),
-            None => Ok(()),
-        }
+        self.factory(&section.check, name)?
+            .validate(section, layout)
     }
 
     /// Open transport `name`.
@@ -116,15 +114,6 @@ impl TransportRegistry {
         name: &str,
         request: OpenRequest<'_>,
     ) -> Result<Box<dyn HubTransport>, OpenError> {
-        self.check_name(&request.section.check, name)?;
-        match self.get(name) {
-            Some(f) => f.open(request),
-            None => Err(OpenError::Config(request.section.check.unavailable(
-                "hub.transport",
-                name,
-                None,
-                &self.names(),
-            ))),
-        }
+        self.factory(&request.section.check, name)?.open(request)
     }
 }
