@@ -96,6 +96,118 @@ pub trait ServoBus: Send {
     fn read_state(&mut self) -> Result<Vec<ServoState>, ServoError>;
     /// Reboot one finger's servo and restore its configuration.
     fn reboot(&mut self, finger: usize) -> Result<(), ServoError>;
+    /// Hardware faults that `read_state` recovered from since the last call (for the run's
+    /// `faults` report).
+    fn take_recovered(&mut self) -> Vec<RecoveredFault> {
+        Vec::new()
+    }
+}
+
+/// Reboots tried per servo before a hardware fault is reported as unrecovered.
+pub const MAX_RECOVERY_TRIES: u32 = 2;
+
+/// A hardware fault that a reboot cleared.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RecoveredFault {
+    /// Finger index.
+    pub finger: usize,
+    /// Servo id.
+    pub id: u8,
+    /// Hardware Error Status bits before recovery.
+    pub bits: u8,
+    /// Reboots it took.
+    pub tries: u32,
+}
+
+impl std::fmt::Display for RecoveredFault {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "servo {} (finger {}): {} recovered after {} reboot(s)",
+            self.id,
+            self.finger + 1,
+            hardware_error_names(self.bits).join(" + "),
+            self.tries
+        )
+    }
+}
+
+/// Names of the Hardware Error Status bits set in `bits`.
+pub fn hardware_error_names(bits: u8) -> Vec<&'static str> {
+    const NAMES: [(u8, &str); 5] = [
+        (1 << 0, "input voltage error"),
+        (1 << 2, "overheating"),
+        (1 << 3, "motor encoder error"),
+        (1 << 4, "electrical shock"),
+        (1 << 5, "overload"),
+    ];
+    let names: Vec<&str> = NAMES
+        .iter()
+        .filter(|(bit, _)| bits & bit != 0)
+        .map(|(_, n)| *n)
+        .collect();
+    if names.is_empty() && bits != 0 {
+        vec!["unknown hardware error"]
+    } else {
+        names
+    }
+}
+
+/// A goal list must hold one goal per servo.
+pub fn check_goal_count(goals: &[FingerGoal], servos: usize) -> Result<(), ServoError> {
+    if goals.len() == servos {
+        Ok(())
+    } else {
+        Err(ServoError::Invalid(format!(
+            "{} goals for {servos} servos",
+            goals.len()
+        )))
+    }
+}
+
+/// The recovery every servo bus applies in `read_state`: a servo reporting a hardware error
+/// is rebooted (which restores its configuration) and `reread`, at most
+/// [`MAX_RECOVERY_TRIES`] times. Returns the clean states and what was recovered, or
+/// [`ServoError::HardwareFault`] when the fault persists.
+pub fn recover<B: ServoBus + ?Sized>(
+    bus: &mut B,
+    ids: &[u8],
+    mut states: Vec<ServoState>,
+    reread: fn(&mut B) -> Result<Vec<ServoState>, ServoError>,
+) -> Result<(Vec<ServoState>, Vec<RecoveredFault>), ServoError> {
+    let mut recovered = Vec::new();
+    for finger in 0..states.len() {
+        let id = ids.get(finger).copied().unwrap_or(0);
+        let first_bits = states[finger].hardware_error;
+        let mut tries = 0;
+        while states[finger].hardware_error != 0 {
+            if tries == MAX_RECOVERY_TRIES {
+                return Err(ServoError::HardwareFault {
+                    id,
+                    bits: states[finger].hardware_error,
+                    tries,
+                });
+            }
+            tries += 1;
+            bus.reboot(finger)?;
+            states = reread(bus)?;
+            if states.len() <= finger {
+                return Err(ServoError::Bus(format!(
+                    "{} states after rebooting servo {id}",
+                    states.len()
+                )));
+            }
+        }
+        if tries > 0 {
+            recovered.push(RecoveredFault {
+                finger,
+                id,
+                bits: first_bits,
+                tries,
+            });
+        }
+    }
+    Ok((states, recovered))
 }
 
 /// What a servo's controller asks of its motor in one step.

@@ -8,6 +8,7 @@ use std::fmt;
 use serde::Deserialize;
 
 use crate::config::{ConfigError, FieldCheck};
+use crate::fingers::{self, FingerSpec, RawFinger};
 
 /// Most sensors one hub serves (the hub address space holds 32 boards).
 pub const MAX_SENSORS: usize = 32;
@@ -24,7 +25,7 @@ pub enum Link {
 }
 
 impl Link {
-    fn parse(s: &str) -> Option<Self> {
+    pub(crate) fn parse(s: &str) -> Option<Self> {
         match s {
             "proximal" => Some(Link::Proximal),
             "middle" => Some(Link::Middle),
@@ -143,6 +144,8 @@ pub struct HandLayout {
     pub name: String,
     /// Sensors; index = hub board index.
     pub sensors: Vec<SensorSpec>,
+    /// Finger mechanics, in servo order (empty for generated layouts).
+    pub fingers: Vec<FingerSpec>,
 }
 
 /// Default camera resolution (the paper's 320×240 JPEG).
@@ -161,6 +164,8 @@ struct RawLayout {
     #[serde(default)]
     sensor_defaults: RawSensorDefaults,
     sensors: Vec<RawSensor>,
+    #[serde(default)]
+    fingers: Vec<RawFinger>,
 }
 
 #[derive(Deserialize, Default)]
@@ -197,6 +202,7 @@ impl HandLayout {
                     mm_per_px: DEFAULT_MM_PER_PX,
                 })
                 .collect(),
+            fingers: Vec::new(),
         })
     }
 
@@ -247,10 +253,23 @@ impl HandLayout {
                 mm_per_px,
             });
         }
+        let fingers = fingers::validate(&check, raw.fingers)?;
+        check_sensors_have_phalanges(&check, &sensors, &fingers)?;
         Ok(Self {
             name: raw.name,
             sensors,
+            fingers,
         })
+    }
+
+    /// The finger (index into `fingers`) and phalanx that carry sensor `index`.
+    pub fn phalanx_of_sensor(&self, index: usize) -> Option<(usize, usize)> {
+        let Placement::Finger { finger, link } = self.sensors.get(index)?.id.placement() else {
+            return None;
+        };
+        let name = format!("f{finger}");
+        let f = self.fingers.iter().position(|f| f.id == name)?;
+        Some((f, self.fingers[f].phalanx_of(*link)?))
     }
 
     /// Index (hub board) of the sensor named `id`.
@@ -263,6 +282,34 @@ impl HandLayout {
         let ids: Vec<String> = self.sensors.iter().map(|s| s.id.to_string()).collect();
         ids.join(", ")
     }
+}
+
+/// When a layout declares fingers, every finger sensor must sit on a declared phalanx.
+fn check_sensors_have_phalanges(
+    check: &FieldCheck,
+    sensors: &[SensorSpec],
+    fingers: &[FingerSpec],
+) -> Result<(), ConfigError> {
+    if fingers.is_empty() {
+        return Ok(());
+    }
+    for (i, s) in sensors.iter().enumerate() {
+        if let Placement::Finger { finger, link } = s.id.placement() {
+            let name = format!("f{finger}");
+            let found = fingers
+                .iter()
+                .find(|f| f.id == name)
+                .and_then(|f| f.phalanx_of(*link));
+            if found.is_none() {
+                return Err(check.invalid(
+                    &format!("sensors[{i}].id"),
+                    &s.id,
+                    "a sensor on a finger and phalanx declared under [[fingers]]",
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]

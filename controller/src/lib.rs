@@ -10,6 +10,7 @@ pub mod acquire;
 pub mod actuator;
 pub mod clock;
 pub mod config;
+pub mod fingers;
 pub mod frame;
 pub mod gate;
 pub mod hub;

@@ -16,12 +16,13 @@
 //! Safe state: on a fault the caller holds, or releases at minimum current. The driver never
 //! raises the current limit beyond the configured cap.
 
-use gelgrip_controller::actuator::{FingerGoal, ServoBus, ServoError, ServoState};
+use gelgrip_controller::actuator::{
+    FingerGoal, RecoveredFault, ServoBus, ServoError, ServoState, check_goal_count, recover,
+};
 
 use crate::control_table::addr;
 
-/// Reboots tried before a hardware fault is reported.
-pub const MAX_RECOVERY_TRIES: u32 = 2;
+pub use gelgrip_controller::actuator::MAX_RECOVERY_TRIES;
 /// Operating Mode 5: current-based position control.
 pub const CURRENT_BASED_POSITION: u8 = 5;
 /// mA per Goal/Present Current unit.
@@ -41,6 +42,7 @@ pub struct DynamixelBus {
     bus: dynamixel2::Bus<Vec<u8>, Vec<u8>>,
     ids: Vec<u8>,
     current_limit_ma: f64,
+    recovered: Vec<RecoveredFault>,
 }
 
 impl std::fmt::Debug for DynamixelBus {
@@ -98,6 +100,7 @@ impl DynamixelBus {
             bus,
             ids: ids.to_vec(),
             current_limit_ma,
+            recovered: Vec::new(),
         })
     }
 
@@ -183,13 +186,7 @@ impl ServoBus for DynamixelBus {
     }
 
     fn write_goals(&mut self, goals: &[FingerGoal]) -> Result<(), ServoError> {
-        if goals.len() != self.ids.len() {
-            return Err(ServoError::Invalid(format!(
-                "{} goals for {} servos",
-                goals.len(),
-                self.ids.len()
-            )));
-        }
+        check_goal_count(goals, self.ids.len())?;
         let limit = self.current_limit_ma;
         let data: Vec<dynamixel2::instructions::SyncWriteData<Vec<u8>>> = self
             .ids
@@ -217,22 +214,13 @@ impl ServoBus for DynamixelBus {
     }
 
     fn read_state(&mut self) -> Result<Vec<ServoState>, ServoError> {
-        let mut states = self.read_raw()?;
-        for finger in 0..states.len() {
-            let mut tries = 0;
-            while states[finger].hardware_error != 0 {
-                if tries == MAX_RECOVERY_TRIES {
-                    return Err(ServoError::HardwareFault {
-                        id: self.ids[finger],
-                        bits: states[finger].hardware_error,
-                        tries,
-                    });
-                }
-                tries += 1;
-                self.reboot(finger)?;
-                states = self.read_raw()?;
-            }
+        let states = self.read_raw()?;
+        if states.iter().all(|s| s.hardware_error == 0) {
+            return Ok(states);
         }
+        let ids = self.ids.clone();
+        let (states, recovered) = recover(self, &ids, states, Self::read_raw)?;
+        self.recovered.extend(recovered);
         Ok(states)
     }
 

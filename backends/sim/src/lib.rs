@@ -10,16 +10,29 @@
 //!   buffering, SPI transfer of each frame's actual length), which produces every timestamp;
 //! - [`hub`]: [`hub::SimHub`], the `HubTransport` that plays that timeline on the injected
 //!   clock, with fault injection from config;
-//! - [`config`] and [`factory`]: the `[hub.sim]` section and the registry entry.
+//! - [`config`] and [`factory`]: the `[hub.sim]` section and the registry entry;
+//! - the world: [`shapes`] and [`scene_spec`] (scene files), [`object`] (slip, crush, the
+//!   screwdriver's trigger and bolt), [`finger`] (cable-driven finger mechanics),
+//!   [`contact`] (gel indentation and force), [`motor`] (the XM430 model), [`world`] (all of
+//!   it stepped in simulated time, with a [`world_log`]) and [`servo_bus`] (the simulated
+//!   `ServoBus`).
 
 pub mod config;
+pub mod contact;
 pub mod factory;
+pub mod finger;
 pub mod hub;
 pub mod motor;
+pub mod object;
 pub mod optics;
 pub mod pool;
 pub mod scene;
+pub mod scene_spec;
+pub mod servo_bus;
+pub mod shapes;
 pub mod timeline;
 pub mod unit;
+pub mod world;
+pub mod world_log;
 
 pub use factory::SimHubFactory;

@@ -4,12 +4,16 @@
 //! Quasi-static and first order, at the servo's own control rate:
 //! - **Position control.** The current command is `Kp × position error`, clamped to ± the
 //!   goal current (current-based position mode). The shaft torque is `Kt × current`.
-//! - **Speed.** The shaft moves toward the goal at the lowest of the profile velocity, the
-//!   speed the torque–speed line allows for the net torque (no-load speed 46 rpm at 12 V,
-//!   stall torque 4.1 N·m at 2.3 A), and what closes the error within the step.
+//! - **Speed.** The net of motor and load torque sets the speed along the torque–speed line
+//!   (no-load speed 46 rpm at 12 V, stall torque 4.1 N·m at 2.3 A); a load beyond the
+//!   motor's torque back-drives the shaft, so a grasp settles where the cable's load meets
+//!   the current cap. The profile velocity caps motion toward the goal, which is never
+//!   overshot.
 //! - **Heat.** Temperature rises with I²R and relaxes to 25 °C ambient (τ = 300 s).
 //!   Overheating is flagged above the 80 °C limit.
-//! - **Overload.** The current is held at its cap while the shaft cannot move for 1 s.
+//! - **Overload.** At least 1.5 A held at the cap while the shaft cannot move, for 1 s.
+//! - **Shutdown.** Overload and overheating cut torque until a reboot, as the XM430's
+//!   default Shutdown setting does.
 //!
 //! Ratings come from the ROBOTIS e-Manual (see `../shared/reference/dynamixel.md` §2).
 
@@ -35,8 +39,14 @@ const OVERLOAD_AFTER_S: f64 = 1.0;
 /// Below this speed the shaft counts as stopped, rpm.
 const MOVING_THRESHOLD_RPM: f64 = 2.29;
 
+/// Holding at least this current while stalled counts toward an overload, mA (above the
+/// continuous rating; a gentle grasp at a few hundred mA never overloads).
+const OVERLOAD_CURRENT_MA: f64 = 1500.0;
+
 const OVERHEATING: u8 = 1 << 2;
 const OVERLOAD: u8 = 1 << 5;
+/// Faults that cut torque (the XM430's default Shutdown setting).
+const SHUTDOWN: u8 = OVERHEATING | OVERLOAD;
 
 /// One simulated XM430-W350.
 #[derive(Debug, Clone)]
@@ -66,6 +76,19 @@ impl Xm430Motor {
             ..Self::default()
         }
     }
+
+    /// Hardware Error Status bits raised and not yet cleared by a reboot.
+    pub fn faults(&self) -> u8 {
+        self.faults
+    }
+
+    /// The same motor with its windings at `temperature_c` (a motor that has been working).
+    pub fn with_temperature(mut self, temperature_c: f64) -> Self {
+        if temperature_c.is_finite() {
+            self.temperature_c = temperature_c;
+        }
+        self
+    }
 }
 
 impl MotorModel for Xm430Motor {
@@ -75,32 +98,48 @@ impl MotorModel for Xm430Motor {
         } else {
             0.0
         };
-        let enabled = cmd.torque_on && self.faults & OVERLOAD == 0;
-        let cap = cmd.goal_current_ma.abs().min(STALL_CURRENT_MA);
+        let enabled = cmd.torque_on && self.faults & SHUTDOWN == 0;
+        let cap = if cmd.goal_current_ma.is_finite() {
+            cmd.goal_current_ma.abs().min(STALL_CURRENT_MA)
+        } else {
+            STALL_CURRENT_MA
+        };
+        let goal = if cmd.goal_position_deg.is_finite() {
+            cmd.goal_position_deg.clamp(-1e6, 1e6)
+        } else {
+            self.position_deg
+        };
         let error = if enabled {
-            cmd.goal_position_deg - self.position_deg
+            goal - self.position_deg
         } else {
             0.0
         };
-        let current = (KP_MA_PER_DEG * error).clamp(-cap, cap);
+        let current = if enabled {
+            (KP_MA_PER_DEG * error).clamp(-cap, cap)
+        } else {
+            0.0
+        };
         let kt = STALL_TORQUE_NM / STALL_CURRENT_MA; // N·m per mA
         let load = if load_torque_nm.is_finite() {
             load_torque_nm
         } else {
             0.0
         };
-        let net = current * kt - load * error.signum();
-        let free_rpm = (NO_LOAD_RPM * (net.abs() / STALL_TORQUE_NM).min(1.0)).max(0.0);
-        let mut rpm = if net * error > 0.0 { free_rpm } else { 0.0 };
-        if cmd.profile_velocity_rpm > 0.0 {
-            rpm = rpm.min(cmd.profile_velocity_rpm);
+        // Net torque sets the speed along the torque–speed line; a load larger than the
+        // motor's torque back-drives the shaft (current-based position mode is compliant).
+        let net = current * kt - load;
+        let mut rpm = NO_LOAD_RPM * (net / STALL_TORQUE_NM).clamp(-1.0, 1.0);
+        if cmd.profile_velocity_rpm > 0.0 && rpm * error > 0.0 {
+            rpm = rpm.clamp(-cmd.profile_velocity_rpm, cmd.profile_velocity_rpm);
         }
-        let max_step = rpm * 6.0 * dt; // deg
-        let step = error.clamp(-max_step, max_step);
+        let mut step = rpm * 6.0 * dt; // deg
+        if step * error > 0.0 && step.abs() > error.abs() {
+            step = error;
+        }
         self.position_deg += step;
         let velocity_rpm = if dt > 0.0 { step / (6.0 * dt) } else { 0.0 };
-        let at_cap = cap > 0.0 && current.abs() >= cap * 0.999;
-        self.stalled_s = if at_cap && velocity_rpm.abs() < MOVING_THRESHOLD_RPM {
+        let straining = current.abs() >= OVERLOAD_CURRENT_MA && current.abs() >= cap * 0.999;
+        self.stalled_s = if straining && velocity_rpm.abs() < MOVING_THRESHOLD_RPM {
             self.stalled_s + dt
         } else {
             0.0
@@ -117,16 +156,21 @@ impl MotorModel for Xm430Motor {
         MotorReading {
             position_deg: self.position_deg,
             velocity_rpm,
-            current_ma: if enabled { current } else { 0.0 },
+            current_ma: current,
             temperature_c: self.temperature_c,
             moving: velocity_rpm.abs() >= MOVING_THRESHOLD_RPM,
             hardware_error: self.faults,
         }
     }
 
+    /// Clears the faults; a motor still above its temperature limit reports overheating
+    /// again at once, as the servo does after a reboot.
     fn reboot(&mut self) {
         self.faults = 0;
         self.stalled_s = 0.0;
+        if self.temperature_c > TEMPERATURE_LIMIT_C {
+            self.faults |= OVERHEATING;
+        }
     }
 }
 
@@ -158,26 +202,59 @@ mod tests {
         assert!(!r.moving);
     }
 
-    #[test]
-    fn a_blocked_shaft_holds_the_current_cap_then_overloads() {
-        let mut m = Xm430Motor::default();
+    /// A wall at 10°: the load rises steeply past it.
+    fn wall(position_deg: f64) -> f64 {
+        (position_deg - 10.0).max(0.0) * 2.0
+    }
+
+    fn push(m: &mut Xm430Motor, cap: f64, steps: usize) -> MotorReading {
         let mut r = MotorReading::default();
-        for _ in 0..500 {
-            r = m.step(&cmd(90.0, 300.0), 10.0, 0.001);
+        for _ in 0..steps {
+            r = m.step(&cmd(90.0, cap), wall(r.position_deg), 0.001);
         }
+        r
+    }
+
+    #[test]
+    fn against_a_wall_the_shaft_settles_where_the_load_meets_the_cap() {
+        let mut m = Xm430Motor::default();
+        let r = push(&mut m, 300.0, 3000);
+        let kt = STALL_TORQUE_NM / STALL_CURRENT_MA;
         assert!((r.current_ma - 300.0).abs() < 1e-6, "{r:?}");
-        assert_eq!(r.hardware_error, 0);
-        for _ in 0..600 {
-            r = m.step(&cmd(90.0, 300.0), 10.0, 0.001);
-        }
+        assert!((wall(r.position_deg) - 300.0 * kt).abs() < 0.01, "{r:?}");
+        assert!(!r.moving);
+        assert_eq!(r.hardware_error, 0, "a gentle hold never overloads");
+    }
+
+    #[test]
+    fn straining_at_a_high_cap_overloads_and_cuts_torque_until_reboot() {
+        let mut m = Xm430Motor::default();
+        let r = push(&mut m, 2000.0, 800);
+        assert_eq!(r.hardware_error, 0, "{r:?}");
+        let r = push(&mut m, 2000.0, 1500);
         assert_eq!(r.hardware_error, OVERLOAD);
-        assert_eq!(
-            m.step(&cmd(90.0, 300.0), 0.0, 0.001).current_ma,
-            0.0,
-            "overload cuts torque"
-        );
+        assert_eq!(m.step(&cmd(90.0, 300.0), 0.0, 0.001).current_ma, 0.0);
         m.reboot();
         assert_eq!(m.step(&cmd(90.0, 300.0), 0.0, 0.001).hardware_error, 0);
+    }
+
+    #[test]
+    fn a_hot_motor_overheats_and_shuts_down() {
+        let mut m = Xm430Motor::default().with_temperature(79.9);
+        let r = push(&mut m, 1400.0, 2000);
+        assert_eq!(r.hardware_error & OVERHEATING, OVERHEATING, "{r:?}");
+        assert_eq!(r.current_ma, 0.0);
+    }
+
+    #[test]
+    fn with_torque_off_the_cable_back_drives_the_shaft() {
+        let mut m = Xm430Motor::at(45.0);
+        let off = MotorCommand {
+            torque_on: false,
+            ..cmd(45.0, 300.0)
+        };
+        let r = (0..100).fold(MotorReading::default(), |_, _| m.step(&off, 0.5, 0.01));
+        assert!(r.position_deg < 45.0, "{r:?}");
     }
 
     #[test]

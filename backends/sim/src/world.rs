@@ -1,0 +1,374 @@
+//! The simulated world: finger servos, cable-driven fingers, the scene object and the
+//! contact on every pad, stepped in fixed increments of simulated time.
+//!
+//! One [`World`] is shared ([`SharedWorld`]) by the simulated hub, which renders each pad's
+//! indentation when it triggers a capture, and the simulated servo bus, which commands the
+//! motors and reads them back. Both advance it to the injected clock's time first, so a
+//! virtual clock gives bit-for-bit repeatable runs. Per step: each motor moves under the
+//! cable's load; each finger relaxes to equilibrium against its springs and its pads'
+//! contact; then the object reacts (crush, trigger, bolt, slip) and events are logged.
+
+use std::sync::{Arc, Mutex};
+
+use glam::DVec3;
+
+use gelgrip_controller::actuator::{MotorCommand, MotorModel, MotorReading};
+use gelgrip_controller::layout::{HandLayout, Placement};
+
+use crate::contact::{PadContact, PadGrid, height_map, pad_contact};
+use crate::finger::{FingerMechanics, PadFrame, PadLoad};
+use crate::motor::Xm430Motor;
+use crate::object::ObjectState;
+use crate::scene::HeightMap;
+use crate::scene_spec::SceneSpec;
+use crate::shapes::rotation_from_rpy_deg;
+use crate::world_log::{EventKind, WorldEvent, WorldLog};
+
+/// Simulation step, µs.
+pub const STEP_US: u64 = 2000;
+/// Gauss–Seidel sweeps of the finger equilibrium per step.
+const SWEEPS: usize = 2;
+/// Standard gravity, m/s².
+const G_M_PER_S2: f64 = 9.81;
+/// Slip compliance: mm of slip per N of unbalanced load per step.
+const SLIP_MM_PER_N: f64 = 0.05;
+/// Fastest slip (and the speed of an object falling free of the hand), mm/s.
+const SLIP_MAX_MM_PER_S: f64 = 500.0;
+
+/// Where a sensor's pad is mounted.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Mount {
+    /// Fixed to the palm.
+    Palm(PadFrame),
+    /// On phalanx `phalanx` of finger `finger`.
+    Finger { finger: usize, phalanx: usize },
+    /// A generic sensor with no place on the hand: never touched.
+    Nowhere,
+}
+
+/// A world shared by the simulated hub and servo bus.
+pub type SharedWorld = Arc<Mutex<World>>;
+
+/// The simulated world.
+#[derive(Debug)]
+pub struct World {
+    mounts: Vec<Mount>,
+    grids: Vec<PadGrid>,
+    fingers: Vec<FingerMechanics>,
+    motors: Vec<Xm430Motor>,
+    commands: Vec<MotorCommand>,
+    readings: Vec<MotorReading>,
+    object: Option<ObjectState>,
+    scene: Option<SceneSpec>,
+    contacts: Vec<PadContact>,
+    t_us: Option<u64>,
+    elapsed_us: u64,
+    log: WorldLog,
+}
+
+fn palm_frame(xyz_mm: [f64; 3], rpy_deg: [f64; 3]) -> PadFrame {
+    let r = rotation_from_rpy_deg(rpy_deg);
+    PadFrame {
+        center: DVec3::from_array(xyz_mm),
+        normal: r * DVec3::Z,
+        ex: r * DVec3::X,
+        ey: r * DVec3::Y,
+    }
+}
+
+impl World {
+    /// The world of `layout`, with `scene` (or empty space) and the motors at 0°.
+    pub fn new(layout: &HandLayout, scene: Option<SceneSpec>) -> Self {
+        let mounts: Vec<Mount> = (0..layout.sensors.len())
+            .map(|i| {
+                match (
+                    layout.sensors[i].id.placement(),
+                    layout.phalanx_of_sensor(i),
+                ) {
+                    (Placement::Palm, _) => {
+                        let pose = layout.sensors[i].pose;
+                        Mount::Palm(palm_frame(pose.xyz_mm, pose.rpy_deg))
+                    }
+                    (_, Some((finger, phalanx))) => Mount::Finger { finger, phalanx },
+                    _ => Mount::Nowhere,
+                }
+            })
+            .collect();
+        let grids = layout
+            .sensors
+            .iter()
+            .map(|s| PadGrid {
+                width_px: s.resolution.width_px as usize,
+                height_px: s.resolution.height_px as usize,
+                mm_per_px: s.mm_per_px,
+            })
+            .collect();
+        let n = layout.fingers.len();
+        let object = scene
+            .as_ref()
+            .map(|s| ObjectState::new(s.object.clone(), s.slip_dir));
+        Self {
+            contacts: vec![PadContact::default(); mounts.len()],
+            log: WorldLog::new(mounts.len()),
+            mounts,
+            grids,
+            fingers: layout
+                .fingers
+                .iter()
+                .cloned()
+                .map(FingerMechanics::new)
+                .collect(),
+            motors: vec![Xm430Motor::default(); n],
+            commands: vec![MotorCommand::default(); n],
+            readings: vec![MotorReading::default(); n],
+            object,
+            scene,
+            t_us: None,
+            elapsed_us: 0,
+        }
+    }
+
+    /// Share it between the hub and the servo bus.
+    pub fn into_shared(self) -> SharedWorld {
+        Arc::new(Mutex::new(self))
+    }
+
+    /// Number of fingers (servos).
+    pub fn fingers(&self) -> usize {
+        self.fingers.len()
+    }
+
+    /// The scene, if any.
+    pub fn scene(&self) -> Option<&SceneSpec> {
+        self.scene.as_ref()
+    }
+
+    /// The object now, if the scene has one.
+    pub fn object(&self) -> Option<&ObjectState> {
+        self.object.as_ref()
+    }
+
+    /// What happened so far.
+    pub fn log(&self) -> &WorldLog {
+        &self.log
+    }
+
+    /// Simulated time since the first advance, s.
+    pub fn elapsed_s(&self) -> f64 {
+        self.elapsed_us as f64 / 1e6
+    }
+
+    /// Command finger `finger`'s motor.
+    pub fn set_command(&mut self, finger: usize, command: MotorCommand) {
+        if let Some(c) = self.commands.get_mut(finger) {
+            *c = command;
+        }
+    }
+
+    /// The motor command of `finger`.
+    pub fn command(&self, finger: usize) -> Option<MotorCommand> {
+        self.commands.get(finger).copied()
+    }
+
+    /// The last motor reading of `finger`.
+    pub fn reading(&self, finger: usize) -> Option<MotorReading> {
+        self.readings.get(finger).copied()
+    }
+
+    /// Replace `finger`'s motor (fault injection: a hot or worn motor).
+    pub fn set_motor(&mut self, finger: usize, motor: Xm430Motor) {
+        if let Some(m) = self.motors.get_mut(finger) {
+            *m = motor;
+        }
+    }
+
+    /// Clear `finger`'s motor faults (a servo reboot).
+    pub fn reboot_motor(&mut self, finger: usize) {
+        let Some(m) = self.motors.get_mut(finger) else {
+            return;
+        };
+        m.reboot();
+        let faults = m.faults();
+        if let Some(r) = self.readings.get_mut(finger) {
+            r.hardware_error = faults;
+        }
+    }
+
+    /// Joint flexions of `finger`, rad.
+    pub fn joints_rad(&self, finger: usize) -> Option<&[f64]> {
+        self.fingers.get(finger).map(FingerMechanics::joints_rad)
+    }
+
+    /// Cable tension of `finger`, N.
+    pub fn tension_n(&self, finger: usize) -> Option<f64> {
+        self.fingers.get(finger).map(FingerMechanics::tension_n)
+    }
+
+    /// The latest contact on sensor `sensor`.
+    pub fn contact(&self, sensor: usize) -> Option<&PadContact> {
+        self.contacts.get(sensor)
+    }
+
+    /// Where sensor `sensor`'s pad is now.
+    pub fn pad_frame(&self, sensor: usize) -> Option<PadFrame> {
+        match *self.mounts.get(sensor)? {
+            Mount::Palm(frame) => Some(frame),
+            Mount::Finger { finger, phalanx } => self.fingers.get(finger)?.pad(phalanx),
+            Mount::Nowhere => None,
+        }
+    }
+
+    /// The full-resolution gel indentation of `sensor`, or `None` when nothing touches it.
+    pub fn height_map(&self, sensor: usize) -> Option<HeightMap> {
+        let contact = self.contacts.get(sensor)?;
+        contact.bbox_px?;
+        let object = self.object.as_ref()?;
+        let frame = self.pad_frame(sensor)?;
+        Some(height_map(&frame, &self.grids[sensor], object, contact))
+    }
+
+    /// Step the world up to host time `now_us` (the first call only sets the origin).
+    pub fn advance_to(&mut self, now_us: u64) {
+        let origin = *self.t_us.get_or_insert(now_us);
+        while origin + self.elapsed_us + STEP_US <= now_us {
+            self.step(STEP_US as f64 / 1e6);
+            self.elapsed_us += STEP_US;
+        }
+    }
+
+    fn sensor_on(&self, finger: usize, phalanx: usize) -> Option<usize> {
+        self.mounts
+            .iter()
+            .position(|m| *m == Mount::Finger { finger, phalanx })
+    }
+
+    fn step(&mut self, dt_s: f64) {
+        for f in 0..self.fingers.len() {
+            let load = self.fingers[f].servo_load_nm();
+            self.readings[f] = self.motors[f].step(&self.commands[f], load, dt_s);
+        }
+        let pads: Vec<Vec<Option<usize>>> = (0..self.fingers.len())
+            .map(|f| {
+                (0..self.fingers[f].spec().phalanges.len())
+                    .map(|p| self.sensor_on(f, p))
+                    .collect()
+            })
+            .collect();
+        let object = self.object.as_ref();
+        let grids = &self.grids;
+        for (f, finger) in self.fingers.iter_mut().enumerate() {
+            let cable = finger.cable_mm(self.readings[f].position_deg);
+            let mut contact = |phalanx: usize, frame: &PadFrame| -> PadLoad {
+                match (object, pads[f].get(phalanx).copied().flatten()) {
+                    (Some(o), Some(s)) => pad_contact(frame, &grids[s], o).load,
+                    _ => PadLoad::default(),
+                }
+            };
+            finger.relax(cable, SWEEPS, &mut contact);
+        }
+        for s in 0..self.mounts.len() {
+            let contact = match (self.object.as_ref(), self.pad_frame(s)) {
+                (Some(o), Some(frame)) => pad_contact(&frame, &self.grids[s], o),
+                _ => PadContact::default(),
+            };
+            self.contacts[s] = contact;
+        }
+        let t_s = self.elapsed_s();
+        self.react(t_s, dt_s);
+        self.log.observe(t_s, &self.contacts);
+    }
+
+    /// The object's response to the contacts: crushing, the trigger and bolt, slip.
+    fn react(&mut self, t_s: f64, dt_s: f64) {
+        let (Some(o), Some(scene)) = (self.object.as_mut(), self.scene.as_ref()) else {
+            return;
+        };
+        if let (Some(limit), false) = (o.spec().crush_force_n, o.crushed) {
+            let worst = self
+                .contacts
+                .iter()
+                .enumerate()
+                .max_by(|a, b| a.1.load.force_n.total_cmp(&b.1.load.force_n));
+            if let Some((s, c)) = worst.filter(|(_, c)| c.load.force_n > limit) {
+                o.crushed = true;
+                self.log.push(
+                    WorldEvent::at(t_s, EventKind::Crushed)
+                        .sensor(s)
+                        .value(c.load.force_n),
+                );
+            }
+        }
+        let (tf, ta) = self.contacts.iter().fold((0.0, 0.0), |(f, a), c| {
+            (f + c.trigger_force_n, a + c.trigger_area_mm2)
+        });
+        let was_on = o.switch_on;
+        o.update_trigger(tf, ta);
+        if o.switch_on != was_on {
+            let kind = if o.switch_on {
+                EventKind::TriggerOn
+            } else {
+                EventKind::TriggerOff
+            };
+            self.log.push(WorldEvent::at(t_s, kind).value(o.trigger_mm));
+        }
+        let was_tight = o.bolt_tight;
+        let reaction_n = o.update_bolt(dt_s);
+        if o.bolt_tight && !was_tight {
+            self.log
+                .push(WorldEvent::at(t_s, EventKind::BoltTight).value(o.bolt_torque_nm));
+        }
+        let released = scene.release_after_s.is_some_and(|r| t_s >= r);
+        if released && !self.log.has(EventKind::Released) {
+            self.log.push(WorldEvent::at(t_s, EventKind::Released));
+        }
+        let d = scene.slip_dir;
+        let gravity_n = if released {
+            o.spec().mass_kg * G_M_PER_S2 * scene.gravity_dir.dot(d)
+        } else {
+            0.0
+        };
+        let load_n = gravity_n + reaction_n;
+        if o.dropped || load_n == 0.0 {
+            self.log.slipping = false;
+            return;
+        }
+        let (mut support, mut friction) = (0.0, 0.0);
+        for (s, c) in self.contacts.iter().enumerate() {
+            if c.load.force_n <= 0.0 {
+                continue;
+            }
+            let n = match self.mounts[s] {
+                Mount::Palm(frame) => frame.normal,
+                Mount::Finger { finger, phalanx } => self.fingers[finger]
+                    .pad(phalanx)
+                    .map_or(DVec3::ZERO, |p| p.normal),
+                Mount::Nowhere => DVec3::ZERO,
+            };
+            let along = n.dot(d);
+            support += c.load.force_n * along;
+            friction += o.spec().friction * c.load.force_n * (1.0 - along * along).max(0.0).sqrt();
+        }
+        let net = load_n + support;
+        let touching = self.contacts.iter().any(|c| c.load.force_n > 0.0);
+        if net.abs() > friction {
+            let slip = if touching {
+                ((net.abs() - friction) * SLIP_MM_PER_N).min(SLIP_MAX_MM_PER_S * dt_s)
+            } else {
+                SLIP_MAX_MM_PER_S * dt_s
+            };
+            o.slip_mm += slip * net.signum();
+            if !self.log.slipping {
+                self.log
+                    .push(WorldEvent::at(t_s, EventKind::SlipStarted).value(o.slip_mm));
+            }
+            self.log.slipping = true;
+        } else {
+            self.log.slipping = false;
+        }
+        if released && !touching && o.slip_mm.abs() > o.radius_mm() + 20.0 {
+            o.dropped = true;
+            self.log
+                .push(WorldEvent::at(t_s, EventKind::Dropped).value(o.slip_mm));
+        }
+    }
+}

@@ -1,0 +1,157 @@
+//! Scene tests: for every scene in `configs/scenes`, closing the fingers with a fixed
+//! current ramp touches exactly the scene's `expect_contact` sensors, and each sensor's
+//! force and indentation are zero before its first contact, then non-decreasing with the
+//! goal current until a crush or a joint limit.
+
+use gelgrip_controller::actuator::MotorCommand;
+use gelgrip_controller::layout::HandLayout;
+use gelgrip_sim::scene_spec::SceneSpec;
+use gelgrip_sim::world::World;
+use gelgrip_sim::world_log::EventKind;
+
+const RAMP_STEPS: u64 = 40;
+const STEP_US: u64 = 100_000;
+const MAX_CURRENT_MA: f64 = 800.0;
+
+fn layout() -> HandLayout {
+    let text = include_str!("../../../configs/layouts/three-finger.toml");
+    HandLayout::from_toml("three-finger.toml", text).expect("layout")
+}
+
+/// Command every finger to close fully with `current_ma` as the cap.
+fn close_all(world: &mut World, current_ma: f64) {
+    for f in 0..world.fingers() {
+        world.set_command(
+            f,
+            MotorCommand {
+                torque_on: true,
+                goal_position_deg: 180.0,
+                goal_current_ma: current_ma,
+                profile_velocity_rpm: 0.0,
+            },
+        );
+    }
+}
+
+fn scenes() -> Vec<(String, String)> {
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../../configs/scenes");
+    let mut out: Vec<(String, String)> = std::fs::read_dir(dir)
+        .expect("configs/scenes")
+        .filter_map(Result::ok)
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+        .map(|p| {
+            let text = std::fs::read_to_string(&p).expect("read scene");
+            (p.display().to_string(), text)
+        })
+        .collect();
+    out.sort();
+    assert_eq!(out.len(), 6, "the paper's six scenes");
+    out
+}
+
+#[test]
+fn closing_on_each_scene_touches_exactly_the_expected_sensors_with_monotonic_force() {
+    let layout = layout();
+    for (file, text) in scenes() {
+        let scene = SceneSpec::from_toml(&file, &text, &layout).expect("valid scene");
+        let expect = scene.expect_contact.clone();
+        let mut world = World::new(&layout, Some(scene));
+        world.advance_to(0);
+        let n = layout.sensors.len();
+        let mut last = vec![(0.0f64, 0.0f64); n];
+        let mut limited = false;
+        for step in 1..=RAMP_STEPS + 10 {
+            let current = MAX_CURRENT_MA * (step.min(RAMP_STEPS) as f64 / RAMP_STEPS as f64);
+            close_all(&mut world, current);
+            world.advance_to(step * STEP_US);
+            limited |= (0..world.fingers()).any(|f| {
+                let spec = &layout.fingers[f];
+                world
+                    .joints_rad(f)
+                    .expect("finger")
+                    .iter()
+                    .zip(&spec.phalanges)
+                    .any(|(q, p)| *q >= p.limit_deg.to_radians() - 1e-6)
+            });
+            let crushed = world.log().has(EventKind::Crushed);
+            for (s, prev) in last.iter_mut().enumerate() {
+                let c = world.contact(s).expect("sensor");
+                let now = (c.load.force_n, c.max_depth_mm);
+                assert!(now.0.is_finite() && now.1.is_finite(), "{file}: sensor {s}");
+                if world.log().first_contact_s()[s].is_none() {
+                    assert_eq!(now, (0.0, 0.0), "{file}: sensor {s} before contact");
+                }
+                if !crushed && !limited {
+                    assert!(
+                        now.0 >= prev.0 * 0.98 - 0.02,
+                        "{file}: sensor {s} force fell from {} to {} at {current} mA",
+                        prev.0,
+                        now.0
+                    );
+                }
+                *prev = now;
+            }
+        }
+        let touched: Vec<usize> = (0..n)
+            .filter(|s| world.log().first_contact_s()[*s].is_some())
+            .collect();
+        let mut expected = expect.clone();
+        expected.sort_unstable();
+        assert_eq!(touched, expected, "{file}: touched sensors");
+    }
+}
+
+#[test]
+fn the_egg_cracks_and_the_cup_crushes_under_a_hard_squeeze_but_the_ball_does_not() {
+    let layout = layout();
+    for (file, text) in scenes() {
+        let scene = SceneSpec::from_toml(&file, &text, &layout).expect("valid scene");
+        let crushable = scene.object.crush_force_n.is_some();
+        let mut world = World::new(&layout, Some(scene));
+        world.advance_to(0);
+        close_all(&mut world, 1400.0);
+        world.advance_to(4_000_000);
+        assert_eq!(world.log().has(EventKind::Crushed), crushable, "{file}");
+    }
+}
+
+#[test]
+fn a_weak_grip_drops_the_ball_when_released_and_a_firm_one_holds_it() {
+    let layout = layout();
+    let text = include_str!("../../../configs/scenes/tennis-ball.toml");
+    for (current, held) in [(0.0, false), (600.0, true)] {
+        let scene = SceneSpec::from_toml("tennis-ball.toml", text, &layout).expect("scene");
+        let mut world = World::new(&layout, Some(scene));
+        world.advance_to(0);
+        close_all(&mut world, current);
+        world.advance_to(8_000_000);
+        let log = world.log();
+        assert!(log.has(EventKind::Released));
+        assert_eq!(
+            !log.has(EventKind::Dropped),
+            held,
+            "{current} mA: {:?}",
+            log.events()
+        );
+        let slip = world.object().expect("object").slip_mm;
+        assert!(slip.is_finite());
+        if held {
+            assert!(slip.abs() < 5.0, "held ball slipped {slip} mm");
+        }
+    }
+}
+
+#[test]
+fn the_screwdriver_trigger_starts_the_tool_and_the_bolt_tightens() {
+    let layout = layout();
+    let text = include_str!("../../../configs/scenes/screwdriver.toml");
+    let scene = SceneSpec::from_toml("screwdriver.toml", text, &layout).expect("scene");
+    let mut world = World::new(&layout, Some(scene));
+    world.advance_to(0);
+    close_all(&mut world, 800.0);
+    world.advance_to(10_000_000);
+    let log = world.log();
+    assert!(log.has(EventKind::TriggerOn), "{:?}", log.events());
+    assert!(log.has(EventKind::BoltTight), "{:?}", log.events());
+}
