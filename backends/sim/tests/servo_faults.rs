@@ -2,8 +2,6 @@
 //! recovered by a reboot and reported; a motor that stays too hot is a typed, unrecovered
 //! `HardwareFault` after the bounded retries.
 
-use std::sync::Arc;
-
 use gelgrip_controller::actuator::{FingerGoal, MAX_RECOVERY_TRIES, ServoBus, ServoError};
 use gelgrip_controller::clock::VirtualClock;
 use gelgrip_controller::layout::HandLayout;
