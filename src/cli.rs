@@ -285,6 +285,25 @@ pub struct RunArgs {
     /// Print one JSON object on stdout.
     #[arg(long)]
     pub json: bool,
+    /// Close the fingers on this scene file (overrides `[hub.sim] scene`; sim hub only).
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
+    /// Goal-current cap the fingers ramp to when closing on a scene, mA.
+    #[arg(long, default_value_t = 800.0, value_parser = parse_current_ma)]
+    pub close_current_ma: f64,
+}
+
+fn parse_current_ma(s: &str) -> Result<f64, String> {
+    let v: f64 = s
+        .parse()
+        .map_err(|_| format!("`{s}` is not a current in mA"))?;
+    if (0.0..=3209.0).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!(
+            "{v} mA is outside 0..=3209 (the XM430's current range)"
+        ))
+    }
 }
 
 /// `gelgrip check-config`.

@@ -5,6 +5,8 @@ mod cli;
 mod commands;
 mod embedded;
 mod output;
+mod scene_report;
+mod servo_loop;
 mod simcam;
 mod wiring;
 

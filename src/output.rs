@@ -5,6 +5,33 @@ use serde::Serialize;
 
 use gelgrip_controller::gate::{GateStats, ReasonCounts};
 
+/// One servo's last state in `run --json`.
+#[derive(Debug, Serialize)]
+pub struct ServoReport {
+    /// Position, degrees.
+    pub position_deg: f64,
+    /// Current, mA.
+    pub current_ma: f64,
+    /// Temperature, °C.
+    pub temperature_c: f64,
+    /// Hardware Error Status bits.
+    pub hardware_error: u8,
+    /// Moving.
+    pub moving: bool,
+}
+
+impl From<&gelgrip_controller::actuator::ServoState> for ServoReport {
+    fn from(s: &gelgrip_controller::actuator::ServoState) -> Self {
+        Self {
+            position_deg: s.position_deg,
+            current_ma: s.current_ma,
+            temperature_c: s.temperature_c,
+            hardware_error: s.hardware_error,
+            moving: s.moving,
+        }
+    }
+}
+
 /// `run --json`.
 #[derive(Debug, Serialize)]
 pub struct RunReport {
@@ -38,6 +65,18 @@ pub struct RunReport {
     pub max_age_us: u64,
     /// Median set latency (emission − earliest capture), ms.
     pub set_latency_ms_p50: Option<f64>,
+    /// The scene's object (a run on a scene).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub object: Option<String>,
+    /// Whether the object was crushed (a run on a scene).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub crushed: Option<bool>,
+    /// What happened in the scene.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub scene: Option<crate::scene_report::SceneReport>,
+    /// The servos' last states, in finger order.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub servos: Option<Vec<ServoReport>>,
     /// p99 set latency, ms.
     pub set_latency_ms_p99: Option<f64>,
     /// Frames (valid or corrupt) received.

@@ -8,12 +8,18 @@ use std::sync::Arc;
 use anyhow::Context;
 
 use gelgrip_controller::acquire::{Acquisition, gate_limits};
+use gelgrip_controller::actuator::ServoBus;
 use gelgrip_controller::clock::{Clock, RealClock, VirtualClock};
 use gelgrip_controller::config::{AppConfig, ConfigError, DiskFiles};
 use gelgrip_controller::gate::Gate;
 use gelgrip_controller::hub::SensorSettings;
 use gelgrip_controller::registry::{OpenError, OpenRequest, TransportRegistry};
+use gelgrip_dynamixel::driver::DynamixelBus;
 use gelgrip_sim::SimHubFactory;
+use gelgrip_sim::config::SimConfig;
+use gelgrip_sim::scene_spec::SceneSpec;
+use gelgrip_sim::servo_bus::SimServoBus;
+use gelgrip_sim::world::{SharedWorld, World};
 
 use crate::cli::ClockArg;
 use crate::embedded;
@@ -21,8 +27,88 @@ use crate::embedded;
 /// Every transport this build can open.
 pub fn registry() -> TransportRegistry {
     let mut registry = TransportRegistry::new();
-    registry.register(Box::new(SimHubFactory));
+    registry.register(Box::new(SimHubFactory::default()));
     registry
+}
+
+/// The same registry, with the simulated hub rendering `world`.
+pub fn registry_with_world(world: SharedWorld) -> TransportRegistry {
+    let mut registry = TransportRegistry::new();
+    registry.register(Box::new(SimHubFactory::with_world(world)));
+    registry
+}
+
+/// The simulated world a run needs, if any: with the sim hub, its configured scene (or
+/// `scene_override`); with sim servos on another hub, empty space.
+pub fn open_world(
+    config: &AppConfig,
+    scene_override: Option<&Path>,
+) -> anyhow::Result<Option<SharedWorld>> {
+    let sim_hub = config.hub.transport == "sim";
+    if scene_override.is_some() && !sim_hub {
+        return Err(crate::cli::UsageError(format!(
+            "--scene needs hub.transport = \"sim\" (this config uses \"{}\")",
+            config.hub.transport
+        ))
+        .into());
+    }
+    let scene = match scene_override {
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("reading scene {}", path.display()))?;
+            Some(SceneSpec::from_toml(
+                &path.display().to_string(),
+                &text,
+                &config.layout,
+            )?)
+        }
+        None if sim_hub => SimConfig::from_section(&config.hub.section, &config.layout)?.scene,
+        None => None,
+    };
+    if scene.is_some() && config.layout.fingers.is_empty() {
+        return Err(crate::cli::UsageError(format!(
+            "a scene needs finger mechanics, and layout {} declares no [[fingers]]",
+            config.layout.name
+        ))
+        .into());
+    }
+    if !sim_hub && config.servos.bus != "sim" {
+        return Ok(None);
+    }
+    Ok(Some(World::new(&config.layout, scene).into_shared()))
+}
+
+/// The configured servo bus, or `None` when the layout has no fingers to drive.
+pub fn open_servos(
+    config: &AppConfig,
+    world: Option<&SharedWorld>,
+    clock: Arc<dyn Clock>,
+) -> anyhow::Result<Option<Box<dyn ServoBus>>> {
+    let s = &config.servos;
+    match s.bus.as_str() {
+        "dynamixel" => {
+            let bus = DynamixelBus::open(&s.port, s.baud, &s.ids, s.current_limit_ma)
+                .with_context(|| format!("opening the servo bus on {}", s.port))?;
+            Ok(Some(Box::new(bus)))
+        }
+        _ => {
+            let Some(world) = world.filter(|_| !config.layout.fingers.is_empty()) else {
+                return Ok(None);
+            };
+            if s.ids.len() != config.layout.fingers.len() {
+                return Err(crate::cli::UsageError(format!(
+                    "{}: servos.ids lists {} servos for the {} fingers of layout {}",
+                    config.file,
+                    s.ids.len(),
+                    config.layout.fingers.len(),
+                    config.layout.name
+                ))
+                .into());
+            }
+            let bus = SimServoBus::new(world.clone(), clock, &s.ids, s.current_limit_ma)?;
+            Ok(Some(Box::new(bus)))
+        }
+    }
 }
 
 /// Load `path`, or the embedded default configuration when `None`.

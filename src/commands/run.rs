@@ -7,7 +7,9 @@ use gelgrip_controller::acquire::Acquisition;
 use gelgrip_controller::clock::{Clock, ClockKind};
 
 use crate::cli::{ClockArg, RunArgs};
-use crate::output::{RunReport, latency_ms};
+use crate::output::{RunReport, ServoReport, latency_ms};
+use crate::scene_report::SceneReport;
+use crate::servo_loop::ServoLoop;
 use crate::wiring;
 
 /// Resolves on SIGINT or SIGTERM.
@@ -74,6 +76,15 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
     let config = wiring::load_config(args.config.as_deref(), &registry)?;
     let clock_arg = args.clock.unwrap_or(ClockArg::Real);
     let clock = wiring::make_clock(clock_arg);
+    let world = wiring::open_world(&config, args.scene.as_deref())?;
+    let registry = match &world {
+        Some(w) => wiring::registry_with_world(w.clone()),
+        None => registry,
+    };
+    let on_scene = world
+        .as_ref()
+        .and_then(|w| w.lock().ok().map(|w| w.scene().is_some()))
+        .unwrap_or(false);
     if !args.headless {
         tracing::info!(
             "the dashboard ({}) arrives with the web dashboard issue; running without it",
@@ -97,6 +108,13 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
         last_sets: 0,
     };
     let mut faults = Vec::new();
+    let mut servos = match wiring::open_servos(&config, world.as_ref(), clock.clone())? {
+        Some(bus) => Some(
+            ServoLoop::start(bus, &config.layout, on_scene, args.close_current_ma, start)
+                .map_err(|e| anyhow::anyhow!("configuring the servos: {e}"))?,
+        ),
+        None => None,
+    };
     let shutdown = shutdown_signal();
     let timer = real_deadline(clock.clone(), deadline);
     tokio::pin!(shutdown, timer);
@@ -114,11 +132,28 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
             }
         }
         let now = clock.now_us();
+        if let Some(s) = servos.as_mut()
+            && let Err(e) = s.tick(now)
+        {
+            tracing::error!("servo fault: {e}");
+            faults.push(format!("servo fault: {e}"));
+            break "fault";
+        }
         if deadline.is_some_and(|d| now >= d) {
             break "duration";
         }
         progress.log(&acq, now);
     };
+    if let Some(s) = servos.as_mut() {
+        faults.splice(0..0, s.recovered.drain(..));
+        if let Err(e) = s.stop() {
+            tracing::warn!("could not turn servo torque off: {e}");
+        }
+    }
+    let scene = world.as_ref().and_then(|w| {
+        let w = w.lock().ok()?;
+        SceneReport::of(&w, &config.layout)
+    });
     let stats = acq.gate().stats();
     let report = RunReport {
         sensors: description.sensors,
@@ -142,6 +177,12 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
         set_latency_ms_p99: latency_ms(stats, 0.99),
         frames_received: stats.frames_in,
         spread_histogram_us: stats.spread_buckets(),
+        object: scene.as_ref().map(|s| s.object.clone()),
+        crushed: scene.as_ref().map(|s| s.crushed),
+        scene,
+        servos: servos
+            .as_ref()
+            .map(|s| s.last.iter().map(ServoReport::from).collect()),
     };
     if args.json {
         println!("{}", serde_json::to_string(&report)?);

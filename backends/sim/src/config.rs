@@ -5,6 +5,8 @@ use serde::Deserialize;
 use gelgrip_controller::config::{BackendSection, ConfigError};
 use gelgrip_controller::layout::HandLayout;
 
+use crate::scene_spec::SceneSpec;
+
 /// Faults injected into one sensor.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct SensorFaults {
@@ -47,6 +49,8 @@ pub struct SimConfig {
     pub press_depth_mm: f64,
     /// Faults per sensor index.
     pub faults: Vec<SensorFaults>,
+    /// The scene the fingers close on (`None` = the built-in static presses).
+    pub scene: Option<SceneSpec>,
 }
 
 #[derive(Deserialize)]
@@ -116,14 +120,18 @@ impl SimConfig {
         let check = &section.check;
         let p = |k: &str| format!("{}.{k}", section.prefix);
         let raw: RawSim = check.parse_table(&section.prefix, &section.table)?;
-        if let Some(scene) = &raw.scene {
-            return Err(check.unavailable(
-                &p("scene"),
-                scene,
-                Some("the actuation issue (scene physics)"),
-                &["the built-in presses (omit the key)"],
-            ));
-        }
+        let scene = match &raw.scene {
+            None => None,
+            Some(rel) => {
+                let path = section.base_dir.join(rel);
+                let text = section.files.read(&path)?;
+                Some(SceneSpec::from_toml(
+                    &path.display().to_string(),
+                    &text,
+                    layout,
+                )?)
+            }
+        };
         let mut faults = vec![SensorFaults::default(); layout.sensors.len()];
         for (i, f) in raw.faults.iter().enumerate() {
             let field = |k: &str| format!("{}.faults[{i}].{k}", section.prefix);
@@ -173,6 +181,7 @@ impl SimConfig {
             )?,
             press_depth_mm: check.range(&p("press_depth_mm"), raw.press_depth_mm, 0.0, 3.0)?,
             faults,
+            scene,
         })
     }
 }

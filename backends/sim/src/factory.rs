@@ -7,10 +7,20 @@ use gelgrip_controller::registry::{HubFactory, OpenError, OpenRequest};
 
 use crate::config::SimConfig;
 use crate::hub::SimHub;
+use crate::world::SharedWorld;
 
-/// Opens [`SimHub`]s.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct SimHubFactory;
+/// Opens [`SimHub`]s: with a world, frames show its scene; without, the built-in presses.
+#[derive(Debug, Clone, Default)]
+pub struct SimHubFactory {
+    world: Option<SharedWorld>,
+}
+
+impl SimHubFactory {
+    /// Hubs that render `world` (shared with the simulated servo bus).
+    pub fn with_world(world: SharedWorld) -> Self {
+        Self { world: Some(world) }
+    }
+}
 
 impl HubFactory for SimHubFactory {
     fn name(&self) -> &'static str {
@@ -26,12 +36,21 @@ impl HubFactory for SimHubFactory {
         request: OpenRequest<'_>,
     ) -> Result<Box<dyn gelgrip_controller::hub::HubTransport>, OpenError> {
         let cfg = SimConfig::from_section(request.section, request.layout)?;
-        let hub =
-            SimHub::new(request.layout, request.trigger, cfg, request.clock).map_err(|e| {
-                OpenError::Hub(HubError::Config {
-                    detail: e.to_string(),
-                })
-            })?;
+        let hub = match &self.world {
+            Some(world) => SimHub::with_world(
+                request.layout,
+                request.trigger,
+                cfg,
+                request.clock,
+                world.clone(),
+            ),
+            None => SimHub::new(request.layout, request.trigger, cfg, request.clock),
+        }
+        .map_err(|e| {
+            OpenError::Hub(HubError::Config {
+                detail: e.to_string(),
+            })
+        })?;
         Ok(Box::new(hub))
     }
 }

@@ -29,8 +29,10 @@ use gelgrip_hubwire::timing::BusModel;
 
 use crate::config::SimConfig;
 use crate::pool::{EncodeError, FramePool};
+use crate::scene_frames::SceneFrames;
 use crate::timeline::{BoardInput, BusParams, schedule_set};
 use crate::unit::rng_for;
+use crate::world::SharedWorld;
 
 #[derive(Debug)]
 enum Pending {
@@ -65,6 +67,8 @@ pub struct SimHub {
     triggers_fired: u64,
     bus_free_ns: u64,
     time_map: HubTimeMap,
+    /// With a scene: frames rendered from the shared world at each capture.
+    scene: Option<SceneFrames>,
 }
 
 fn to_hub_mode(mode: TriggerMode) -> i2c::TriggerMode {
@@ -129,7 +133,27 @@ impl SimHub {
             order: 0,
             triggers_fired: 0,
             bus_free_ns: start * 1000,
+            scene: None,
         })
+    }
+
+    /// Build the hub for `layout` whose frames show `world`'s contacts.
+    pub fn with_world(
+        layout: &HandLayout,
+        trigger: TriggerMode,
+        cfg: SimConfig,
+        clock: Arc<dyn Clock>,
+        world: SharedWorld,
+    ) -> Result<Self, EncodeError> {
+        let scene = SceneFrames::new(world, layout, &cfg)?;
+        let mut hub = Self::new(layout, trigger, cfg, clock)?;
+        hub.scene = Some(scene);
+        Ok(hub)
+    }
+
+    /// The shared world, when the hub renders one.
+    pub fn world(&self) -> Option<&SharedWorld> {
+        self.scene.as_ref().map(SceneFrames::world)
     }
 
     /// The rendered frames (for tests and the calibration tools).
@@ -158,7 +182,11 @@ impl SimHub {
         self.order += 1;
     }
 
-    fn board_inputs(&mut self, seq: u32) -> Vec<(BoardInput, Option<Vec<u8>>, u32)> {
+    fn board_inputs(
+        &mut self,
+        seq: u32,
+        captured: Option<Vec<Bytes>>,
+    ) -> Vec<(BoardInput, Option<Vec<u8>>, u32)> {
         let n = self.description.sensors;
         let nth = self.triggers_fired;
         self.triggers_fired += 1;
@@ -177,7 +205,10 @@ impl SimHub {
                 let capture_delay_ns = u64::from(faults.capture_delay_us) * 1000;
                 let offset_us = ((jitter_ns + capture_delay_ns) / 1000) as u32;
                 let wire = (!lost).then(|| {
-                    let jpeg = self.pool.frame(b, nth).cloned().unwrap_or_default();
+                    let jpeg = match &captured {
+                        Some(frames) => frames.get(b).cloned().unwrap_or_default(),
+                        None => self.pool.frame(b, nth).cloned().unwrap_or_default(),
+                    };
                     let header = FrameHeader {
                         sensor_id: b as u8,
                         trigger_seq: seq,
@@ -269,8 +300,16 @@ impl HubTransport for SimHub {
     }
 
     async fn trigger(&mut self, seq: u32) -> Result<(), HubError> {
-        let start_ns = self.bus_free_ns.max(self.clock.now_us() * 1000);
-        let boards = self.board_inputs(seq);
+        let now_us = self.clock.now_us();
+        let start_ns = self.bus_free_ns.max(now_us * 1000);
+        let nth = self.triggers_fired;
+        let captured = match self.scene.as_mut() {
+            Some(scene) => Some(scene.capture(now_us, nth).map_err(|e| HubError::Config {
+                detail: e.to_string(),
+            })?),
+            None => None,
+        };
+        let boards = self.board_inputs(seq, captured);
         let inputs: Vec<BoardInput> = boards.iter().map(|(i, _, _)| *i).collect();
         let times = schedule_set(&self.bus, start_ns, &inputs);
         let mut sent = 0u8;

@@ -27,6 +27,7 @@ pub mod object;
 pub mod optics;
 pub mod pool;
 pub mod scene;
+pub mod scene_frames;
 pub mod scene_spec;
 pub mod servo_bus;
 pub mod shapes;

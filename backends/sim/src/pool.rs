@@ -120,6 +120,21 @@ impl FramePool {
         Ok(Self { frames })
     }
 
+    /// Render and encode an untouched gel for every sensor of `layout` (what a scene's
+    /// sensors show until something touches them).
+    pub fn render_flat(layout: &HandLayout, cfg: &SimConfig) -> Result<Self, EncodeError> {
+        let frames = (0..layout.sensors.len())
+            .filter_map(|i| SensorCamera::new(layout, i, cfg))
+            .map(|cam| {
+                let map = HeightMap::flat(cam.width, cam.height);
+                (0..cfg.noise_pool as u64)
+                    .map(|k| cam.jpeg(&map, k).map(Bytes::from))
+                    .collect::<Result<Vec<_>, _>>()
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(Self { frames })
+    }
+
     /// The frame sensor `sensor` produces for its `nth` capture.
     pub fn frame(&self, sensor: usize, nth: u64) -> Option<&Bytes> {
         let frames = self.frames.get(sensor)?;

@@ -48,7 +48,7 @@ pub struct GateSettings {
     pub max_age_us: Limit<u64>,
 }
 
-/// `[servos]` (validated now; driven from the actuation issue on).
+/// `[servos]`: the finger servo bus.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ServoSettings {
     /// `sim` or `dynamixel`.
@@ -59,6 +59,8 @@ pub struct ServoSettings {
     pub baud: u32,
     /// Servo ids, one per finger.
     pub ids: Vec<u8>,
+    /// Current Limit written to every servo, and the cap on every goal current, mA.
+    pub current_limit_ma: f64,
 }
 
 /// `[http]`.
@@ -185,6 +187,7 @@ struct RawServos {
     port: String,
     baud: u32,
     ids: Vec<u8>,
+    current_limit_ma: f64,
 }
 
 impl Default for RawServos {
@@ -194,6 +197,7 @@ impl Default for RawServos {
             port: "/dev/ttyUSB0".into(),
             baud: 1_000_000,
             ids: vec![1, 2, 3],
+            current_limit_ma: 1000.0,
         }
     }
 }
@@ -355,17 +359,11 @@ fn validate_gate(check: &FieldCheck, raw: RawGate) -> Result<GateSettings, Confi
 
 fn validate_servos(check: &FieldCheck, raw: RawServos) -> Result<ServoSettings, ConfigError> {
     match raw.bus.as_str() {
-        "sim" => {}
-        "dynamixel" => {
-            return Err(check.unavailable(
-                "servos.bus",
-                "dynamixel",
-                Some("the actuation issue"),
-                &["sim"],
-            ));
-        }
+        "sim" | "dynamixel" => {}
         other => return Err(check.invalid("servos.bus", other, "sim | dynamixel")),
     }
+    let current_limit_ma =
+        check.range("servos.current_limit_ma", raw.current_limit_ma, 0.0, 3209.0)?;
     if !DYNAMIXEL_BAUDS.contains(&raw.baud) {
         return Err(check.invalid(
             "servos.baud",
@@ -386,6 +384,7 @@ fn validate_servos(check: &FieldCheck, raw: RawServos) -> Result<ServoSettings, 
         port: raw.port,
         baud: raw.baud,
         ids: raw.ids,
+        current_limit_ma,
     })
 }
 
