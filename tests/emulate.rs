@@ -1,34 +1,16 @@
 //! `gelgrip emulate servos` end to end: the CLI contract (link after serving, one JSON line,
 //! link removed on SIGTERM) and a real Protocol 2.0 client (`dynamixel2`) on the link.
 
-use std::io::{BufRead, BufReader};
-use std::process::{Command, Stdio};
+use std::process::Command;
+
+mod common;
 
 #[test]
 fn dynamixel2_talks_to_the_emulated_servos_through_the_link() {
-    let dir = std::env::temp_dir().join(format!("gelgrip-emu-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("dir");
-    let link = dir.join("dxl");
-    let _ = std::fs::remove_file(&link);
-    let mut child = Command::new(env!("CARGO_BIN_EXE_gelgrip"))
-        .args([
-            "emulate",
-            "servos",
-            "--link",
-            link.to_str().expect("utf-8"),
-            "--ids",
-            "1,2,3",
-        ])
-        .env("RUST_LOG", "warn")
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("emulator starts");
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().expect("stdout"))
-        .read_line(&mut line)
-        .expect("one JSON line");
-    let v: serde_json::Value = serde_json::from_str(&line).expect("JSON");
-    assert_eq!(v["link"], link.to_str().expect("utf-8"));
+    let emu = common::ServoEmulator::start("emu", "1,2,3", 1_000_000);
+    let link = emu.link.clone();
+    let v = &emu.announced;
+    assert_eq!(v["link"], emu.path());
     assert!(
         v["pty"]
             .as_str()
@@ -67,16 +49,8 @@ fn dynamixel2_talks_to_the_emulated_servos_through_the_link() {
         drop(bus); // the client closes; the next loop reopens the port
     }
 
-    field_tools(link.to_str().expect("utf-8"));
-
-    let status = Command::new("kill")
-        .args(["-TERM", &child.id().to_string()])
-        .status()
-        .expect("kill runs");
-    assert!(status.success());
-    let exit = child.wait().expect("emulator exits");
-    assert!(exit.success(), "{exit:?}");
-    assert!(!link.exists(), "the link is removed on SIGTERM");
+    field_tools(emu.path());
+    emu.stop();
 }
 
 fn servo(args: &[&str]) -> std::process::Output {

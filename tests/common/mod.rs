@@ -28,3 +28,69 @@ pub fn ok(out: &Output) -> String {
 pub fn json(out: &Output) -> serde_json::Value {
     serde_json::from_str(&ok(out)).expect("stdout is exactly one JSON value")
 }
+
+/// `gelgrip emulate servos` running in the background on a link in a fresh temp directory.
+/// Dropping it kills the process; [`ServoEmulator::stop`] checks the SIGTERM contract.
+pub struct ServoEmulator {
+    child: std::process::Child,
+    /// The link PATH the emulator serves on.
+    pub link: std::path::PathBuf,
+    /// The one JSON line it printed.
+    pub announced: serde_json::Value,
+}
+
+impl ServoEmulator {
+    /// Start `gelgrip emulate servos --link <tmp>/<name>/dxl --ids IDS --baud BAUD` and wait
+    /// for its JSON line.
+    pub fn start(name: &str, ids: &str, baud: u32) -> Self {
+        use std::io::BufRead;
+        let dir = std::env::temp_dir().join(format!("gelgrip-{name}-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        let link = dir.join("dxl");
+        let _ = std::fs::remove_file(&link);
+        let mut child = Command::new(env!("CARGO_BIN_EXE_gelgrip"))
+            .args(["emulate", "servos", "--link"])
+            .arg(&link)
+            .args(["--ids", ids, "--baud", &baud.to_string()])
+            .env("RUST_LOG", "warn")
+            .stdout(std::process::Stdio::piped())
+            .spawn()
+            .expect("the emulator starts");
+        let mut line = String::new();
+        std::io::BufReader::new(child.stdout.take().expect("stdout"))
+            .read_line(&mut line)
+            .expect("one JSON line");
+        let announced = serde_json::from_str(&line).expect("the line is JSON");
+        Self {
+            child,
+            link,
+            announced,
+        }
+    }
+
+    /// The link as a string.
+    pub fn path(&self) -> &str {
+        self.link.to_str().expect("a UTF-8 temp path")
+    }
+
+    /// SIGTERM; the emulator must exit 0 and remove its link.
+    pub fn stop(mut self) {
+        let status = Command::new("kill")
+            .args(["-TERM", &self.child.id().to_string()])
+            .status()
+            .expect("kill runs");
+        assert!(status.success());
+        let exit = self.child.wait().expect("the emulator exits");
+        assert!(exit.success(), "{exit:?}");
+        assert!(!self.link.exists(), "the link is removed on SIGTERM");
+    }
+}
+
+impl Drop for ServoEmulator {
+    fn drop(&mut self) {
+        if matches!(self.child.try_wait(), Ok(None)) {
+            let _ = self.child.kill();
+            let _ = self.child.wait();
+        }
+    }
+}

@@ -137,11 +137,16 @@ impl DynamixelBus {
         }
     }
 
+    /// One sync read of the state block. A servo that did not answer, or answered badly, is
+    /// reported by its own id and cause (`dynamixel2::Bus::sync_read` would drop the cause).
     fn read_raw(&mut self) -> Result<Vec<ServoState>, ServoError> {
-        let replies = self
-            .bus
-            .sync_read(&self.ids, STATE_BLOCK, STATE_BLOCK_LEN)
-            .map_err(|e| map_err(self.ids[0], "sync read of the state block", e))?;
+        const WHAT: &str = "sync read of the state block";
+        let mut replies = Vec::with_capacity(self.ids.len());
+        self.bus
+            .sync_read_cb(&self.ids, STATE_BLOCK, STATE_BLOCK_LEN, |r| {
+                replies.push(r.map(|r| r.data.to_vec()));
+            })
+            .map_err(|e| map_err(self.ids[0], WHAT, e.into()))?;
         if replies.len() != self.ids.len() {
             return Err(ServoError::Bus(format!(
                 "{} of {} servos answered the sync read",
@@ -149,16 +154,18 @@ impl DynamixelBus {
                 self.ids.len()
             )));
         }
-        replies
+        self.ids
             .iter()
-            .map(|r| {
-                if r.data.len() != usize::from(STATE_BLOCK_LEN) {
+            .zip(replies)
+            .map(|(&id, r)| {
+                let data = r.map_err(|e| map_err(id, WHAT, e.into()))?;
+                if data.len() != usize::from(STATE_BLOCK_LEN) {
                     return Err(ServoError::Corrupt {
-                        id: r.motor_id,
-                        detail: format!("{} state bytes, expected {STATE_BLOCK_LEN}", r.data.len()),
+                        id,
+                        detail: format!("{} state bytes, expected {STATE_BLOCK_LEN}", data.len()),
                     });
                 }
-                Ok(Self::decode_state(&r.data))
+                Ok(Self::decode_state(&data))
             })
             .collect()
     }

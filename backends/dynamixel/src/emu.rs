@@ -13,10 +13,18 @@
 //! Velocity to a motor command, steps the motor, and writes Present Position, Velocity,
 //! Current, Temperature and Moving back. Faults the motor raises set Hardware Error Status,
 //! and a shutdown fault cuts torque, as on the servo.
+//!
+//! Reboot keeps the EEPROM area (addresses below 64) and resets the RAM area to its
+//! factory values, as a power cycle does.
+//!
+//! Fault hooks for tests: [`EmulatedServo::inject_hardware_error`] (a fault the next reboot
+//! clears), [`EmulatedServo::set_stuck_hardware_error`] (a fault every reboot raises again),
+//! and [`ServoBusEmulator::cut_next_reply`] with [`ServoBusEmulator::respond`] (a reply cut
+//! off mid-packet, then silence: a disconnect mid-transfer).
 
 use gelgrip_controller::actuator::{MotorCommand, MotorModel};
 
-use crate::control_table::{self, addr, factory_table};
+use crate::control_table::{self, EEPROM_END, addr, factory_table};
 use crate::driver::{DEG_PER_PULSE, MA_PER_UNIT, RPM_PER_UNIT};
 use crate::protocol::{BROADCAST_ID, Packet, instruction as ins, status_error as err};
 
@@ -25,6 +33,7 @@ pub struct EmulatedServo {
     table: Vec<u8>,
     registered: Option<(u16, Vec<u8>)>,
     motor: Option<Box<dyn MotorModel>>,
+    stuck_hardware_error: u8,
 }
 
 impl std::fmt::Debug for EmulatedServo {
@@ -43,6 +52,7 @@ impl EmulatedServo {
             table: factory_table(id),
             registered: None,
             motor: None,
+            stuck_hardware_error: 0,
         }
     }
 
@@ -125,6 +135,13 @@ impl EmulatedServo {
         }
     }
 
+    /// Set Hardware Error Status `bits` now and again after every reboot: a fault a reboot
+    /// does not clear (a servo still too hot, a broken encoder). `0` ends it.
+    pub fn set_stuck_hardware_error(&mut self, bits: u8) {
+        self.stuck_hardware_error = bits;
+        self.inject_hardware_error(bits);
+    }
+
     fn alert(&self) -> u8 {
         if self.table[usize::from(addr::HARDWARE_ERROR_STATUS)] != 0 {
             err::ALERT
@@ -167,30 +184,17 @@ impl EmulatedServo {
         Ok(())
     }
 
+    /// A reboot: EEPROM kept, RAM back to factory values, the motor restarted.
     fn reboot(&mut self) {
-        let keep: Vec<(u16, Vec<u8>)> = [
-            addr::ID,
-            addr::BAUD_RATE,
-            addr::OPERATING_MODE,
-            addr::CURRENT_LIMIT,
-        ]
-        .iter()
-        .map(|a| {
-            (
-                *a,
-                self.table[usize::from(*a)..usize::from(*a) + 2].to_vec(),
-            )
-        })
-        .collect();
+        let eeprom = usize::from(EEPROM_END);
         let mut fresh = factory_table(self.id());
-        for (a, v) in keep {
-            fresh[usize::from(a)..usize::from(a) + 2].copy_from_slice(&v);
-        }
+        fresh[..eeprom].copy_from_slice(&self.table[..eeprom]);
         self.table = fresh;
         self.registered = None;
         if let Some(m) = self.motor.as_mut() {
             m.reboot();
         }
+        self.inject_hardware_error(self.stuck_hardware_error);
     }
 
     /// Whether this servo replies to `instruction` at its Status Return Level.
@@ -214,19 +218,44 @@ fn u16_at(p: &[u8], at: usize) -> Option<u16> {
 #[derive(Debug)]
 pub struct ServoBusEmulator {
     servos: Vec<EmulatedServo>,
+    cut_next_reply: Option<usize>,
 }
 
 impl ServoBusEmulator {
     /// Servos with `ids`, factory-fresh.
     pub fn new(ids: &[u8]) -> Self {
-        Self {
-            servos: ids.iter().map(|id| EmulatedServo::new(*id)).collect(),
-        }
+        Self::from_servos(ids.iter().map(|id| EmulatedServo::new(*id)).collect())
     }
 
     /// Servos built by the caller (for example with motors).
     pub fn from_servos(servos: Vec<EmulatedServo>) -> Self {
-        Self { servos }
+        Self {
+            servos,
+            cut_next_reply: None,
+        }
+    }
+
+    /// Fault hook: of the next reply [`Self::respond`] produces, send only the first
+    /// `keep_bytes` wire bytes, and nothing more for that instruction (the line goes silent
+    /// mid-transfer, as when a cable is pulled). Replies after that are whole again.
+    pub fn cut_next_reply(&mut self, keep_bytes: usize) {
+        self.cut_next_reply = Some(keep_bytes);
+    }
+
+    /// The wire bytes answering `p`, one entry per status packet, in order: [`Self::handle`]
+    /// encoded, with a pending [`Self::cut_next_reply`] applied.
+    pub fn respond(&mut self, p: &Packet) -> Vec<Vec<u8>> {
+        let mut out = Vec::new();
+        for reply in self.handle(p) {
+            let mut bytes = reply.encode();
+            if let Some(keep) = self.cut_next_reply.take() {
+                bytes.truncate(keep);
+                out.push(bytes);
+                break;
+            }
+            out.push(bytes);
+        }
+        out
     }
 
     /// Step every servo's motor by `dt_s` (no external load).

@@ -2,41 +2,20 @@
 //! emulator over a real pseudo-terminal through `dynamixel2`, and (b) an in-memory mock of
 //! the port.
 
-use std::io::{Read, Write};
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
-use std::time::Duration;
 
 use gelgrip_controller::actuator::{FingerGoal, ServoBus, ServoError, ServoState};
 use gelgrip_dynamixel::control_table::{addr, hardware_error};
 use gelgrip_dynamixel::driver::DynamixelBus;
-use gelgrip_dynamixel::emu::ServoBusEmulator;
-use gelgrip_dynamixel::protocol::PacketDecoder;
-use serialport::{SerialPort, TTYPort};
+
+mod common;
 
 /// Injects a hardware fault into finger `i`'s servo.
 type Inject = Box<dyn Fn(usize, u8)>;
 
-fn goals(n: usize) -> Vec<FingerGoal> {
-    (0..n)
-        .map(|i| FingerGoal {
-            position_deg: 90.0 + i as f64,
-            goal_current_ma: 300.0,
-            profile_velocity_rpm: 20.0,
-        })
-        .collect()
-}
-
+/// The hardware-safe body, then an injected overload that a reboot recovers.
 fn bodies(bus: &mut dyn ServoBus, inject: Inject) {
-    bus.configure().expect("configure");
-    let s = bus.read_state().expect("state");
-    assert_eq!(s.len(), bus.fingers());
-    assert!(s.iter().all(|s| s.hardware_error == 0));
-    assert!(matches!(
-        bus.write_goals(&goals(bus.fingers() + 1)),
-        Err(ServoError::Invalid(_))
-    ));
-    bus.write_goals(&goals(bus.fingers())).expect("goals");
+    common::configure_move_release(bus);
     inject(1, hardware_error::OVERLOAD);
     let s = bus
         .read_state()
@@ -45,51 +24,10 @@ fn bodies(bus: &mut dyn ServoBus, inject: Inject) {
     bus.set_torque(false).expect("torque off");
 }
 
-struct Emulated {
-    path: String,
-    emu: Arc<Mutex<ServoBusEmulator>>,
-    stop: Arc<AtomicBool>,
-    _slave: TTYPort,
-}
-
-fn emulate(ids: &[u8]) -> Emulated {
-    let (mut master, slave) = TTYPort::pair().expect("pty pair");
-    master
-        .set_timeout(Duration::from_millis(10))
-        .expect("timeout");
-    let emu = Arc::new(Mutex::new(ServoBusEmulator::new(ids)));
-    let stop = Arc::new(AtomicBool::new(false));
-    std::thread::spawn({
-        let (emu, stop) = (emu.clone(), stop.clone());
-        move || {
-            let mut dec = PacketDecoder::new();
-            let mut buf = [0u8; 512];
-            while !stop.load(Ordering::SeqCst) {
-                match master.read(&mut buf) {
-                    Ok(n) => dec.push(&buf[..n]),
-                    Err(_) => continue,
-                }
-                while let Some(Ok(p)) = dec.next_packet() {
-                    let replies = emu.lock().map(|mut e| e.handle(&p)).unwrap_or_default();
-                    for r in replies {
-                        let _ = master.write_all(&r.encode());
-                    }
-                }
-            }
-        }
-    });
-    Emulated {
-        path: slave.name().expect("path"),
-        emu,
-        stop,
-        _slave: slave,
-    }
-}
-
 #[test]
 fn dynamixel_bus_on_the_emulator() {
     let ids = [1u8, 2, 3];
-    let e = emulate(&ids);
+    let e = common::emulate(&ids);
     let mut bus = DynamixelBus::open(&e.path, 1_000_000, &ids, 1000.0).expect("open");
     let emu = e.emu.clone();
     bodies(
@@ -108,20 +46,18 @@ fn dynamixel_bus_on_the_emulator() {
     assert_eq!(s.bytes(addr::OPERATING_MODE, 1), Some(&[5u8][..]));
     assert_eq!(
         s.bytes(addr::GOAL_CURRENT, 2),
-        Some(&112u16.to_le_bytes()[..])
-    ); // 300 mA / 2.69
-    e.stop.store(true, Ordering::SeqCst);
+        Some(&37u16.to_le_bytes()[..])
+    ); // 100 mA / 2.69
 }
 
 #[test]
 fn a_missing_servo_is_a_timeout() {
-    let e = emulate(&[1, 2]);
+    let e = common::emulate(&[1, 2]);
     let mut bus = DynamixelBus::open(&e.path, 1_000_000, &[1, 2, 7], 1000.0).expect("open");
     match bus.configure() {
         Err(ServoError::Timeout { id: 7, .. }) => {}
         other => panic!("expected a timeout from servo 7, got {other:?}"),
     }
-    e.stop.store(true, Ordering::SeqCst);
 }
 
 /// The in-memory mock of the port: same semantics, no wire.

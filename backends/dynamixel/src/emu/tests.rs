@@ -105,6 +105,49 @@ fn reboot_clears_hardware_errors_and_keeps_the_id() {
 }
 
 #[test]
+fn reboot_keeps_eeprom_and_resets_ram() {
+    let mut bus = ServoBusEmulator::new(&[7]);
+    // Max Position Limit (EEPROM) and LED (RAM), then a reboot.
+    bus.handle(&pkt(7, ins::WRITE, &[48, 0, 0xA0, 0x0F, 0, 0]));
+    bus.handle(&pkt(7, ins::WRITE, &[65, 0, 1]));
+    bus.handle(&pkt(7, ins::REBOOT, &[]));
+    let limit = bus.handle(&pkt(7, ins::READ, &[48, 0, 4, 0]));
+    assert_eq!(limit[0].params, vec![0, 0xA0, 0x0F, 0, 0], "EEPROM kept");
+    let led = bus.handle(&pkt(7, ins::READ, &[65, 0, 1, 0]));
+    assert_eq!(led[0].params, vec![0, 0], "RAM reset");
+}
+
+#[test]
+fn a_stuck_fault_comes_back_after_every_reboot() {
+    let mut bus = ServoBusEmulator::new(&[2]);
+    let heat = control_table::hardware_error::OVERHEATING;
+    bus.servo_mut(2)
+        .expect("servo")
+        .set_stuck_hardware_error(heat);
+    for _ in 0..3 {
+        bus.handle(&pkt(2, ins::REBOOT, &[]));
+        let r = bus.handle(&pkt(2, ins::READ, &[70, 0, 1, 0]));
+        assert_eq!(r[0].params, vec![err::ALERT, heat]);
+    }
+    bus.servo_mut(2).expect("servo").set_stuck_hardware_error(0);
+    bus.handle(&pkt(2, ins::REBOOT, &[]));
+    let r = bus.handle(&pkt(2, ins::READ, &[70, 0, 1, 0]));
+    assert_eq!(r[0].params, vec![0, 0]);
+}
+
+#[test]
+fn a_cut_reply_is_truncated_and_the_rest_of_the_instruction_is_silent() {
+    let mut bus = ServoBusEmulator::new(&[1, 2, 3]);
+    let sync_read = pkt(BROADCAST_ID, ins::SYNC_READ, &[132, 0, 4, 0, 1, 2, 3]);
+    let whole = bus.respond(&sync_read);
+    assert_eq!(whole.iter().map(Vec::len).collect::<Vec<_>>(), vec![15; 3]);
+    bus.cut_next_reply(9);
+    let cut = bus.respond(&sync_read);
+    assert_eq!(cut, vec![whole[0][..9].to_vec()]);
+    assert_eq!(bus.respond(&sync_read), whole, "the cut applies once");
+}
+
+#[test]
 fn registered_write_waits_for_action_and_status_level_is_honoured() {
     let mut bus = ServoBusEmulator::new(&[1]);
     bus.handle(&pkt(1, ins::REG_WRITE, &[65, 0, 1]));
