@@ -54,8 +54,7 @@ pub fn open_world(
     }
     let scene = match scene_override {
         Some(path) => {
-            let text = std::fs::read_to_string(path)
-                .with_context(|| format!("reading scene {}", path.display()))?;
+            let text = gelgrip_controller::config::FileSource::read(&DiskFiles, path)?;
             Some(SceneSpec::from_toml(
                 &path.display().to_string(),
                 &text,

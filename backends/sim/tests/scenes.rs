@@ -155,3 +155,32 @@ fn the_screwdriver_trigger_starts_the_tool_and_the_bolt_tightens() {
     assert!(log.has(EventKind::TriggerOn), "{:?}", log.events());
     assert!(log.has(EventKind::BoltTight), "{:?}", log.events());
 }
+
+#[test]
+fn a_five_finger_layout_closes_on_the_ball_with_no_code_change() {
+    let layout = HandLayout::from_toml(
+        "five-finger.toml",
+        include_str!("../../../configs/layouts/five-finger.toml"),
+    )
+    .expect("layout");
+    assert_eq!(layout.fingers.len(), 5);
+    assert!(layout.fingers.iter().all(|f| f.phalanges.len() == 3));
+    let text = include_str!("../../../configs/scenes/tennis-ball.toml")
+        .replace("expect_contact = [", "expect_contact = [\"palm\"] # [");
+    let scene = SceneSpec::from_toml("tennis-ball.toml", &text, &layout).expect("scene");
+    let mut world = World::new(&layout, Some(scene));
+    world.advance_to(0);
+    close_all(&mut world, 800.0);
+    world.advance_to(4_000_000);
+    let touched = world
+        .log()
+        .first_contact_s()
+        .iter()
+        .filter(|t| t.is_some())
+        .count();
+    assert!(touched >= 6, "{touched} of 16 sensors touched");
+    for s in 0..layout.sensors.len() {
+        let c = world.contact(s).expect("sensor");
+        assert!(c.load.force_n.is_finite() && c.max_depth_mm.is_finite());
+    }
+}
