@@ -184,6 +184,12 @@ pub fn pad_contact(frame: &PadFrame, grid: &PadGrid, surface: &dyn Surface) -> P
             continue;
         }
         let f = pressure_n_per_mm2(depth) * cell_mm2;
+        let rate = if depth <= GEL_THICKNESS_MM {
+            GEL_N_PER_MM3
+        } else {
+            GEL_N_PER_MM3 * BACKING_FACTOR
+        };
+        out.load.stiffness_n_per_mm += rate * cell_mm2;
         out.load.force_n += f;
         moment += s.point * f;
         out.area_mm2 += cell_mm2;
@@ -198,6 +204,15 @@ pub fn pad_contact(frame: &PadFrame, grid: &PadGrid, surface: &dyn Surface) -> P
         x1 = x1.max(s.x_px + step_x);
         y1 = y1.max(s.y_px + step_y);
     }
+    if let Some(k) = surface.stiffness_n_per_mm() {
+        // The gel and the object in series.
+        let pad = out.load.stiffness_n_per_mm;
+        out.load.stiffness_n_per_mm = if pad + k > 0.0 {
+            pad * k / (pad + k)
+        } else {
+            0.0
+        };
+    }
     if out.load.force_n > 0.0 {
         out.load.point = moment / out.load.force_n;
         out.bbox_px = Some((
@@ -210,7 +225,12 @@ pub fn pad_contact(frame: &PadFrame, grid: &PadGrid, surface: &dyn Surface) -> P
     out
 }
 
-/// The full-resolution gel indentation of a pad, given its coarse `contact`.
+/// Pixel stride of the exact samples of [`height_map`]; pixels between are bilinear.
+const MAP_STRIDE: usize = 2;
+
+/// The full-resolution gel indentation of a pad, given its coarse `contact`. The object's
+/// distance is probed every [`MAP_STRIDE`] pixels inside the contact's bounding box and
+/// interpolated bilinearly between (the indentation is smooth at that scale).
 pub fn height_map(
     frame: &PadFrame,
     grid: &PadGrid,
@@ -221,14 +241,45 @@ pub fn height_map(
     let Some((x0, y0, x1, y1)) = contact.bbox_px else {
         return map;
     };
+    if x1 <= x0 || y1 <= y0 {
+        return map;
+    }
+    let depth_at = |x: usize, y: usize| -> f64 {
+        let p = grid.point(frame, x as f64 + 0.5, y as f64 + 0.5);
+        let d = (-surface.probe(p).0 - contact.object_deflection_mm).clamp(0.0, GEL_THICKNESS_MM);
+        if d.is_finite() { d } else { 0.0 }
+    };
+    let cols = (x1 - 1 - x0).div_ceil(MAP_STRIDE) + 1;
+    let rows = (y1 - 1 - y0).div_ceil(MAP_STRIDE) + 1;
+    let at = |i: usize, lo: usize, hi: usize| (lo + i * MAP_STRIDE).min(hi - 1);
+    let coarse: Vec<f64> = (0..rows)
+        .flat_map(|r| (0..cols).map(move |c| (c, r)))
+        .map(|(c, r)| depth_at(at(c, x0, x1), at(r, y0, y1)))
+        .collect();
     for y in y0..y1 {
+        let fy = (y - y0) as f64 / MAP_STRIDE as f64;
+        let r0 = (fy.floor() as usize).min(rows - 1);
+        let r1 = (r0 + 1).min(rows - 1);
+        let ty = if r1 > r0 {
+            ((y - at(r0, y0, y1)) as f64 / (at(r1, y0, y1) - at(r0, y0, y1)).max(1) as f64)
+                .clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
         for x in x0..x1 {
-            let p = grid.point(frame, x as f64 + 0.5, y as f64 + 0.5);
-            let (d, _) = surface.probe(p);
-            let depth = (-d - contact.object_deflection_mm).clamp(0.0, GEL_THICKNESS_MM);
-            if depth.is_finite() {
-                map.depth_mm[y * grid.width_px + x] = depth as f32;
-            }
+            let fx = (x - x0) as f64 / MAP_STRIDE as f64;
+            let c0 = (fx.floor() as usize).min(cols - 1);
+            let c1 = (c0 + 1).min(cols - 1);
+            let tx = if c1 > c0 {
+                ((x - at(c0, x0, x1)) as f64 / (at(c1, x0, x1) - at(c0, x0, x1)).max(1) as f64)
+                    .clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let v = |r: usize, c: usize| coarse[r * cols + c];
+            let top = v(r0, c0) * (1.0 - tx) + v(r0, c1) * tx;
+            let bottom = v(r1, c0) * (1.0 - tx) + v(r1, c1) * tx;
+            map.depth_mm[y * grid.width_px + x] = (top * (1.0 - ty) + bottom * ty) as f32;
         }
     }
     map

@@ -11,8 +11,9 @@
 //!
 //! where `L` is the cable the servo has taken up past the slack, `a_j` the moment arms and
 //! `τ_contact,j` the torque about joint `j` of every pad force on that phalanx or beyond.
-//! [`FingerMechanics::relax`] solves it by damped Gauss–Seidel Newton sweeps, warm-started
-//! from the previous step, so a few sweeps per millisecond track the servo.
+//! [`FingerMechanics::relax`] solves it by damped Gauss–Seidel Newton sweeps (the joint
+//! stiffness from cable, spring and each pad's contact stiffness times its lever squared),
+//! warm-started from the previous step, so a couple of sweeps per step track the servo.
 
 use glam::DVec3;
 
@@ -22,8 +23,6 @@ use gelgrip_controller::fingers::FingerSpec;
 pub const CABLE_N_PER_MM: f64 = 200.0;
 /// Largest joint change per sweep, rad (keeps the Newton steps safe across contact onset).
 const MAX_STEP_RAD: f64 = 0.05;
-/// Finite-difference step for the joint stiffness, rad.
-const EPS_RAD: f64 = 1e-5;
 
 /// Where a sensor pad is: its centre, outward normal and image axes (unit vectors).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -45,6 +44,8 @@ pub struct PadLoad {
     pub force_n: f64,
     /// Centre of pressure, mm, gripper frame.
     pub point: DVec3,
+    /// How fast the force grows with further indentation, N/mm.
+    pub stiffness_n_per_mm: f64,
 }
 
 /// One finger's state.
@@ -130,14 +131,15 @@ impl FingerMechanics {
         self.pad_at(&self.q, i)
     }
 
-    /// Unbalanced torque at joint `j` in pose `q`, N·mm: positive flexes the joint.
+    /// Unbalanced torque at joint `j` in pose `q` (N·mm, positive flexes the joint) and how
+    /// fast it falls as the joint flexes (N·mm/rad): cable, spring and every pad beyond.
     fn residual(
         &self,
         q: &[f64],
         j: usize,
         cable_mm: f64,
         contact: &mut dyn FnMut(usize, &PadFrame) -> PadLoad,
-    ) -> f64 {
+    ) -> (f64, f64) {
         let taken: f64 = self
             .spec
             .phalanges
@@ -145,11 +147,16 @@ impl FingerMechanics {
             .zip(q)
             .map(|(p, qi)| p.moment_arm_mm * qi)
             .sum();
-        let tension = CABLE_N_PER_MM * (cable_mm - taken).max(0.0);
+        let stretch = cable_mm - taken;
+        let tension = CABLE_N_PER_MM * stretch.max(0.0);
         let p = &self.spec.phalanges[j];
         let chain = self.chain(q);
         let (joint, _, _) = chain[j];
         let mut resist = p.spring_preload_nmm + p.spring_nmm_per_rad * q[j];
+        let mut stiffness = p.spring_nmm_per_rad;
+        if stretch > 0.0 {
+            stiffness += CABLE_N_PER_MM * p.moment_arm_mm * p.moment_arm_mm;
+        }
         for (i, (_, dir, normal)) in chain.iter().enumerate().skip(j) {
             let Some(pad) = self.pad_at(q, i) else {
                 continue;
@@ -157,10 +164,12 @@ impl FingerMechanics {
             let load = contact(i, &pad);
             if load.force_n > 0.0 {
                 let axis = dir.cross(*normal);
-                resist += load.force_n * (load.point - joint).cross(pad.normal).dot(axis);
+                let lever = (load.point - joint).cross(pad.normal).dot(axis);
+                resist += load.force_n * lever;
+                stiffness += load.stiffness_n_per_mm * lever * lever;
             }
         }
-        tension * p.moment_arm_mm - resist
+        (tension * p.moment_arm_mm - resist, stiffness)
     }
 
     /// Bring the joints to equilibrium for `cable_mm` of cable taken up, with `contact`
@@ -176,13 +185,8 @@ impl FingerMechanics {
         for _ in 0..sweeps {
             for j in 0..q.len() {
                 let limit = self.spec.phalanges[j].limit_deg.to_radians();
-                let r0 = self.residual(&q, j, cable_mm, contact);
-                let mut probe = q.clone();
-                probe[j] += EPS_RAD;
-                let r1 = self.residual(&probe, j, cable_mm, contact);
-                let k_floor = self.spec.phalanges[j].spring_nmm_per_rad.max(1e-3);
-                let stiffness = ((r0 - r1) / EPS_RAD).max(k_floor);
-                let step = (r0 / stiffness).clamp(-MAX_STEP_RAD, MAX_STEP_RAD);
+                let (r0, stiffness) = self.residual(&q, j, cable_mm, contact);
+                let step = (r0 / stiffness.max(1e-3)).clamp(-MAX_STEP_RAD, MAX_STEP_RAD);
                 if step.is_finite() {
                     q[j] = (q[j] + step).clamp(0.0, limit);
                 }

@@ -35,6 +35,52 @@ fn light_directions() -> [[f64; 3]; 3] {
     })
 }
 
+/// The noise-free shading of one camera: its unit variation and lights, per pixel.
+#[derive(Debug, Clone)]
+pub struct Shader {
+    lights: [[f64; 3]; 3],
+    half_diag2: f64,
+    mm_per_px: f64,
+    unit: UnitVariation,
+}
+
+impl Shader {
+    /// The shader of a camera with pixels of `mm_per_px` and `unit`'s variation.
+    pub fn new(width_px: usize, height_px: usize, mm_per_px: f64, unit: &UnitVariation) -> Self {
+        let (w, h) = (width_px, height_px);
+        Self {
+            lights: light_directions(),
+            half_diag2: ((w * w + h * h) as f64 / 4.0).max(1.0),
+            mm_per_px,
+            unit: *unit,
+        }
+    }
+
+    /// Noise-free RGB of pixel (`x`, `y`) of `map`.
+    pub fn pixel(&self, map: &HeightMap, x: usize, y: usize) -> [f64; 3] {
+        let (w, h) = (map.width_px, map.height_px);
+        let depth = |x: usize, y: usize| f64::from(map.depth_mm[y * w + x]);
+        // Central differences (one-sided at the border), in mm per mm.
+        let (x0, x1) = (x.saturating_sub(1), (x + 1).min(w - 1));
+        let (y0, y1) = (y.saturating_sub(1), (y + 1).min(h - 1));
+        let gx = (depth(x1, y) - depth(x0, y)) / (((x1 - x0).max(1)) as f64 * self.mm_per_px);
+        let gy = (depth(x, y1) - depth(x, y0)) / (((y1 - y0).max(1)) as f64 * self.mm_per_px);
+        let norm = (gx * gx + gy * gy + 1.0).sqrt();
+        let n = [gx / norm, gy / norm, 1.0 / norm];
+        let dx = x as f64 - w as f64 / 2.0;
+        let dy = y as f64 - h as f64 / 2.0;
+        let vignette = 1.0 - self.unit.vignetting * (dx * dx + dy * dy) / self.half_diag2;
+        let mut rgb = [0.0; 3];
+        for (c, v) in rgb.iter_mut().enumerate() {
+            let l = self.lights[c];
+            let lambert = (n[0] * l[0] + n[1] * l[1] + n[2] * l[2]).max(0.0);
+            let shade = (AMBIENT + DIRECTIONAL * lambert) / (AMBIENT + DIRECTIONAL * l[2]);
+            *v = self.unit.led_gain[c] * vignette * BASE_RGB[c] * shade + self.unit.offset[c];
+        }
+        rgb
+    }
+}
+
 /// Render `map` (pixel size `mm_per_px`) as interleaved 8-bit RGB.
 pub fn render(
     map: &HeightMap,
@@ -44,28 +90,12 @@ pub fn render(
     rng: &mut impl Rng,
 ) -> Vec<u8> {
     let (w, h) = (map.width_px, map.height_px);
-    let lights = light_directions();
+    let shader = Shader::new(w, h, mm_per_px, unit);
     let noise = Normal::new(0.0, noise_sigma.max(0.0)).ok();
-    let depth = |x: usize, y: usize| f64::from(map.depth_mm[y * w + x]);
-    let half_diag2 = ((w * w + h * h) as f64 / 4.0).max(1.0);
     let mut out = Vec::with_capacity(w * h * 3);
     for y in 0..h {
         for x in 0..w {
-            // Central differences (one-sided at the border), in mm per mm.
-            let (x0, x1) = (x.saturating_sub(1), (x + 1).min(w - 1));
-            let (y0, y1) = (y.saturating_sub(1), (y + 1).min(h - 1));
-            let gx = (depth(x1, y) - depth(x0, y)) / (((x1 - x0).max(1)) as f64 * mm_per_px);
-            let gy = (depth(x, y1) - depth(x, y0)) / (((y1 - y0).max(1)) as f64 * mm_per_px);
-            let norm = (gx * gx + gy * gy + 1.0).sqrt();
-            let n = [gx / norm, gy / norm, 1.0 / norm];
-            let dx = x as f64 - w as f64 / 2.0;
-            let dy = y as f64 - h as f64 / 2.0;
-            let vignette = 1.0 - unit.vignetting * (dx * dx + dy * dy) / half_diag2;
-            for c in 0..3 {
-                let l = lights[c];
-                let lambert = (n[0] * l[0] + n[1] * l[1] + n[2] * l[2]).max(0.0);
-                let shade = (AMBIENT + DIRECTIONAL * lambert) / (AMBIENT + DIRECTIONAL * l[2]);
-                let mut v = unit.led_gain[c] * vignette * BASE_RGB[c] * shade + unit.offset[c];
+            for mut v in shader.pixel(map, x, y) {
                 if let Some(n) = &noise {
                     v += n.sample(rng);
                 }

@@ -11,7 +11,7 @@ use jpeg_encoder::{ColorType, Encoder};
 use gelgrip_controller::layout::HandLayout;
 
 use crate::config::SimConfig;
-use crate::optics::render;
+use crate::optics::{Shader, render};
 use crate::scene::HeightMap;
 use crate::unit::{UnitVariation, rng_for};
 
@@ -97,6 +97,89 @@ impl SensorCamera {
             }
         })
     }
+}
+
+/// A camera for scenes in motion: the flat gel's noise-free image is shaded once, each
+/// frame re-shades only the pixels around the indentation, and the noise comes from a
+/// pre-drawn Gaussian plane read at a different offset per frame (same σ, no per-pixel
+/// draws), so one frame costs a fraction of [`SensorCamera::jpeg`].
+#[derive(Debug, Clone)]
+pub struct SceneCamera {
+    camera: SensorCamera,
+    shader: Shader,
+    base: Vec<f32>,
+    noise: Vec<f32>,
+}
+
+impl SceneCamera {
+    /// The fast path of `camera`.
+    pub fn new(camera: SensorCamera) -> Self {
+        let (w, h) = (camera.width, camera.height);
+        let shader = Shader::new(w, h, camera.mm_per_px, &camera.unit);
+        let flat = HeightMap::flat(w, h);
+        let base = (0..h)
+            .flat_map(|y| (0..w).map(move |x| (x, y)))
+            .flat_map(|(x, y)| shader.pixel(&flat, x, y).map(|v| v as f32))
+            .collect();
+        let mut rng = rng_for(camera.seed, ((camera.index as u64) << 40) ^ 0x5CE7E);
+        let noise = rand_distr::Normal::new(0.0, camera.noise_sigma.max(0.0) as f32)
+            .map(|n| {
+                use rand_distr::Distribution;
+                (0..2 * w * h * 3).map(|_| n.sample(&mut rng)).collect()
+            })
+            .unwrap_or_else(|_| vec![0.0; 2 * w * h * 3]);
+        Self {
+            camera,
+            shader,
+            base,
+            noise,
+        }
+    }
+
+    /// Render `map` with the noise of frame `frame` and encode it.
+    pub fn jpeg(&self, map: &HeightMap, frame: u64) -> Result<Vec<u8>, EncodeError> {
+        let (w, h) = (self.camera.width, self.camera.height);
+        let mut img = self.base.clone();
+        if let Some((x0, y0, x1, y1)) = touched_box(map) {
+            for y in y0.saturating_sub(1)..(y1 + 1).min(h) {
+                for x in x0.saturating_sub(1)..(x1 + 1).min(w) {
+                    let rgb = self.shader.pixel(map, x, y);
+                    let at = (y * w + x) * 3;
+                    for c in 0..3 {
+                        img[at + c] = rgb[c] as f32;
+                    }
+                }
+            }
+        }
+        let n = w * h * 3;
+        let offset = (frame.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 20) as usize % n.max(1);
+        let noise = &self.noise[offset..offset + n];
+        let rgb: Vec<u8> = img
+            .iter()
+            .zip(noise)
+            .map(|(v, e)| (v + e).round().clamp(0.0, 255.0) as u8)
+            .collect();
+        encode_jpeg(&rgb, w as u16, h as u16, self.camera.quality).map_err(|source| EncodeError {
+            sensor: self.camera.index,
+            source,
+        })
+    }
+}
+
+/// The smallest box (x0, y0, x1 exclusive, y1 exclusive) holding every indented pixel.
+fn touched_box(map: &HeightMap) -> Option<(usize, usize, usize, usize)> {
+    let w = map.width_px;
+    let mut b: Option<(usize, usize, usize, usize)> = None;
+    for (i, d) in map.depth_mm.iter().enumerate() {
+        if *d != 0.0 {
+            let (x, y) = (i % w, i / w);
+            b = Some(match b {
+                None => (x, y, x + 1, y + 1),
+                Some((x0, y0, x1, y1)) => (x0.min(x), y0.min(y), x1.max(x + 1), y1.max(y + 1)),
+            });
+        }
+    }
+    b
 }
 
 /// Pre-rendered frames per sensor.
@@ -186,5 +269,40 @@ pub(crate) mod tests {
         ));
         let pixels = dec.decode().expect("valid JPEG");
         assert_eq!(pixels.len(), 320 * 240 * 3);
+    }
+
+    #[test]
+    fn the_scene_camera_matches_the_reference_render_in_colour_noise_and_size() {
+        let layout = HandLayout::generated(1).expect("layout");
+        let cfg = default_config(&layout);
+        let cam = SensorCamera::new(&layout, 0, &cfg).expect("camera");
+        let map = cam.builtin_press(&cfg);
+        let fast = SceneCamera::new(cam.clone());
+        let decode = |jpeg: &[u8]| {
+            let mut dec =
+                zune_jpeg::JpegDecoder::new(zune_jpeg::zune_core::bytestream::ZCursor::new(jpeg));
+            dec.decode().expect("valid JPEG")
+        };
+        let reference = cam.jpeg(&map, 3).expect("reference");
+        let scene = fast.jpeg(&map, 3).expect("scene");
+        let size_ratio = scene.len() as f64 / reference.len() as f64;
+        assert!((0.9..1.1).contains(&size_ratio), "{size_ratio}");
+        let (a, b) = (decode(&reference), decode(&scene));
+        let mean = |img: &[u8], c: usize| {
+            img.iter()
+                .skip(c)
+                .step_by(3)
+                .map(|v| f64::from(*v))
+                .sum::<f64>()
+                / (img.len() / 3) as f64
+        };
+        for c in 0..3 {
+            assert!((mean(&a, c) - mean(&b, c)).abs() < 1.0, "channel {c}");
+        }
+        assert_ne!(
+            fast.jpeg(&map, 4).expect("frame 4"),
+            scene,
+            "noise differs per frame"
+        );
     }
 }

@@ -2,18 +2,19 @@
 //! shared [`World`](crate::world::World).
 //!
 //! An untouched pad serves its pre-rendered flat frames. A touched pad is rendered and
-//! encoded only when its indentation changed (compared at 1 µm), so a steady hold costs
+//! encoded only when its indentation changed (compared at 5 µm), so a steady hold costs
 //! nothing per set and only moving contacts pay for rendering.
 
 use std::collections::hash_map::DefaultHasher;
 use std::hash::{Hash, Hasher};
 
 use bytes::Bytes;
+use rayon::prelude::*;
 
 use gelgrip_controller::layout::HandLayout;
 
 use crate::config::SimConfig;
-use crate::pool::{EncodeError, FramePool, SensorCamera};
+use crate::pool::{EncodeError, FramePool, SceneCamera, SensorCamera};
 use crate::scene::HeightMap;
 use crate::world::SharedWorld;
 
@@ -21,16 +22,20 @@ use crate::world::SharedWorld;
 #[derive(Debug)]
 pub struct SceneFrames {
     world: SharedWorld,
-    cameras: Vec<SensorCamera>,
+    cameras: Vec<SceneCamera>,
     flat: FramePool,
     /// Per sensor: (indentation hash, its JPEG).
     cache: Vec<Option<(u64, Bytes)>>,
 }
 
+/// Indentation changes smaller than this are invisible under the camera noise (σ ≈ 10
+/// grey levels), so they reuse the last frame, µm.
+const KEY_STEP_UM: f32 = 5.0;
+
 fn fingerprint(map: &HeightMap) -> u64 {
     let mut h = DefaultHasher::new();
     for d in &map.depth_mm {
-        ((d * 1000.0).round() as i32).hash(&mut h);
+        ((d * (1000.0 / KEY_STEP_UM)).round() as i32).hash(&mut h);
     }
     h.finish()
 }
@@ -42,8 +47,9 @@ impl SceneFrames {
         layout: &HandLayout,
         cfg: &SimConfig,
     ) -> Result<Self, EncodeError> {
-        let cameras: Vec<SensorCamera> = (0..layout.sensors.len())
+        let cameras: Vec<SceneCamera> = (0..layout.sensors.len())
             .filter_map(|i| SensorCamera::new(layout, i, cfg))
+            .map(SceneCamera::new)
             .collect();
         Ok(Self {
             world,
@@ -59,6 +65,7 @@ impl SceneFrames {
     }
 
     /// Advance the world to `now_us` and return every sensor's frame for capture `nth`.
+    /// Height maps and JPEGs of the touched pads are made in parallel.
     pub fn capture(&mut self, now_us: u64, nth: u64) -> Result<Vec<Bytes>, EncodeError> {
         let maps: Vec<Option<HeightMap>> = {
             let Ok(mut w) = self.world.lock() else {
@@ -66,26 +73,40 @@ impl SceneFrames {
                 return Ok(self.flat_frames(nth));
             };
             w.advance_to(now_us);
-            (0..self.cameras.len()).map(|s| w.height_map(s)).collect()
+            let w = &*w;
+            (0..self.cameras.len())
+                .into_par_iter()
+                .map(|s| w.height_map(s))
+                .collect()
         };
-        let mut out = Vec::with_capacity(maps.len());
-        for (s, map) in maps.into_iter().enumerate() {
-            let frame = match map {
-                None => {
+        let keyed: Vec<Option<(u64, HeightMap)>> = maps
+            .into_iter()
+            .map(|m| m.map(|m| (fingerprint(&m), m)))
+            .collect();
+        let fresh: Vec<Option<Bytes>> = keyed
+            .par_iter()
+            .enumerate()
+            .map(|(s, k)| match (k, &self.cache[s]) {
+                (Some((key, _)), Some((cached, _))) if key == cached => Ok(None),
+                (Some((_, map)), _) => self.cameras[s].jpeg(map, nth).map(|j| Some(Bytes::from(j))),
+                (None, _) => Ok(None),
+            })
+            .collect::<Result<_, _>>()?;
+        let mut out = Vec::with_capacity(keyed.len());
+        for (s, (k, new)) in keyed.into_iter().zip(fresh).enumerate() {
+            let frame = match (k, new) {
+                (None, _) => {
                     self.cache[s] = None;
                     self.flat.frame(s, nth).cloned().unwrap_or_default()
                 }
-                Some(map) => {
-                    let key = fingerprint(&map);
-                    match &self.cache[s] {
-                        Some((k, jpeg)) if *k == key => jpeg.clone(),
-                        _ => {
-                            let jpeg = Bytes::from(self.cameras[s].jpeg(&map, nth)?);
-                            self.cache[s] = Some((key, jpeg.clone()));
-                            jpeg
-                        }
-                    }
+                (Some((key, _)), Some(jpeg)) => {
+                    self.cache[s] = Some((key, jpeg.clone()));
+                    jpeg
                 }
+                (Some(_), None) => self.cache[s]
+                    .as_ref()
+                    .map(|(_, j)| j.clone())
+                    .unwrap_or_default(),
             };
             out.push(frame);
         }

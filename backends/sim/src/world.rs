@@ -25,7 +25,7 @@ use crate::shapes::rotation_from_rpy_deg;
 use crate::world_log::{EventKind, WorldEvent, WorldLog};
 
 /// Simulation step, µs.
-pub const STEP_US: u64 = 2000;
+pub const STEP_US: u64 = 5000;
 /// Gauss–Seidel sweeps of the finger equilibrium per step.
 const SWEEPS: usize = 2;
 /// Standard gravity, m/s².

@@ -84,7 +84,7 @@ fn closing_on_each_scene_touches_exactly_the_expected_sensors_with_monotonic_for
                 }
                 if !crushed && !limited {
                     assert!(
-                        now.0 >= prev.0 * 0.98 - 0.02,
+                        now.0 >= prev.0 * 0.995 - 0.005,
                         "{file}: sensor {s} force fell from {} to {} at {current} mA",
                         prev.0,
                         now.0
