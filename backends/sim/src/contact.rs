@@ -228,6 +228,30 @@ pub fn pad_contact(frame: &PadFrame, grid: &PadGrid, surface: &dyn Surface) -> P
 /// Pixel stride of the exact samples of [`height_map`]; pixels between are bilinear.
 const MAP_STRIDE: usize = 2;
 
+/// Exact samples covering pixels `lo..hi` at [`MAP_STRIDE`] (the last pixel included).
+fn samples_between(lo: usize, hi: usize) -> usize {
+    (hi - 1 - lo).div_ceil(MAP_STRIDE) + 1
+}
+
+/// Pixel of sample `i` over `lo..hi`.
+fn sample_px(i: usize, lo: usize, hi: usize) -> usize {
+    (lo + i * MAP_STRIDE).min(hi - 1)
+}
+
+/// The samples either side of pixel `p` in `lo..hi`, and `p`'s share of the way between.
+fn bracket(p: usize, lo: usize, hi: usize) -> (usize, usize, f64) {
+    let n = samples_between(lo, hi);
+    let i0 = ((p - lo) / MAP_STRIDE).min(n - 1);
+    let i1 = (i0 + 1).min(n - 1);
+    let (a, b) = (sample_px(i0, lo, hi), sample_px(i1, lo, hi));
+    let t = if b > a {
+        ((p - a) as f64 / (b - a) as f64).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (i0, i1, t)
+}
+
 /// The full-resolution gel indentation of a pad, given its coarse `contact`. The object's
 /// distance is probed every [`MAP_STRIDE`] pixels inside the contact's bounding box and
 /// interpolated bilinearly between (the indentation is smooth at that scale).
@@ -249,33 +273,16 @@ pub fn height_map(
         let d = (-surface.probe(p).0 - contact.object_deflection_mm).clamp(0.0, GEL_THICKNESS_MM);
         if d.is_finite() { d } else { 0.0 }
     };
-    let cols = (x1 - 1 - x0).div_ceil(MAP_STRIDE) + 1;
-    let rows = (y1 - 1 - y0).div_ceil(MAP_STRIDE) + 1;
-    let at = |i: usize, lo: usize, hi: usize| (lo + i * MAP_STRIDE).min(hi - 1);
+    let cols = samples_between(x0, x1);
+    let rows = samples_between(y0, y1);
     let coarse: Vec<f64> = (0..rows)
         .flat_map(|r| (0..cols).map(move |c| (c, r)))
-        .map(|(c, r)| depth_at(at(c, x0, x1), at(r, y0, y1)))
+        .map(|(c, r)| depth_at(sample_px(c, x0, x1), sample_px(r, y0, y1)))
         .collect();
     for y in y0..y1 {
-        let fy = (y - y0) as f64 / MAP_STRIDE as f64;
-        let r0 = (fy.floor() as usize).min(rows - 1);
-        let r1 = (r0 + 1).min(rows - 1);
-        let ty = if r1 > r0 {
-            ((y - at(r0, y0, y1)) as f64 / (at(r1, y0, y1) - at(r0, y0, y1)).max(1) as f64)
-                .clamp(0.0, 1.0)
-        } else {
-            0.0
-        };
+        let (r0, r1, ty) = bracket(y, y0, y1);
         for x in x0..x1 {
-            let fx = (x - x0) as f64 / MAP_STRIDE as f64;
-            let c0 = (fx.floor() as usize).min(cols - 1);
-            let c1 = (c0 + 1).min(cols - 1);
-            let tx = if c1 > c0 {
-                ((x - at(c0, x0, x1)) as f64 / (at(c1, x0, x1) - at(c0, x0, x1)).max(1) as f64)
-                    .clamp(0.0, 1.0)
-            } else {
-                0.0
-            };
+            let (c0, c1, tx) = bracket(x, x0, x1);
             let v = |r: usize, c: usize| coarse[r * cols + c];
             let top = v(r0, c0) * (1.0 - tx) + v(r0, c1) * tx;
             let bottom = v(r1, c0) * (1.0 - tx) + v(r1, c1) * tx;
