@@ -1,0 +1,194 @@
+//! Fusion of one gated set's per-sensor tactile readings into what the grasp controller
+//! acts on: per finger (every sensor on that finger) and for the palm, contact presence,
+//! area, deepest point, force and centroid; per sensor, the deformation signal (indentation
+//! volume, the quantity the paper plots for the screwdriver task).
+//!
+//! A sensor whose reading is missing (its frame was corrupt or its pipeline failed) marks
+//! its finger stale: the controller then holds that finger rather than guess.
+
+use crate::layout::{HandLayout, Placement};
+
+/// What the sensing pipeline made of one sensor's frame.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct SensorReading {
+    /// Anything in contact.
+    pub in_contact: bool,
+    /// Contact area, mm².
+    pub area_mm2: f64,
+    /// Deepest indentation, mm.
+    pub max_depth_mm: f64,
+    /// Indentation volume, mm³ (the deformation signal).
+    pub volume_mm3: f64,
+    /// Force proxy, N (calibrated volume × stiffness).
+    pub force_n: f64,
+    /// Contact centroid on the pad, mm from the image centre (x right, y down).
+    pub centroid_mm: Option<(f64, f64)>,
+}
+
+/// The fused contact of one finger or of the palm.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct FusedContact {
+    /// Any of its sensors in contact.
+    pub contact: bool,
+    /// Total contact area, mm².
+    pub area_mm2: f64,
+    /// Deepest indentation over its sensors, mm.
+    pub max_depth_mm: f64,
+    /// Total force proxy, N.
+    pub force_n: f64,
+    /// Force-weighted centroid on the sensor carrying most force: (sensor index, x mm, y mm).
+    pub centroid: Option<(usize, f64, f64)>,
+    /// One of its sensors had no reading in this set.
+    pub stale: bool,
+}
+
+/// One set, fused.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct FusedSet {
+    /// Per finger, in the layout's `[[fingers]]` order.
+    pub fingers: Vec<FusedContact>,
+    /// The palm (if the layout has a palm sensor).
+    pub palm: Option<FusedContact>,
+    /// Per sensor, the deformation signal, mm³ (`None` when the reading is missing).
+    pub deformation_mm3: Vec<Option<f64>>,
+}
+
+impl FusedSet {
+    /// Total force over the fingers and the palm, N.
+    pub fn total_force_n(&self) -> f64 {
+        self.fingers.iter().map(|f| f.force_n).sum::<f64>() + self.palm.map_or(0.0, |p| p.force_n)
+    }
+}
+
+/// Add one sensor to a finger's (or the palm's) accumulator; `best_n` is the largest force
+/// of its sensors so far, whose centroid stands for the group.
+fn add(acc: &mut FusedContact, best_n: &mut f64, sensor: usize, reading: Option<&SensorReading>) {
+    let Some(r) = reading else {
+        acc.stale = true;
+        return;
+    };
+    let finite = |v: f64| if v.is_finite() { v.max(0.0) } else { 0.0 };
+    let force = finite(r.force_n);
+    acc.contact |= r.in_contact;
+    acc.area_mm2 += finite(r.area_mm2);
+    acc.max_depth_mm = acc.max_depth_mm.max(finite(r.max_depth_mm));
+    acc.force_n += force;
+    if r.in_contact
+        && (acc.centroid.is_none() || force > *best_n)
+        && let Some((x, y)) = r
+            .centroid_mm
+            .filter(|(x, y)| x.is_finite() && y.is_finite())
+    {
+        acc.centroid = Some((sensor, x, y));
+        *best_n = force;
+    }
+}
+
+/// Fuse `readings` (one per sensor of `layout`, `None` where missing).
+pub fn fuse(layout: &HandLayout, readings: &[Option<SensorReading>]) -> FusedSet {
+    let mut set = FusedSet {
+        fingers: vec![FusedContact::default(); layout.fingers.len()],
+        palm: None,
+        deformation_mm3: Vec::with_capacity(layout.sensors.len()),
+    };
+    let mut best = vec![0.0; layout.fingers.len()];
+    let mut palm_best = 0.0;
+    for (s, spec) in layout.sensors.iter().enumerate() {
+        let reading = readings.get(s).copied().flatten();
+        set.deformation_mm3.push(
+            reading
+                .map(|r| r.volume_mm3)
+                .filter(|v| v.is_finite())
+                .map(|v| v.max(0.0)),
+        );
+        match spec.id.placement() {
+            Placement::Palm => add(
+                set.palm.get_or_insert_with(FusedContact::default),
+                &mut palm_best,
+                s,
+                reading.as_ref(),
+            ),
+            Placement::Finger { .. } => {
+                if let Some((f, _)) = layout.phalanx_of_sensor(s) {
+                    add(&mut set.fingers[f], &mut best[f], s, reading.as_ref());
+                }
+            }
+            Placement::Generic(_) => {}
+        }
+    }
+    set
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn layout() -> HandLayout {
+        HandLayout::from_toml(
+            "three-finger.toml",
+            include_str!("../../configs/layouts/three-finger.toml"),
+        )
+        .expect("layout")
+    }
+
+    fn touch(force_n: f64, x: f64) -> Option<SensorReading> {
+        Some(SensorReading {
+            in_contact: force_n > 0.0,
+            area_mm2: force_n * 10.0,
+            max_depth_mm: force_n * 0.1,
+            volume_mm3: force_n * 12.5,
+            force_n,
+            centroid_mm: (force_n > 0.0).then_some((x, 0.0)),
+        })
+    }
+
+    #[test]
+    fn fingers_sum_their_sensors_and_the_palm_stands_alone() {
+        let l = layout();
+        // Order: f1.middle, f1.tip, f2.middle, f2.tip, f3.middle, f3.tip, palm.
+        let r = vec![
+            touch(1.0, 1.0),
+            touch(2.0, 2.0),
+            touch(0.0, 0.0),
+            touch(0.0, 0.0),
+            touch(0.5, 3.0),
+            touch(0.0, 0.0),
+            touch(0.25, 4.0),
+        ];
+        let f = fuse(&l, &r);
+        assert_eq!(f.fingers.len(), 3);
+        assert!((f.fingers[0].force_n - 3.0).abs() < 1e-12);
+        assert!((f.fingers[0].area_mm2 - 30.0).abs() < 1e-12);
+        assert!((f.fingers[0].max_depth_mm - 0.2).abs() < 1e-12);
+        assert_eq!(
+            f.fingers[0].centroid,
+            Some((1, 2.0, 0.0)),
+            "the stronger sensor"
+        );
+        assert!(!f.fingers[1].contact && f.fingers[1].centroid.is_none());
+        assert!(f.fingers[2].contact);
+        assert_eq!(f.palm.map(|p| p.force_n), Some(0.25));
+        assert!((f.total_force_n() - 3.75).abs() < 1e-12);
+        assert_eq!(f.deformation_mm3[1], Some(25.0));
+    }
+
+    #[test]
+    fn a_missing_reading_marks_its_finger_stale_and_nan_is_ignored() {
+        let l = layout();
+        let mut r = vec![touch(1.0, 0.0); 7];
+        r[3] = None;
+        r[4] = Some(SensorReading {
+            force_n: f64::NAN,
+            area_mm2: f64::INFINITY,
+            ..SensorReading::default()
+        });
+        let f = fuse(&l, &r);
+        assert!(f.fingers[1].stale && !f.fingers[0].stale);
+        assert_eq!(f.deformation_mm3[3], None);
+        assert!(
+            f.fingers
+                .iter()
+                .all(|c| c.force_n.is_finite() && c.area_mm2.is_finite())
+        );
+    }
+}

@@ -1,0 +1,464 @@
+//! The grasp controller: one state machine per finger (open, approach, contact, squeeze,
+//! hold, release, fault) regulating each finger's fused force to a target.
+//!
+//! [`GraspController::step`] is a pure function of the fused set, the servo states, the
+//! time and the controller's own state; it does no I/O and sees no simulator type, so it is
+//! deterministic and unit-tested here. Per finger:
+//! - **Approach**: the position goal advances at the requested speed under a current cap of
+//!   the free-motion current (what the return springs take, measured as the finger moves)
+//!   plus a small margin, so the first touch is soft; at the first contact on any of its
+//!   sensors the finger slows (**contact**).
+//! - **Squeeze**: the goal sits a little beyond the present position, so the goal current
+//!   (the hard force cap) sets the force. The current is the free-motion current
+//!   (feed-forward) plus a PI term on the force error, never
+//!   above the request's current limit; the integrator only runs while the output is not
+//!   pinned in the error's direction (anti-windup).
+//! - **Hold**: after the force stays within ±5% of target for 0.5 s. The loop keeps running;
+//!   if the contact area drops or the centroid moves (slip), the finger re-tightens: its
+//!   target rises by 20% (up to the force that the current limit allows) and it squeezes
+//!   again.
+//! - **No object**: a finger that reaches its closing goal, or stalls, without contact.
+//! - **Stale**: a finger whose sensor is missing from the set holds where it is.
+//! - **Release**: back to the open position at the approach current.
+
+use serde::Serialize;
+
+use crate::actuator::{FingerGoal, ServoState};
+use crate::fusion::FusedSet;
+
+/// Per-finger phase.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Phase {
+    /// Open, not commanded.
+    Open,
+    /// Closing toward the object.
+    Approach,
+    /// First contact: slowing down.
+    Contact,
+    /// Regulating force toward the target.
+    Squeeze,
+    /// Force stable at target.
+    Hold,
+    /// Opening.
+    Release,
+    /// Stopped on a fault; holding.
+    Fault,
+}
+
+/// Per-finger status, as gripper users know it (Robotiq-style object detection).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FingerStatus {
+    /// Moving toward its goal.
+    Moving,
+    /// Stopped by contact while closing (holding an object).
+    ContactClosing,
+    /// At its requested position.
+    AtGoal,
+    /// Closed or stalled without touching anything.
+    NoObject,
+}
+
+/// What the caller asks for.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GraspRequest {
+    /// Force per finger to regulate to, N.
+    pub target_force_n: f64,
+    /// Approach speed of the servo, deg/s.
+    pub speed_deg_s: f64,
+    /// Hard cap on every goal current, mA.
+    pub current_limit_ma: f64,
+    /// Fingers taking part (indices); the others stay where they are.
+    pub fingers: Vec<usize>,
+    /// Give up after this long, s.
+    pub timeout_s: f64,
+}
+
+/// Controller constants (defaults documented in `docs/control.md`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Tuning {
+    /// Largest current cap while approaching, mA.
+    pub approach_current_ma: f64,
+    /// While approaching, the cap is the free-motion current plus this margin, mA, so the
+    /// first touch is soft.
+    pub approach_margin_ma: f64,
+    /// Speed share kept after first contact.
+    pub contact_speed_share: f64,
+    /// Goal lead beyond the present position while squeezing, degrees.
+    pub squeeze_lead_deg: f64,
+    /// Proportional gain, mA per N of force error.
+    pub kp_ma_per_n: f64,
+    /// Integral gain, mA per N·s.
+    pub ki_ma_per_n_s: f64,
+    /// Smallest goal current while in contact, mA.
+    pub min_current_ma: f64,
+    /// "Stable": within this share of the target…
+    pub stable_band: f64,
+    /// …for this long, s.
+    pub stable_s: f64,
+    /// A finger that moves less than `stall_deg` in `stall_s` without contact has stalled.
+    pub stall_s: f64,
+    /// See `stall_s`, degrees.
+    pub stall_deg: f64,
+    /// Hold re-tightens when the area falls below this share of its value at hold…
+    pub slip_area_share: f64,
+    /// …or the centroid moves this far, mm.
+    pub slip_shift_mm: f64,
+    /// Target multiplier per re-tightening.
+    pub retighten_factor: f64,
+}
+
+impl Default for Tuning {
+    fn default() -> Self {
+        Self {
+            approach_current_ma: 400.0,
+            approach_margin_ma: 30.0,
+            contact_speed_share: 0.25,
+            squeeze_lead_deg: 15.0,
+            kp_ma_per_n: 12.0,
+            ki_ma_per_n_s: 60.0,
+            min_current_ma: 20.0,
+            stable_band: 0.05,
+            stable_s: 0.5,
+            stall_s: 0.5,
+            stall_deg: 0.5,
+            slip_area_share: 0.75,
+            slip_shift_mm: 0.5,
+            retighten_factor: 1.2,
+        }
+    }
+}
+
+/// How a grasp ended.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct GraspOutcome {
+    /// At least two contacts (fingers or palm) hold the object at a stable force.
+    pub grasped: bool,
+    /// Per finger.
+    pub status: Vec<FingerStatus>,
+    /// Total fused force at the end, N.
+    pub final_force_n: f64,
+    /// Why it ended.
+    pub reason: String,
+}
+
+/// What one step commands.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ControlOutput {
+    /// One goal per finger.
+    pub goals: Vec<FingerGoal>,
+    /// Set once the grasp has ended (stable, no object, or timed out).
+    pub done: Option<GraspOutcome>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+struct FingerCtl {
+    phase: Phase,
+    active: bool,
+    goal_deg: f64,
+    current_ma: f64,
+    integral_ma: f64,
+    feedforward_ma: f64,
+    contact_since_s: Option<f64>,
+    target_n: f64,
+    stable_since_s: Option<f64>,
+    stall_ref: Option<(f64, f64)>,
+    hold_area_mm2: f64,
+    hold_centroid: Option<(usize, f64, f64)>,
+    status: FingerStatus,
+    force_n: f64,
+}
+
+/// The controller.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GraspController {
+    request: GraspRequest,
+    tuning: Tuning,
+    close_deg: Vec<f64>,
+    open_deg: Vec<f64>,
+    fingers: Vec<FingerCtl>,
+    started_s: Option<f64>,
+    last_s: Option<f64>,
+    done: Option<GraspOutcome>,
+}
+
+fn finite_or(v: f64, default: f64) -> f64 {
+    if v.is_finite() { v } else { default }
+}
+
+impl GraspController {
+    /// A controller for `request` on fingers that close toward `close_deg` and open to
+    /// `open_deg` (servo degrees, one per finger).
+    pub fn new(
+        request: GraspRequest,
+        tuning: Tuning,
+        close_deg: Vec<f64>,
+        open_deg: Vec<f64>,
+    ) -> Self {
+        let target = finite_or(request.target_force_n, 0.0).max(0.0);
+        let fingers = (0..close_deg.len())
+            .map(|f| FingerCtl {
+                phase: Phase::Open,
+                active: request.fingers.contains(&f),
+                goal_deg: open_deg.get(f).copied().unwrap_or(0.0),
+                current_ma: 0.0,
+                integral_ma: 0.0,
+                feedforward_ma: 0.0,
+                contact_since_s: None,
+                target_n: target,
+                stable_since_s: None,
+                stall_ref: None,
+                hold_area_mm2: 0.0,
+                hold_centroid: None,
+                status: FingerStatus::AtGoal,
+                force_n: 0.0,
+            })
+            .collect();
+        Self {
+            request,
+            tuning,
+            close_deg,
+            open_deg,
+            fingers,
+            started_s: None,
+            last_s: None,
+            done: None,
+        }
+    }
+
+    /// Each finger's phase.
+    pub fn phases(&self) -> Vec<Phase> {
+        self.fingers.iter().map(|f| f.phase).collect()
+    }
+
+    /// Each finger's force target now (it rises when hold re-tightens), N.
+    pub fn targets_n(&self) -> Vec<f64> {
+        self.fingers.iter().map(|f| f.target_n).collect()
+    }
+
+    /// The outcome, once the grasp has ended.
+    pub fn outcome(&self) -> Option<&GraspOutcome> {
+        self.done.as_ref()
+    }
+
+    fn limit(&self) -> f64 {
+        finite_or(self.request.current_limit_ma, 0.0).max(0.0)
+    }
+
+    /// One control step at `t_s`, with the newest gated set (`None` if none arrived since the
+    /// last step) and the servos' states.
+    pub fn step(
+        &mut self,
+        t_s: f64,
+        set: Option<&FusedSet>,
+        servos: &[ServoState],
+    ) -> ControlOutput {
+        let start = *self.started_s.get_or_insert(t_s);
+        let dt = (t_s - self.last_s.unwrap_or(t_s)).clamp(0.0, 0.5);
+        self.last_s = Some(t_s);
+        let limit = self.limit();
+        let t = self.tuning.clone();
+        let speed = finite_or(self.request.speed_deg_s, 0.0).max(0.0);
+        for f in 0..self.fingers.len() {
+            let present = servos
+                .get(f)
+                .map_or(self.fingers[f].goal_deg, |s| s.position_deg);
+            let close = self.close_deg[f];
+            let fused = set.and_then(|s| s.fingers.get(f)).copied();
+            let c = &mut self.fingers[f];
+            if !c.active || matches!(c.phase, Phase::Fault) {
+                continue;
+            }
+            if c.phase == Phase::Open {
+                c.phase = Phase::Approach;
+                c.goal_deg = present;
+                c.status = FingerStatus::Moving;
+            }
+            let Some(fused) = fused else {
+                continue; // no new set: keep the last goals
+            };
+            if fused.stale {
+                c.goal_deg = present; // hold, never guess
+                continue;
+            }
+            c.force_n = fused.force_n;
+            match c.phase {
+                Phase::Approach | Phase::Contact => {
+                    let measured = servos
+                        .get(f)
+                        .map_or(0.0, |s| finite_or(s.current_ma.abs(), 0.0));
+                    if fused.contact {
+                        if c.phase == Phase::Approach {
+                            c.phase = Phase::Contact;
+                            c.contact_since_s = Some(t_s);
+                        }
+                    } else if c.phase == Phase::Approach {
+                        // What the return springs take: the free-motion current.
+                        c.feedforward_ma += (measured - c.feedforward_ma) * 0.3;
+                    }
+                    let share = if c.phase == Phase::Contact {
+                        t.contact_speed_share
+                    } else {
+                        1.0
+                    };
+                    c.goal_deg = (c.goal_deg.max(present - 1.0) + speed * share * dt).min(close);
+                    c.current_ma = (c.feedforward_ma + t.approach_margin_ma)
+                        .clamp(t.min_current_ma, t.approach_current_ma)
+                        .min(limit);
+                    let in_contact_s = c.contact_since_s.map_or(0.0, |s0| t_s - s0);
+                    if c.phase == Phase::Contact
+                        && (fused.force_n >= 0.3 * c.target_n || in_contact_s >= 0.3)
+                    {
+                        c.phase = Phase::Squeeze;
+                        c.integral_ma = 0.0;
+                    } else if !fused.contact {
+                        let (ref_s, ref_deg) = *c.stall_ref.get_or_insert((t_s, present));
+                        if (present - ref_deg).abs() > t.stall_deg {
+                            c.stall_ref = Some((t_s, present));
+                        } else if t_s - ref_s >= t.stall_s || present >= close - 1.0 {
+                            c.phase = Phase::Hold;
+                            c.status = FingerStatus::NoObject;
+                            c.goal_deg = present;
+                        }
+                    }
+                }
+                Phase::Squeeze | Phase::Hold => {
+                    let e = c.target_n - fused.force_n;
+                    let p = t.kp_ma_per_n * e;
+                    let trial = c.feedforward_ma + p + c.integral_ma + t.ki_ma_per_n_s * e * dt;
+                    let min = t.min_current_ma.min(limit);
+                    // Anti-windup: integrate only while the output is not pinned in the
+                    // direction the error pushes.
+                    if !((trial >= limit && e > 0.0) || (trial <= min && e < 0.0)) {
+                        c.integral_ma += t.ki_ma_per_n_s * e * dt;
+                    }
+                    c.current_ma = (c.feedforward_ma + p + c.integral_ma).clamp(min, limit);
+                    c.goal_deg = (present + t.squeeze_lead_deg).min(close.max(present));
+                    let in_band = e.abs() <= t.stable_band * c.target_n.max(1e-6);
+                    if c.phase == Phase::Squeeze {
+                        if in_band {
+                            let since = *c.stable_since_s.get_or_insert(t_s);
+                            if t_s - since >= t.stable_s {
+                                c.phase = Phase::Hold;
+                                c.status = FingerStatus::ContactClosing;
+                                c.hold_area_mm2 = fused.area_mm2;
+                                c.hold_centroid = fused.centroid;
+                            }
+                        } else {
+                            c.stable_since_s = None;
+                        }
+                    } else if c.status == FingerStatus::ContactClosing {
+                        let area_drop = fused.area_mm2 < t.slip_area_share * c.hold_area_mm2;
+                        let shifted = match (c.hold_centroid, fused.centroid) {
+                            (Some((s0, x0, y0)), Some((s1, x1, y1))) => {
+                                s0 != s1 || (x1 - x0).hypot(y1 - y0) > t.slip_shift_mm
+                            }
+                            (Some(_), None) => true,
+                            _ => false,
+                        };
+                        if area_drop || shifted {
+                            c.target_n *= t.retighten_factor;
+                            c.phase = Phase::Squeeze;
+                            c.stable_since_s = None;
+                        }
+                    }
+                }
+                Phase::Release => {
+                    let open = self.open_deg[f];
+                    c.goal_deg = open;
+                    c.current_ma = t.approach_current_ma.min(limit);
+                    if present <= open + 2.0 {
+                        c.phase = Phase::Open;
+                        c.status = FingerStatus::AtGoal;
+                    }
+                }
+                Phase::Open | Phase::Fault => {}
+            }
+        }
+        if self.done.is_none() {
+            self.done = self.check_done(t_s - start, set);
+        }
+        ControlOutput {
+            goals: self.goals(),
+            done: self.done.clone(),
+        }
+    }
+
+    fn check_done(&self, elapsed_s: f64, set: Option<&FusedSet>) -> Option<GraspOutcome> {
+        let active: Vec<&FingerCtl> = self.fingers.iter().filter(|c| c.active).collect();
+        let settled = active.iter().all(|c| {
+            c.phase == Phase::Hold
+                && matches!(
+                    c.status,
+                    FingerStatus::ContactClosing | FingerStatus::NoObject
+                )
+        });
+        let timed_out = elapsed_s >= finite_or(self.request.timeout_s, f64::INFINITY);
+        if !settled && !timed_out {
+            return None;
+        }
+        let holding = active
+            .iter()
+            .filter(|c| c.status == FingerStatus::ContactClosing)
+            .count()
+            + usize::from(set.and_then(|s| s.palm).is_some_and(|p| p.contact));
+        let grasped = settled && holding >= 2;
+        let reason = if settled && grasped {
+            "stable".to_string()
+        } else if settled {
+            "no_object".to_string()
+        } else {
+            format!("timeout after {elapsed_s:.1} s")
+        };
+        Some(GraspOutcome {
+            grasped,
+            status: self.fingers.iter().map(|c| c.status).collect(),
+            final_force_n: set.map_or(0.0, FusedSet::total_force_n),
+            reason,
+        })
+    }
+
+    /// The goals in force.
+    pub fn goals(&self) -> Vec<FingerGoal> {
+        self.fingers
+            .iter()
+            .map(|c| FingerGoal {
+                position_deg: c.goal_deg,
+                goal_current_ma: c.current_ma,
+                profile_velocity_rpm: 0.0,
+            })
+            .collect()
+    }
+
+    /// Open every finger.
+    pub fn release(&mut self) {
+        for c in &mut self.fingers {
+            if c.active && c.phase != Phase::Fault {
+                c.phase = Phase::Release;
+                c.status = FingerStatus::Moving;
+            }
+        }
+    }
+
+    /// Stop: every finger holds where it is, at its present current (`positions` from the
+    /// last servo states).
+    pub fn stop(&mut self, positions: &[f64]) {
+        for (c, p) in self.fingers.iter_mut().zip(positions) {
+            c.goal_deg = *p;
+            c.phase = Phase::Fault;
+        }
+    }
+
+    /// E-stop: hold where it is at the minimum current.
+    pub fn estop(&mut self, positions: &[f64]) {
+        let min = self.tuning.min_current_ma;
+        self.stop(positions);
+        for c in &mut self.fingers {
+            c.current_ma = min;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;
