@@ -288,9 +288,37 @@ pub struct RunArgs {
     /// Close the fingers on this scene file (overrides `[hub.sim] scene`; sim hub only).
     #[arg(long)]
     pub scene: Option<PathBuf>,
-    /// Goal-current cap the fingers ramp to when closing on a scene, mA.
+    /// Goal-current cap the fingers ramp to when closing on a scene without a task, mA.
     #[arg(long, default_value_t = 800.0, value_parser = parse_current_ma)]
     pub close_current_ma: f64,
+    /// Run a task: `gentle-grasp` (built in).
+    #[arg(long)]
+    pub task: Option<String>,
+    /// Gentle grasp: force per finger, N.
+    #[arg(long, default_value_t = 1.5, value_parser = parse_force_n)]
+    pub target_force: f64,
+    /// Gentle grasp: approach speed, deg/s of servo rotation (faster approaches touch
+    /// harder: see docs/control.md).
+    #[arg(long, default_value_t = 15.0)]
+    pub speed: f64,
+    /// Gentle grasp: give up after this many seconds.
+    #[arg(long, default_value_t = 20.0)]
+    pub task_timeout: f64,
+    /// Write the task's signals (time, stage, deformation per sensor, state and force per
+    /// finger) to this CSV file.
+    #[arg(long)]
+    pub log: Option<PathBuf>,
+}
+
+fn parse_force_n(s: &str) -> Result<f64, String> {
+    let v: f64 = s
+        .parse()
+        .map_err(|_| format!("`{s}` is not a force in N"))?;
+    if v.is_finite() && v > 0.0 && v <= 200.0 {
+        Ok(v)
+    } else {
+        Err(format!("{v} N is outside (0, 200]"))
+    }
 }
 
 fn parse_current_ma(s: &str) -> Result<f64, String> {

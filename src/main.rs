@@ -4,10 +4,12 @@
 mod cli;
 mod commands;
 mod embedded;
+mod grasp_task;
 mod output;
 mod scene_report;
 mod servo_loop;
 mod simcam;
+mod tactile;
 mod wiring;
 
 use std::process::ExitCode;

@@ -77,6 +77,9 @@ pub struct RunReport {
     /// The servos' last states, in finger order.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub servos: Option<Vec<ServoReport>>,
+    /// The task fields (a task run).
+    #[serde(flatten, skip_serializing_if = "Option::is_none")]
+    pub task: Option<crate::grasp_task::TaskReport>,
     /// p99 set latency, ms.
     pub set_latency_ms_p99: Option<f64>,
     /// Frames (valid or corrupt) received.

@@ -4,10 +4,11 @@
 //! [`GraspController::step`] is a pure function of the fused set, the servo states, the
 //! time and the controller's own state; it does no I/O and sees no simulator type, so it is
 //! deterministic and unit-tested here. Per finger:
-//! - **Approach**: the position goal advances at the requested speed under a current cap of
-//!   the free-motion current (what the return springs take, measured as the finger moves)
-//!   plus a small margin, so the first touch is soft; at the first contact on any of its
-//!   sensors the finger slows (**contact**).
+//! - **Approach**: the goal is the closed position, reached at the requested speed through
+//!   the servo's profile velocity, under a current cap of the free-motion current (what the
+//!   return springs take, measured as the finger moves; raised by a margin whenever the cap
+//!   holds the finger back) plus a small margin, so the first touch is soft. At the first
+//!   contact on any of its sensors the finger slows (**contact**) and the cap stops rising.
 //! - **Squeeze**: the goal sits a little beyond the present position, so the goal current
 //!   (the hard force cap) sets the force. The current is the free-motion current
 //!   (feed-forward) plus a PI term on the force error, never
@@ -107,6 +108,8 @@ pub struct Tuning {
     pub slip_shift_mm: f64,
     /// Target multiplier per re-tightening.
     pub retighten_factor: f64,
+    /// Weight of each new force reading in the regulated average (1 = no averaging).
+    pub force_filter: f64,
 }
 
 impl Default for Tuning {
@@ -126,6 +129,7 @@ impl Default for Tuning {
             slip_area_share: 0.75,
             slip_shift_mm: 0.5,
             retighten_factor: 1.2,
+            force_filter: 0.3,
         }
     }
 }
@@ -160,6 +164,7 @@ struct FingerCtl {
     current_ma: f64,
     integral_ma: f64,
     feedforward_ma: f64,
+    profile_rpm: f64,
     contact_since_s: Option<f64>,
     target_n: f64,
     stable_since_s: Option<f64>,
@@ -205,6 +210,7 @@ impl GraspController {
                 current_ma: 0.0,
                 integral_ma: 0.0,
                 feedforward_ma: 0.0,
+                profile_rpm: 0.0,
                 contact_since_s: None,
                 target_n: target,
                 stable_since_s: None,
@@ -282,41 +288,57 @@ impl GraspController {
                 c.goal_deg = present; // hold, never guess
                 continue;
             }
-            c.force_n = fused.force_n;
+            // The pipeline's force is noisy frame to frame; regulate on a short average.
+            c.force_n = if c.force_n == 0.0 {
+                fused.force_n
+            } else {
+                c.force_n + (fused.force_n - c.force_n) * t.force_filter
+            };
+            let force_n = c.force_n;
             match c.phase {
                 Phase::Approach | Phase::Contact => {
                     let measured = servos
                         .get(f)
                         .map_or(0.0, |s| finite_or(s.current_ma.abs(), 0.0));
-                    if fused.contact {
-                        if c.phase == Phase::Approach {
-                            c.phase = Phase::Contact;
-                            c.contact_since_s = Some(t_s);
-                        }
-                    } else if c.phase == Phase::Approach {
-                        // What the return springs take: the free-motion current.
-                        c.feedforward_ma += (measured - c.feedforward_ma) * 0.3;
+                    if fused.contact && c.phase == Phase::Approach {
+                        c.phase = Phase::Contact;
+                        c.contact_since_s = Some(t_s);
                     }
-                    let share = if c.phase == Phase::Contact {
-                        t.contact_speed_share
+                    if c.phase == Phase::Approach {
+                        // Learn what the return springs take: track the free-motion current,
+                        // and when the cap holds the finger back, raise it by the margin.
+                        let crawling = servos.get(f).is_none_or(|s| {
+                            finite_or(s.velocity_rpm, 0.0).abs() * 6.0 < 0.3 * speed
+                        });
+                        let pinned = measured >= c.current_ma - 2.0 && crawling;
+                        c.feedforward_ma = if pinned {
+                            c.current_ma
+                        } else {
+                            c.feedforward_ma + (measured - c.feedforward_ma) * 0.5
+                        };
+                        c.current_ma = (c.feedforward_ma + t.approach_margin_ma)
+                            .clamp(t.min_current_ma, t.approach_current_ma)
+                            .min(limit);
+                        c.profile_rpm = speed / 6.0;
                     } else {
-                        1.0
-                    };
-                    c.goal_deg = (c.goal_deg.max(present - 1.0) + speed * share * dt).min(close);
-                    c.current_ma = (c.feedforward_ma + t.approach_margin_ma)
-                        .clamp(t.min_current_ma, t.approach_current_ma)
-                        .min(limit);
+                        c.profile_rpm = speed * t.contact_speed_share / 6.0;
+                    }
+                    c.goal_deg = close;
                     let in_contact_s = c.contact_since_s.map_or(0.0, |s0| t_s - s0);
                     if c.phase == Phase::Contact
-                        && (fused.force_n >= 0.3 * c.target_n || in_contact_s >= 0.3)
+                        && (force_n >= 0.3 * c.target_n || in_contact_s >= 0.3)
                     {
                         c.phase = Phase::Squeeze;
                         c.integral_ma = 0.0;
+                        c.feedforward_ma = c.feedforward_ma.min(c.current_ma);
                     } else if !fused.contact {
                         let (ref_s, ref_deg) = *c.stall_ref.get_or_insert((t_s, present));
                         if (present - ref_deg).abs() > t.stall_deg {
                             c.stall_ref = Some((t_s, present));
-                        } else if t_s - ref_s >= t.stall_s || present >= close - 1.0 {
+                        } else if (t_s - ref_s >= t.stall_s
+                            && c.current_ma >= t.approach_current_ma.min(limit))
+                            || present >= close - 1.0
+                        {
                             c.phase = Phase::Hold;
                             c.status = FingerStatus::NoObject;
                             c.goal_deg = present;
@@ -324,7 +346,7 @@ impl GraspController {
                     }
                 }
                 Phase::Squeeze | Phase::Hold => {
-                    let e = c.target_n - fused.force_n;
+                    let e = c.target_n - force_n;
                     let p = t.kp_ma_per_n * e;
                     let trial = c.feedforward_ma + p + c.integral_ma + t.ki_ma_per_n_s * e * dt;
                     let min = t.min_current_ma.min(limit);
@@ -426,7 +448,7 @@ impl GraspController {
             .map(|c| FingerGoal {
                 position_deg: c.goal_deg,
                 goal_current_ma: c.current_ma,
-                profile_velocity_rpm: 0.0,
+                profile_velocity_rpm: c.profile_rpm,
             })
             .collect()
     }

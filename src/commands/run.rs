@@ -7,9 +7,21 @@ use gelgrip_controller::acquire::Acquisition;
 use gelgrip_controller::clock::{Clock, ClockKind};
 
 use crate::cli::{ClockArg, RunArgs};
+use crate::grasp_task::{GraspOptions, GraspTask};
 use crate::output::{RunReport, ServoReport, latency_ms};
 use crate::scene_report::SceneReport;
 use crate::servo_loop::ServoLoop;
+
+/// Only the built-in task exists until task scripts arrive.
+fn check_task(name: &str) -> anyhow::Result<()> {
+    if name == "gentle-grasp" {
+        return Ok(());
+    }
+    Err(crate::cli::UsageError(format!(
+        "task `{name}`: task scripts (configs/tasks/*.toml) arrive with the task-script issue; built in: gentle-grasp"
+    ))
+    .into())
+}
 use crate::wiring;
 
 /// Resolves on SIGINT or SIGTERM.
@@ -108,13 +120,40 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
         last_sets: 0,
     };
     let mut faults = Vec::new();
-    let mut servos = match wiring::open_servos(&config, world.as_ref(), clock.clone())? {
-        Some(bus) => Some(
-            ServoLoop::start(bus, &config.layout, on_scene, args.close_current_ma, start)
-                .map_err(|e| anyhow::anyhow!("configuring the servos: {e}"))?,
-        ),
-        None => None,
-    };
+    let bus = wiring::open_servos(&config, world.as_ref(), clock.clone())?;
+    let mut task = None;
+    let mut servos = None;
+    match (args.task.as_deref(), bus) {
+        (Some(name), Some(bus)) => {
+            check_task(name)?;
+            let options = GraspOptions {
+                target_force_n: args.target_force,
+                speed_deg_s: args.speed,
+                timeout_s: args.task_timeout,
+            };
+            task = Some(GraspTask::start(
+                &config,
+                bus,
+                world.clone(),
+                &options,
+                args.log.as_deref(),
+            )?);
+        }
+        (Some(name), None) => {
+            check_task(name)?;
+            anyhow::bail!(crate::cli::UsageError(format!(
+                "task {name} needs finger servos; layout {} has no [[fingers]]",
+                config.layout.name
+            )));
+        }
+        (None, Some(bus)) => {
+            servos = Some(
+                ServoLoop::start(bus, &config.layout, on_scene, args.close_current_ma, start)
+                    .map_err(|e| anyhow::anyhow!("configuring the servos: {e}"))?,
+            );
+        }
+        (None, None) => {}
+    }
     let shutdown = shutdown_signal();
     let timer = real_deadline(clock.clone(), deadline);
     tokio::pin!(shutdown, timer);
@@ -124,14 +163,35 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
             _ = &mut shutdown => break "signal",
             _ = &mut timer => break "duration",
             step = acq.step() => {
-                if let Err(e) = step {
-                    tracing::error!("hub fault: {e}");
-                    faults.push(e.to_string());
-                    break "fault";
+                match step {
+                    Err(e) => {
+                        tracing::error!("hub fault: {e}");
+                        faults.push(e.to_string());
+                        break "fault";
+                    }
+                    Ok(Some(set)) => {
+                        if let Some(t) = task.as_mut() {
+                            match t.on_set(&set, clock.now_us()) {
+                                Ok(Some(reason)) => break reason,
+                                Ok(None) => {}
+                                Err(e) => {
+                                    tracing::error!("{e}");
+                                    faults.push(e.to_string());
+                                    break "fault";
+                                }
+                            }
+                        }
+                    }
+                    Ok(None) => {}
                 }
             }
         }
         let now = clock.now_us();
+        if let Some(fault) = task.as_mut().and_then(|t| t.watchdog(now)) {
+            tracing::error!("{fault}");
+            faults.push(fault);
+            break "fault";
+        }
         if let Some(s) = servos.as_mut()
             && let Err(e) = s.tick(now)
         {
@@ -149,6 +209,10 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
         if let Err(e) = s.stop() {
             tracing::warn!("could not turn servo torque off: {e}");
         }
+    }
+    if let Some(t) = task.as_mut() {
+        faults.splice(0..0, t.recovered.drain(..));
+        t.finish();
     }
     let scene = world.as_ref().and_then(|w| {
         let w = w.lock().ok()?;
@@ -182,7 +246,10 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
         scene,
         servos: servos
             .as_ref()
-            .map(|s| s.last.iter().map(ServoReport::from).collect()),
+            .map(|s| s.last.as_slice())
+            .or(task.as_ref().map(|t| t.states()))
+            .map(|s| s.iter().map(ServoReport::from).collect()),
+        task: task.as_ref().map(GraspTask::report),
     };
     if args.json {
         println!("{}", serde_json::to_string(&report)?);

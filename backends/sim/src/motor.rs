@@ -2,13 +2,15 @@
 //! thermal heating and overload detection. It implements the controller's `MotorModel` port.
 //!
 //! Quasi-static and first order, at the servo's own control rate:
-//! - **Position control.** The current command is `Kp × position error`, clamped to ± the
-//!   goal current (current-based position mode). The shaft torque is `Kt × current`.
-//! - **Speed.** The net of motor and load torque sets the speed along the torque–speed line
-//!   (no-load speed 46 rpm at 12 V, stall torque 4.1 N·m at 2.3 A); a load beyond the
-//!   motor's torque back-drives the shaft, so a grasp settles where the cable's load meets
-//!   the current cap. The profile velocity caps motion toward the goal, which is never
-//!   overshot.
+//! - **Position control.** A profile setpoint moves toward the goal at the profile
+//!   velocity (at once without one). The loop asks for the torque that holds the load plus
+//!   `Kp × (setpoint − position)`, clamped to ± the goal current (current-based position
+//!   mode); the present current is that torque over `Kt`. So a finger moving freely draws
+//!   what its springs take, and one blocked by an object rises to the goal current.
+//! - **Speed.** The shaft follows the setpoint as fast as the torque–speed line allows
+//!   (no-load speed 46 rpm at 12 V, stall torque 4.1 N·m at 2.3 A), never overshooting; a
+//!   load beyond the capped torque back-drives it, so a grasp settles where the cable's load
+//!   meets the current cap.
 //! - **Heat.** Temperature rises with I²R and relaxes to 25 °C ambient (τ = 300 s).
 //!   Overheating is flagged above the 80 °C limit.
 //! - **Overload.** At least 1.5 A held at the cap while the shaft cannot move, for 1 s.
@@ -52,6 +54,9 @@ const SHUTDOWN: u8 = OVERHEATING | OVERLOAD;
 #[derive(Debug, Clone)]
 pub struct Xm430Motor {
     position_deg: f64,
+    /// The profile's setpoint (what the position loop tracks), degrees.
+    setpoint_deg: f64,
+
     temperature_c: f64,
     stalled_s: f64,
     faults: u8,
@@ -61,6 +66,7 @@ impl Default for Xm430Motor {
     fn default() -> Self {
         Self {
             position_deg: 0.0,
+            setpoint_deg: 0.0,
             temperature_c: AMBIENT_C,
             stalled_s: 0.0,
             faults: 0,
@@ -73,6 +79,7 @@ impl Xm430Motor {
     pub fn at(position_deg: f64) -> Self {
         Self {
             position_deg,
+            setpoint_deg: position_deg,
             ..Self::default()
         }
     }
@@ -109,34 +116,60 @@ impl MotorModel for Xm430Motor {
         } else {
             self.position_deg
         };
-        let error = if enabled {
-            goal - self.position_deg
+        // The profile: the setpoint moves toward the goal at the profile velocity.
+        if enabled {
+            let max = if cmd.profile_velocity_rpm > 0.0 {
+                cmd.profile_velocity_rpm * 6.0 * dt
+            } else {
+                f64::INFINITY
+            };
+            self.setpoint_deg += (goal - self.setpoint_deg).clamp(-max, max);
         } else {
-            0.0
-        };
-        let current = if enabled {
-            (KP_MA_PER_DEG * error).clamp(-cap, cap)
-        } else {
-            0.0
-        };
+            self.setpoint_deg = self.position_deg;
+        }
+        let lag = self.setpoint_deg - self.position_deg;
         let kt = STALL_TORQUE_NM / STALL_CURRENT_MA; // N·m per mA
         let load = if load_torque_nm.is_finite() {
             load_torque_nm
         } else {
             0.0
         };
-        // Net torque sets the speed along the torque–speed line; a load larger than the
-        // motor's torque back-drives the shaft (current-based position mode is compliant).
-        let net = current * kt - load;
-        let mut rpm = NO_LOAD_RPM * (net / STALL_TORQUE_NM).clamp(-1.0, 1.0);
-        if cmd.profile_velocity_rpm > 0.0 && rpm * error > 0.0 {
-            rpm = rpm.clamp(-cmd.profile_velocity_rpm, cmd.profile_velocity_rpm);
-        }
-        let mut step = rpm * 6.0 * dt; // deg
-        if step * error > 0.0 && step.abs() > error.abs() {
-            step = error;
-        }
+        // The position loop asks for the torque that holds the load plus Kp × lag; the goal
+        // current caps it.
+        let t_cap = cap * kt;
+        let demand = load + KP_MA_PER_DEG * kt * lag;
+        let saturated = !enabled || demand.abs() > t_cap;
+        // Unsaturated, the shaft follows the setpoint as fast as the torque–speed line allows,
+        // and the current is what holds the load plus the correction of what lag remains.
+        // Saturated (or with torque off), the net torque drives it along that line: toward
+        // the setpoint while the capped torque exceeds the load, backward when the load is
+        // larger (current-based position mode is compliant). Gear friction is not modelled.
+        let (step, torque) = if saturated {
+            let torque = if enabled {
+                demand.clamp(-t_cap, t_cap)
+            } else {
+                0.0
+            };
+            let net = torque - load;
+            let viscous = NO_LOAD_RPM * 6.0 * dt * (net / STALL_TORQUE_NM).clamp(-1.0, 1.0);
+            // Toward the setpoint, never past it.
+            let step = if enabled && viscous * lag > 0.0 && viscous.abs() > lag.abs() {
+                lag
+            } else {
+                viscous
+            };
+            (step, torque)
+        } else {
+            let free_deg = NO_LOAD_RPM * 6.0 * dt * (1.0 - demand.abs() / STALL_TORQUE_NM).max(0.0);
+            let step = lag.clamp(-free_deg, free_deg);
+            let torque = (load + KP_MA_PER_DEG * kt * (lag - step)).clamp(-t_cap, t_cap);
+            (step, torque)
+        };
+        let current = torque / kt;
         self.position_deg += step;
+        if !enabled {
+            self.setpoint_deg = self.position_deg;
+        }
         let velocity_rpm = if dt > 0.0 { step / (6.0 * dt) } else { 0.0 };
         let straining = current.abs() >= OVERLOAD_CURRENT_MA && current.abs() >= cap * 0.999;
         self.stalled_s = if straining && velocity_rpm.abs() < MOVING_THRESHOLD_RPM {

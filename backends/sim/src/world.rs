@@ -64,6 +64,9 @@ pub struct World {
     t_us: Option<u64>,
     elapsed_us: u64,
     log: WorldLog,
+    /// Set by [`World::load_test`]: the object is let go and pulled by this many times its
+    /// weight.
+    weight_factor: Option<f64>,
 }
 
 fn palm_frame(xyz_mm: [f64; 3], rpy_deg: [f64; 3]) -> PadFrame {
@@ -125,6 +128,7 @@ impl World {
             scene,
             t_us: None,
             elapsed_us: 0,
+            weight_factor: None,
         }
     }
 
@@ -156,6 +160,17 @@ impl World {
     /// Simulated time since the first advance, s.
     pub fn elapsed_s(&self) -> f64 {
         self.elapsed_us as f64 / 1e6
+    }
+
+    /// Let go of the object and pull it with `factor` times its weight along gravity (the
+    /// "held" test: a grasp holds when the object slips less than 1 mm under twice its
+    /// weight).
+    pub fn load_test(&mut self, factor: f64) {
+        self.weight_factor = Some(if factor.is_finite() {
+            factor.max(0.0)
+        } else {
+            1.0
+        });
     }
 
     /// Command finger `finger`'s motor.
@@ -317,13 +332,17 @@ impl World {
             self.log
                 .push(WorldEvent::at(t_s, EventKind::BoltTight).value(o.bolt_torque_nm));
         }
-        let released = scene.release_after_s.is_some_and(|r| t_s >= r);
+        let released =
+            self.weight_factor.is_some() || scene.release_after_s.is_some_and(|r| t_s >= r);
         if released && !self.log.has(EventKind::Released) {
             self.log.push(WorldEvent::at(t_s, EventKind::Released));
         }
         let d = scene.slip_dir;
         let gravity_n = if released {
-            o.spec().mass_kg * G_M_PER_S2 * scene.gravity_dir.dot(d)
+            self.weight_factor.unwrap_or(1.0)
+                * o.spec().mass_kg
+                * G_M_PER_S2
+                * scene.gravity_dir.dot(d)
         } else {
             0.0
         };

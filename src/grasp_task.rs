@@ -1,0 +1,377 @@
+//! The built-in `gentle-grasp` task: every gated set goes through the tactile pipelines,
+//! is fused per finger, and steps the grasp controller, whose goals are written to the
+//! servos at once. When the grasp is stable the task tests the hold on the simulator (the
+//! object is let go and pulled with twice its weight for 1 s; held = it slips less than
+//! 1 mm), then ends.
+//!
+//! Safety: the controller acts only on gated sets; a finger with a missing sensor holds; a
+//! watchdog stops all motion (hold at the present position) when no set arrives within
+//! [`WATCHDOG_MS`]; an unrecovered servo fault ends the run. Loop latency is wall-clock
+//! time from the gate handing over the set to the servo write; capture-to-command adds the
+//! set's age at emission.
+
+use std::io::Write;
+use std::path::Path;
+use std::time::Instant;
+
+use anyhow::Context;
+use serde::Serialize;
+
+use gelgrip_controller::actuator::{ServoBus, ServoState};
+use gelgrip_controller::config::AppConfig;
+use gelgrip_controller::frame::FrameSet;
+use gelgrip_controller::fusion::fuse;
+use gelgrip_controller::grasp::{
+    FingerStatus, GraspController, GraspOutcome, GraspRequest, Phase, Tuning,
+};
+use gelgrip_controller::layout::HandLayout;
+use gelgrip_sim::world::SharedWorld;
+
+use crate::tactile::Tactile;
+
+/// No gated set for this long stops all motion, ms.
+pub const WATCHDOG_MS: u64 = 500;
+/// Length of the hold test, s.
+const HOLD_TEST_S: f64 = 1.0;
+/// Weight multiple of the hold test.
+const HOLD_TEST_FACTOR: f64 = 2.0;
+/// "Held": slip during the hold test below this, mm.
+const HELD_SLIP_MM: f64 = 1.0;
+
+/// The task's options.
+#[derive(Debug, Clone)]
+pub struct GraspOptions {
+    /// Force per finger, N.
+    pub target_force_n: f64,
+    /// Approach speed, deg/s.
+    pub speed_deg_s: f64,
+    /// Give up after, s.
+    pub timeout_s: f64,
+}
+
+/// Task fields of `run --json` (CONTRACTS.md) and a few more.
+#[derive(Debug, Serialize)]
+pub struct TaskReport {
+    /// Task name.
+    pub task: &'static str,
+    /// The grasp succeeded (stable contact on at least two of fingers and palm) and, on the
+    /// simulator, the object was held through the hold test.
+    pub grasped: bool,
+    /// Peak fused force of any finger, N (what the controller measured).
+    pub peak_force_n: f64,
+    /// The requested force per finger, N.
+    pub target_force_n: f64,
+    /// From the task start to a stable grasp, s (null if never stable).
+    pub time_to_stable_s: Option<f64>,
+    /// Median loop latency, ms.
+    pub loop_latency_ms_p50: Option<f64>,
+    /// p99 loop latency, ms.
+    pub loop_latency_ms_p99: Option<f64>,
+    /// p99 capture-to-command latency, ms.
+    pub capture_to_command_ms_p99: Option<f64>,
+    /// Why the grasp ended (`stable`, `no_object`, `timeout …`, `watchdog …`).
+    pub reason: String,
+    /// Per finger: `moving`, `contact_closing`, `at_goal` or `no_object`.
+    pub finger_status: Vec<FingerStatus>,
+    /// Slip during the hold test, mm (simulator only).
+    pub hold_slip_mm: Option<f64>,
+}
+
+enum Stage {
+    Grasp,
+    HoldTest { since_s: f64, slip0_mm: f64 },
+    Done,
+}
+
+/// The running task.
+pub struct GraspTask {
+    ctl: GraspController,
+    tactile: Tactile,
+    bus: Box<dyn ServoBus>,
+    world: Option<SharedWorld>,
+    layout: HandLayout,
+    states: Vec<ServoState>,
+    stage: Stage,
+    start_s: Option<f64>,
+    last_set_us: Option<u64>,
+    outcome: Option<GraspOutcome>,
+    peak_force_n: f64,
+    target_force_n: f64,
+    time_to_stable_s: Option<f64>,
+    loop_ms: Vec<f64>,
+    capture_ms: Vec<f64>,
+    hold_slip_mm: Option<f64>,
+    log: Option<std::io::BufWriter<std::fs::File>>,
+    /// Recovered servo faults, described.
+    pub recovered: Vec<String>,
+}
+
+fn quantile(v: &[f64], q: f64) -> Option<f64> {
+    if v.is_empty() {
+        return None;
+    }
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    Some(s[((s.len() - 1) as f64 * q).round() as usize])
+}
+
+fn phase_name(p: Phase) -> &'static str {
+    match p {
+        Phase::Open => "open",
+        Phase::Approach => "approach",
+        Phase::Contact => "contact",
+        Phase::Squeeze => "squeeze",
+        Phase::Hold => "hold",
+        Phase::Release => "release",
+        Phase::Fault => "fault",
+    }
+}
+
+impl GraspTask {
+    /// Set up the task: pipelines, controller, servos (configured) and the CSV log.
+    pub fn start(
+        config: &AppConfig,
+        mut bus: Box<dyn ServoBus>,
+        world: Option<SharedWorld>,
+        options: &GraspOptions,
+        log: Option<&Path>,
+    ) -> anyhow::Result<Self> {
+        let layout = config.layout.clone();
+        if layout.fingers.is_empty() {
+            anyhow::bail!(crate::cli::UsageError(format!(
+                "the gentle grasp needs finger mechanics; layout {} declares no [[fingers]]",
+                layout.name
+            )));
+        }
+        let tactile = Tactile::open(config)?;
+        bus.configure()
+            .map_err(|e| anyhow::anyhow!("configuring the servos: {e}"))?;
+        let request = GraspRequest {
+            target_force_n: options.target_force_n,
+            speed_deg_s: options.speed_deg_s,
+            current_limit_ma: config.servos.current_limit_ma,
+            fingers: (0..layout.fingers.len()).collect(),
+            timeout_s: options.timeout_s,
+        };
+        let close: Vec<f64> = layout.fingers.iter().map(|f| f.servo_range_deg).collect();
+        let ctl = GraspController::new(
+            request,
+            Tuning::default(),
+            close,
+            vec![0.0; layout.fingers.len()],
+        );
+        let log = match log {
+            None => None,
+            Some(path) => {
+                let file = std::fs::File::create(path)
+                    .with_context(|| format!("creating the log {}", path.display()))?;
+                let mut w = std::io::BufWriter::new(file);
+                let mut header = vec!["t_s".to_string(), "stage".to_string()];
+                header.extend(
+                    layout
+                        .sensors
+                        .iter()
+                        .map(|s| format!("{}_deformation_mm3", s.id)),
+                );
+                for f in &layout.fingers {
+                    header.push(format!("{}_state", f.id));
+                    header.push(format!("{}_force_n", f.id));
+                    header.push(format!("{}_goal_current_ma", f.id));
+                    header.push(format!("{}_position_deg", f.id));
+                }
+                writeln!(w, "{}", header.join(","))?;
+                Some(w)
+            }
+        };
+        Ok(Self {
+            ctl,
+            tactile,
+            bus,
+            world,
+            layout,
+            states: Vec::new(),
+            stage: Stage::Grasp,
+            start_s: None,
+            last_set_us: None,
+            outcome: None,
+            peak_force_n: 0.0,
+            target_force_n: options.target_force_n,
+            time_to_stable_s: None,
+            loop_ms: Vec::new(),
+            capture_ms: Vec::new(),
+            hold_slip_mm: None,
+            log,
+            recovered: Vec::new(),
+        })
+    }
+
+    fn slip_mm(&self) -> Option<f64> {
+        let w = self.world.as_ref()?.lock().ok()?;
+        w.object().map(|o| o.slip_mm)
+    }
+
+    /// Handle one gated set at host time `now_us`; returns an end reason when the task ends.
+    pub fn on_set(&mut self, set: &FrameSet, now_us: u64) -> anyhow::Result<Option<&'static str>> {
+        let handed_over = Instant::now();
+        self.last_set_us = Some(now_us);
+        let t_s = now_us as f64 / 1e6;
+        let start = *self.start_s.get_or_insert(t_s);
+        let readings = self.tactile.process(set);
+        let fused = fuse(&self.layout, &readings);
+        if self.states.is_empty() {
+            self.states = self.read()?;
+        }
+        let out = self.ctl.step(t_s, Some(&fused), &self.states);
+        tracing::debug!(t_s, goals = ?out.goals, phases = ?self.ctl.phases(), "grasp step");
+        self.bus
+            .write_goals(&out.goals)
+            .map_err(|e| anyhow::anyhow!("servo fault: {e}"))?;
+        let loop_ms = handed_over.elapsed().as_secs_f64() * 1e3;
+        self.loop_ms.push(loop_ms);
+        self.capture_ms
+            .push(set.latency_us() as f64 / 1e3 + loop_ms);
+        self.states = self.read()?;
+        for f in &fused.fingers {
+            self.peak_force_n = self.peak_force_n.max(f.force_n);
+        }
+        self.write_log(t_s - start, &fused.deformation_mm3, &fused.fingers)?;
+        match self.stage {
+            Stage::Grasp => {
+                if let Some(outcome) = out.done {
+                    let stable = outcome.reason == "stable";
+                    if stable {
+                        self.time_to_stable_s = Some(t_s - start);
+                    }
+                    self.outcome = Some(outcome);
+                    match (stable, self.world.clone(), self.slip_mm()) {
+                        (true, Some(world), Some(slip0)) => {
+                            if let Ok(mut w) = world.lock() {
+                                w.load_test(HOLD_TEST_FACTOR);
+                            }
+                            self.stage = Stage::HoldTest {
+                                since_s: t_s,
+                                slip0_mm: slip0,
+                            };
+                        }
+                        _ => {
+                            self.stage = Stage::Done;
+                            return Ok(Some("done"));
+                        }
+                    }
+                }
+            }
+            Stage::HoldTest { since_s, slip0_mm } => {
+                if t_s - since_s >= HOLD_TEST_S {
+                    self.hold_slip_mm = self.slip_mm().map(|s| (s - slip0_mm).abs());
+                    self.stage = Stage::Done;
+                    return Ok(Some("done"));
+                }
+            }
+            Stage::Done => return Ok(Some("done")),
+        }
+        Ok(None)
+    }
+
+    /// Check the watchdog at host time `now_us`; returns a fault description when it fires
+    /// (all motion stopped: every finger holds where it is).
+    pub fn watchdog(&mut self, now_us: u64) -> Option<String> {
+        let last = *self.last_set_us.get_or_insert(now_us);
+        let silent_ms = now_us.saturating_sub(last) / 1000;
+        if silent_ms < WATCHDOG_MS {
+            return None;
+        }
+        let positions: Vec<f64> = self.states.iter().map(|s| s.position_deg).collect();
+        self.ctl.stop(&positions);
+        let _ = self.bus.write_goals(&self.ctl.goals());
+        Some(format!(
+            "watchdog: no synchronized set for {silent_ms} ms; fingers hold"
+        ))
+    }
+
+    fn read(&mut self) -> anyhow::Result<Vec<ServoState>> {
+        let states = self
+            .bus
+            .read_state()
+            .map_err(|e| anyhow::anyhow!("servo fault: {e}"))?;
+        self.recovered
+            .extend(self.bus.take_recovered().iter().map(ToString::to_string));
+        Ok(states)
+    }
+
+    fn write_log(
+        &mut self,
+        t_s: f64,
+        deformation: &[Option<f64>],
+        fingers: &[gelgrip_controller::fusion::FusedContact],
+    ) -> anyhow::Result<()> {
+        let stage = match self.stage {
+            Stage::Grasp => "grasp",
+            Stage::HoldTest { .. } => "hold_test",
+            Stage::Done => "done",
+        };
+        let phases = self.ctl.phases();
+        let goals = self.ctl.goals();
+        let positions: Vec<f64> = self.states.iter().map(|s| s.position_deg).collect();
+        let Some(w) = self.log.as_mut() else {
+            return Ok(());
+        };
+        let mut row = vec![format!("{t_s:.4}"), stage.to_string()];
+        row.extend(
+            deformation
+                .iter()
+                .map(|d| d.map_or(String::new(), |v| format!("{v:.4}"))),
+        );
+        for (i, (p, f)) in phases.iter().zip(fingers).enumerate() {
+            row.push(phase_name(*p).to_string());
+            row.push(format!("{:.4}", f.force_n));
+            row.push(
+                goals
+                    .get(i)
+                    .map_or(String::new(), |g| format!("{:.1}", g.goal_current_ma)),
+            );
+            row.push(
+                positions
+                    .get(i)
+                    .map_or(String::new(), |p| format!("{p:.2}")),
+            );
+        }
+        writeln!(w, "{}", row.join(","))?;
+        Ok(())
+    }
+
+    /// The safe state at the end: torque off (the springs open the fingers).
+    pub fn finish(&mut self) {
+        if let Some(w) = self.log.as_mut() {
+            let _ = w.flush();
+        }
+        if let Err(e) = self.bus.set_torque(false) {
+            tracing::warn!("could not turn servo torque off: {e}");
+        }
+    }
+
+    /// The last servo states.
+    pub fn states(&self) -> &[ServoState] {
+        &self.states
+    }
+
+    /// The task fields.
+    pub fn report(&self) -> TaskReport {
+        let outcome = self.outcome.clone();
+        let held = self.hold_slip_mm.is_none_or(|s| s < HELD_SLIP_MM);
+        TaskReport {
+            task: "gentle-grasp",
+            grasped: outcome.as_ref().is_some_and(|o| o.grasped) && held,
+            peak_force_n: self.peak_force_n,
+            target_force_n: self.target_force_n,
+            time_to_stable_s: self.time_to_stable_s,
+            loop_latency_ms_p50: quantile(&self.loop_ms, 0.5),
+            loop_latency_ms_p99: quantile(&self.loop_ms, 0.99),
+            capture_to_command_ms_p99: quantile(&self.capture_ms, 0.99),
+            reason: outcome
+                .as_ref()
+                .map_or_else(|| "not finished".into(), |o| o.reason.clone()),
+            finger_status: outcome.map(|o| o.status).unwrap_or_default(),
+            hold_slip_mm: self.hold_slip_mm,
+        }
+    }
+}

@@ -1,0 +1,165 @@
+//! The live tactile pipelines of a run: one `SensorPipeline` per sensor, built from the
+//! `[pipeline]` section, with each sensor's gradient model either from its configured
+//! `model` file or, on the simulator, calibrated from simulated ball presses of that very
+//! sensor (as `calibrate collect` + `calibrate train` would) and cached on disk, keyed by
+//! the seed, sensor, resolution and JPEG quality, so later runs start at once.
+//!
+//! Each gated set goes through [`Tactile::process`], the sensors in parallel, and comes out
+//! as the controller's per-sensor readings (`None` for a sensor whose frame failed).
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use anyhow::Context;
+
+use gelgrip_controller::config::AppConfig;
+use gelgrip_controller::frame::FrameSet;
+use gelgrip_controller::fusion::SensorReading;
+use gelgrip_plugins::calibrate;
+use gelgrip_plugins::config::PipelineConfig;
+use gelgrip_plugins::contact::ContactSummary;
+use gelgrip_plugins::lut::Input;
+use gelgrip_plugins::lut::LutModel;
+use gelgrip_plugins::pipeline::{Needs, SensorPipeline, StageChoice, process_set};
+
+use crate::simcam;
+
+/// Simulated presses per sensor for an automatic calibration.
+const CALIBRATION_PRESSES: usize = 50;
+/// No-contact frames averaged into each sensor's reference.
+const REFERENCE_FRAMES: u64 = 12;
+
+/// Where automatic calibrations are cached: `$GELGRIP_CACHE_DIR`, else
+/// `$XDG_CACHE_HOME/gelgrip`, else `~/.cache/gelgrip`, else the system temp dir.
+pub fn cache_dir() -> PathBuf {
+    if let Some(d) = std::env::var_os("GELGRIP_CACHE_DIR") {
+        return PathBuf::from(d);
+    }
+    if let Some(d) = std::env::var_os("XDG_CACHE_HOME") {
+        return PathBuf::from(d).join("gelgrip");
+    }
+    if let Some(h) = std::env::var_os("HOME") {
+        return PathBuf::from(h).join(".cache").join("gelgrip");
+    }
+    std::env::temp_dir().join("gelgrip-cache")
+}
+
+/// Every sensor's pipeline.
+pub struct Tactile {
+    pipes: Vec<SensorPipeline>,
+    geometry: Vec<(f64, f64, f64)>,
+    results: Vec<Result<ContactSummary, gelgrip_plugins::pipeline::PipelineError>>,
+}
+
+impl Tactile {
+    /// Build and calibrate the pipelines for `config` (simulator only without model files).
+    pub fn open(config: &AppConfig) -> anyhow::Result<Self> {
+        let pipeline = PipelineConfig::from_section(&config.pipeline, &config.layout)?;
+        let mut pipes = Vec::new();
+        let mut geometry = Vec::new();
+        for (i, spec) in config.layout.sensors.iter().enumerate() {
+            let id = spec.id.to_string();
+            let stages = pipeline.sensors[i].clone();
+            let (cam, sim) = simcam::camera(config, &id).with_context(|| {
+                format!("sensor {id}: live tactile processing needs the simulated hub for its reference frames")
+            })?;
+            let lut = match &stages.model {
+                Some(path) => LutModel::load(path)
+                    .with_context(|| format!("sensor {id}: model {}", path.display()))?,
+                None => {
+                    let cached = cache_dir().join(format!(
+                        "sim-seed{}-{id}-{}x{}-q{}-lut.safetensors",
+                        sim.seed, cam.width, cam.height, sim.jpeg_quality
+                    ));
+                    match LutModel::load(&cached) {
+                        Ok(m) => m,
+                        Err(_) => {
+                            tracing::info!(
+                                sensor = id,
+                                presses = CALIBRATION_PRESSES,
+                                "calibrating on simulated presses (cached for later runs)"
+                            );
+                            let tmp = std::env::temp_dir()
+                                .join(format!("gelgrip-autocal-{}-{id}", std::process::id()));
+                            let ds =
+                                simcam::collect(&cam, &sim, CALIBRATION_PRESSES, &tmp, |_| {})?;
+                            let model = calibrate::train_lut(
+                                &ds,
+                                Input::Diff,
+                                gelgrip_plugins::lut::DEFAULT_BINS,
+                            )?;
+                            let _ = std::fs::remove_dir_all(&tmp);
+                            if let Some(dir) = cached.parent() {
+                                let _ = std::fs::create_dir_all(dir);
+                            }
+                            // Write aside, then rename: a concurrent run never reads half a file.
+                            let partial =
+                                cached.with_extension(format!("part-{}", std::process::id()));
+                            match model.save(&partial) {
+                                Ok(()) => {
+                                    if let Err(e) = std::fs::rename(&partial, &cached) {
+                                        tracing::warn!("could not cache the calibration: {e}");
+                                    }
+                                }
+                                Err(e) => tracing::warn!("could not cache the calibration: {e}"),
+                            }
+                            model
+                        }
+                    }
+                }
+            };
+            let mut pipe = SensorPipeline::new(
+                StageChoice {
+                    stages,
+                    lut: Arc::new(lut),
+                },
+                cam.width,
+                cam.height,
+                cam.mm_per_px,
+            );
+            let quiet = simcam::no_contact_frames(&cam, 7_000_000, REFERENCE_FRAMES)?;
+            let quiet: Vec<&[u8]> = quiet.iter().map(Vec::as_slice).collect();
+            pipe.calibrate(&quiet)
+                .with_context(|| format!("sensor {id}: reference frames"))?;
+            geometry.push((cam.width as f64, cam.height as f64, cam.mm_per_px));
+            pipes.push(pipe);
+        }
+        let n = pipes.len();
+        Ok(Self {
+            pipes,
+            geometry,
+            results: (0..n).map(|_| Ok(ContactSummary::default())).collect(),
+        })
+    }
+
+    /// Process one gated set into per-sensor readings.
+    pub fn process(&mut self, set: &FrameSet) -> Vec<Option<SensorReading>> {
+        let frames: Vec<&[u8]> = set.frames.iter().map(|f| f.frame.jpeg.as_ref()).collect();
+        if frames.len() != self.pipes.len() {
+            return vec![None; self.pipes.len()];
+        }
+        process_set(
+            &mut self.pipes,
+            &frames,
+            Needs { depth: true },
+            &mut self.results,
+        );
+        self.results
+            .iter()
+            .zip(&self.geometry)
+            .map(|(r, (w, h, mm))| {
+                let s = r.as_ref().ok()?;
+                Some(SensorReading {
+                    in_contact: s.in_contact,
+                    area_mm2: s.area_mm2,
+                    max_depth_mm: s.max_depth_mm.unwrap_or(0.0),
+                    volume_mm3: s.volume_mm3.unwrap_or(0.0),
+                    force_n: s.force_n.unwrap_or(0.0),
+                    centroid_mm: s
+                        .centroid_px
+                        .map(|(x, y)| ((x - w / 2.0) * mm, (y - h / 2.0) * mm)),
+                })
+            })
+            .collect()
+    }
+}

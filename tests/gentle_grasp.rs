@@ -1,0 +1,95 @@
+//! `gelgrip run --scene … --task gentle-grasp`: the closed loop on fused tactile force, end
+//! to end on the simulator (virtual clock): the pipelines calibrate themselves (cached in a
+//! per-test directory), the controller closes, regulates and holds, and the run reports the
+//! task fields and writes the CSV log.
+
+mod common;
+
+use std::process::Command;
+
+fn grasp(scene: &str, log: &std::path::Path) -> serde_json::Value {
+    let cache = std::env::temp_dir().join("gelgrip-test-cache");
+    let out = Command::new(env!("CARGO_BIN_EXE_gelgrip"))
+        .args([
+            "run",
+            "--headless",
+            "--json",
+            "--clock",
+            "virtual",
+            "--duration",
+            "25",
+        ])
+        .args([
+            "--scene",
+            scene,
+            "--task",
+            "gentle-grasp",
+            "--target-force",
+            "1.5",
+        ])
+        .arg("--log")
+        .arg(log)
+        .env("GELGRIP_CACHE_DIR", &cache)
+        .env("RUST_LOG", "warn")
+        .output()
+        .expect("gelgrip runs");
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("one JSON object")
+}
+
+#[test]
+fn the_tennis_ball_is_grasped_gently_held_and_logged() {
+    let dir = std::env::temp_dir().join(format!("gelgrip-grasp-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("dir");
+    let log = dir.join("ball.csv");
+    let r = grasp("configs/scenes/tennis-ball.toml", &log);
+    assert_eq!(r["end_reason"], "done", "{r}");
+    assert_eq!(r["grasped"], true, "{r}");
+    assert_eq!(r["crushed"], false);
+    assert_eq!(r["reason"], "stable");
+    assert_eq!(r["target_force_n"], 1.5);
+    assert!(r["hold_slip_mm"].as_f64().is_some_and(|s| s < 1.0), "{r}");
+    assert!(r["time_to_stable_s"].as_f64().is_some());
+    for key in [
+        "loop_latency_ms_p50",
+        "loop_latency_ms_p99",
+        "capture_to_command_ms_p99",
+        "peak_force_n",
+    ] {
+        assert!(r[key].as_f64().is_some_and(f64::is_finite), "{key}: {r}");
+    }
+    let csv = std::fs::read_to_string(&log).expect("log written");
+    let mut lines = csv.lines();
+    let header = lines.next().expect("header");
+    assert!(
+        header.starts_with("t_s,stage,f1.middle_deformation_mm3"),
+        "{header}"
+    );
+    assert!(header.contains("f3_state,f3_force_n"));
+    let rows: Vec<&str> = lines.collect();
+    assert!(rows.len() > 50);
+    assert!(rows.iter().any(|r| r.contains(",hold,")));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn the_paper_cup_is_held_without_crushing_it() {
+    let dir = std::env::temp_dir().join(format!("gelgrip-grasp-cup-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("dir");
+    let r = grasp("configs/scenes/paper-cup.toml", &dir.join("cup.csv"));
+    assert_eq!(r["crushed"], false, "{}", r["scene"]);
+    assert_eq!(r["grasped"], true, "{r}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn an_unknown_task_is_a_usage_error() {
+    let out = common::gelgrip(&["run", "--headless", "--duration", "1", "--task", "juggle"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("gentle-grasp"));
+}
