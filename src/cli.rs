@@ -247,6 +247,25 @@ pub enum BenchCommand {
     Bus(BenchBusArgs),
     /// Tactile pipeline: wall-clock cost of one set from JPEG to contact.
     Pipeline(BenchPipelineArgs),
+    /// Gentle grasp of every scene object: one row per object with the task fields.
+    Grasp(BenchGraspArgs),
+}
+
+/// `gelgrip bench grasp`.
+#[derive(Debug, Args)]
+pub struct BenchGraspArgs {
+    /// Scene files (default: every `configs/scenes/*.toml`).
+    #[arg(long = "scene")]
+    pub scenes: Vec<PathBuf>,
+    /// Force per finger, N.
+    #[arg(long, default_value_t = 1.5, value_parser = parse_force_n)]
+    pub target_force: f64,
+    /// Simulated seconds per object at most.
+    #[arg(long, default_value_t = 25.0)]
+    pub duration: f64,
+    /// Print one JSON array on stdout.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// Time source.

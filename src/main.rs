@@ -51,6 +51,7 @@ fn main() -> ExitCode {
             Command::CheckConfig(args) => commands::check_config::run(args),
             Command::Bench(BenchCommand::Bus(args)) => commands::bench_bus::run(args).await,
             Command::Bench(BenchCommand::Pipeline(args)) => commands::bench_pipeline::run(args),
+            Command::Bench(BenchCommand::Grasp(args)) => commands::bench_grasp::run(args),
             Command::Calibrate(cmd) => commands::calibrate::run(cmd),
             Command::Depth(args) => commands::depth::run(args),
             Command::Emulate(EmulateCommand::Servos(args)) => commands::emulate::run(args).await,

@@ -93,3 +93,50 @@ fn an_unknown_task_is_a_usage_error() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("gentle-grasp"));
 }
+
+#[test]
+fn a_dead_sensor_starves_the_gate_and_the_watchdog_stops_the_fingers() {
+    let cache = std::env::temp_dir().join("gelgrip-test-cache");
+    let out = Command::new(env!("CARGO_BIN_EXE_gelgrip"))
+        .args([
+            "run",
+            "--headless",
+            "--json",
+            "--clock",
+            "virtual",
+            "--duration",
+            "10",
+        ])
+        .args([
+            "--config",
+            "tests/configs/dead-sensor.toml",
+            "--task",
+            "gentle-grasp",
+        ])
+        .env("GELGRIP_CACHE_DIR", &cache)
+        .env("RUST_LOG", "warn")
+        .output()
+        .expect("gelgrip runs");
+    assert_eq!(
+        out.status.code(),
+        Some(1),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let r: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    assert_eq!(r["end_reason"], "fault");
+    assert!(
+        r["faults"][0]
+            .as_str()
+            .is_some_and(|f| f.contains("watchdog")),
+        "{}",
+        r["faults"]
+    );
+    assert!(
+        r["drops"]["late"].as_u64().unwrap_or(0)
+            + r["sets_rejected"]["incomplete"].as_u64().unwrap_or(0)
+            > 0,
+        "{r}"
+    );
+    assert_eq!(r["grasped"], false);
+}

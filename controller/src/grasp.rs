@@ -129,7 +129,7 @@ impl Default for Tuning {
             slip_area_share: 0.75,
             slip_shift_mm: 0.5,
             retighten_factor: 1.2,
-            force_filter: 0.3,
+            force_filter: 0.12,
         }
     }
 }
