@@ -128,6 +128,26 @@ pub enum CalibrateCommand {
     Train(TrainArgs),
     /// Evaluate a gradient model on a press dataset: gx_mae, gy_mae, depth_mae_mm.
     Eval(EvalArgs),
+    /// Fit the force proxy (indentation volume × stiffness) against known forces: on the
+    /// simulator, its ground-truth force of ball presses.
+    Force(ForceArgs),
+}
+
+/// `gelgrip calibrate force`.
+#[derive(Debug, Args)]
+pub struct ForceArgs {
+    /// Sensor id (e.g. f1.tip).
+    #[arg(long)]
+    pub sensor: String,
+    /// Presses at depths spread over 0.1–1.0 mm.
+    #[arg(long, default_value_t = 30, value_parser = clap::value_parser!(u32).range(3..=2000))]
+    pub presses: u32,
+    /// Configuration (default: the embedded simulated gripper).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Print one JSON object on stdout.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// `gelgrip calibrate collect`.

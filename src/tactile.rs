@@ -22,6 +22,9 @@ use gelgrip_plugins::lut::Input;
 use gelgrip_plugins::lut::LutModel;
 use gelgrip_plugins::pipeline::{Needs, SensorPipeline, StageChoice, process_set};
 
+use gelgrip_sim::config::SimConfig;
+use gelgrip_sim::pool::SensorCamera;
+
 use crate::simcam;
 
 /// Simulated presses per sensor for an automatic calibration.
@@ -57,70 +60,8 @@ impl Tactile {
         let pipeline = PipelineConfig::from_section(&config.pipeline, &config.layout)?;
         let mut pipes = Vec::new();
         let mut geometry = Vec::new();
-        for (i, spec) in config.layout.sensors.iter().enumerate() {
-            let id = spec.id.to_string();
-            let stages = pipeline.sensors[i].clone();
-            let (cam, sim) = simcam::camera(config, &id).with_context(|| {
-                format!("sensor {id}: live tactile processing needs the simulated hub for its reference frames")
-            })?;
-            let lut = match &stages.model {
-                Some(path) => LutModel::load(path)
-                    .with_context(|| format!("sensor {id}: model {}", path.display()))?,
-                None => {
-                    let cached = cache_dir().join(format!(
-                        "sim-seed{}-{id}-{}x{}-q{}-lut.safetensors",
-                        sim.seed, cam.width, cam.height, sim.jpeg_quality
-                    ));
-                    match LutModel::load(&cached) {
-                        Ok(m) => m,
-                        Err(_) => {
-                            tracing::info!(
-                                sensor = id,
-                                presses = CALIBRATION_PRESSES,
-                                "calibrating on simulated presses (cached for later runs)"
-                            );
-                            let tmp = std::env::temp_dir()
-                                .join(format!("gelgrip-autocal-{}-{id}", std::process::id()));
-                            let ds =
-                                simcam::collect(&cam, &sim, CALIBRATION_PRESSES, &tmp, |_| {})?;
-                            let model = calibrate::train_lut(
-                                &ds,
-                                Input::Diff,
-                                gelgrip_plugins::lut::DEFAULT_BINS,
-                            )?;
-                            let _ = std::fs::remove_dir_all(&tmp);
-                            if let Some(dir) = cached.parent() {
-                                let _ = std::fs::create_dir_all(dir);
-                            }
-                            // Write aside, then rename: a concurrent run never reads half a file.
-                            let partial =
-                                cached.with_extension(format!("part-{}", std::process::id()));
-                            match model.save(&partial) {
-                                Ok(()) => {
-                                    if let Err(e) = std::fs::rename(&partial, &cached) {
-                                        tracing::warn!("could not cache the calibration: {e}");
-                                    }
-                                }
-                                Err(e) => tracing::warn!("could not cache the calibration: {e}"),
-                            }
-                            model
-                        }
-                    }
-                }
-            };
-            let mut pipe = SensorPipeline::new(
-                StageChoice {
-                    stages,
-                    lut: Arc::new(lut),
-                },
-                cam.width,
-                cam.height,
-                cam.mm_per_px,
-            );
-            let quiet = simcam::no_contact_frames(&cam, 7_000_000, REFERENCE_FRAMES)?;
-            let quiet: Vec<&[u8]> = quiet.iter().map(Vec::as_slice).collect();
-            pipe.calibrate(&quiet)
-                .with_context(|| format!("sensor {id}: reference frames"))?;
+        for i in 0..config.layout.sensors.len() {
+            let (pipe, cam) = sensor_pipeline(config, &pipeline, i)?;
             geometry.push((cam.width as f64, cam.height as f64, cam.mm_per_px));
             pipes.push(pipe);
         }
@@ -162,4 +103,84 @@ impl Tactile {
             })
             .collect()
     }
+}
+
+/// The gradient model of sensor `id`: its configured file, else (on the simulator) a
+/// calibration from simulated presses, cached.
+fn sensor_model(
+    id: &str,
+    model: Option<&std::path::Path>,
+    cam: &SensorCamera,
+    sim: &SimConfig,
+) -> anyhow::Result<LutModel> {
+    if let Some(path) = model {
+        return LutModel::load(path)
+            .with_context(|| format!("sensor {id}: model {}", path.display()));
+    }
+    let cached = cache_dir().join(format!(
+        "sim-seed{}-{id}-{}x{}-q{}-lut.safetensors",
+        sim.seed, cam.width, cam.height, sim.jpeg_quality
+    ));
+    if let Ok(m) = LutModel::load(&cached) {
+        return Ok(m);
+    }
+    tracing::info!(
+        sensor = id,
+        presses = CALIBRATION_PRESSES,
+        "calibrating on simulated presses (cached for later runs)"
+    );
+    let tmp = std::env::temp_dir().join(format!("gelgrip-autocal-{}-{id}", std::process::id()));
+    let ds = simcam::collect(cam, sim, CALIBRATION_PRESSES, &tmp, |_| {})?;
+    let model = calibrate::train_lut(&ds, Input::Diff, gelgrip_plugins::lut::DEFAULT_BINS)?;
+    let _ = std::fs::remove_dir_all(&tmp);
+    if let Some(dir) = cached.parent() {
+        let _ = std::fs::create_dir_all(dir);
+    }
+    // Write aside, then rename: a concurrent run never reads half a file.
+    let partial = cached.with_extension(format!("part-{}", std::process::id()));
+    match model.save(&partial) {
+        Ok(()) => {
+            if let Err(e) = std::fs::rename(&partial, &cached) {
+                tracing::warn!("could not cache the calibration: {e}");
+            }
+        }
+        Err(e) => tracing::warn!("could not cache the calibration: {e}"),
+    }
+    Ok(model)
+}
+
+/// Sensor `index`'s pipeline, with its model and its reference from no-contact frames, and
+/// its simulated camera.
+pub fn sensor_pipeline(
+    config: &AppConfig,
+    pipeline: &PipelineConfig,
+    index: usize,
+) -> anyhow::Result<(SensorPipeline, SensorCamera)> {
+    let id = config
+        .layout
+        .sensors
+        .get(index)
+        .map(|s| s.id.to_string())
+        .context("sensor index out of range")?;
+    let stages = pipeline.sensors[index].clone();
+    let (cam, sim) = simcam::camera(config, &id).with_context(|| {
+        format!(
+            "sensor {id}: live tactile processing needs the simulated hub for its reference frames"
+        )
+    })?;
+    let lut = sensor_model(&id, stages.model.as_deref(), &cam, &sim)?;
+    let mut pipe = SensorPipeline::new(
+        StageChoice {
+            stages,
+            lut: Arc::new(lut),
+        },
+        cam.width,
+        cam.height,
+        cam.mm_per_px,
+    );
+    let quiet = simcam::no_contact_frames(&cam, 7_000_000, REFERENCE_FRAMES)?;
+    let quiet: Vec<&[u8]> = quiet.iter().map(Vec::as_slice).collect();
+    pipe.calibrate(&quiet)
+        .with_context(|| format!("sensor {id}: reference frames"))?;
+    Ok((pipe, cam))
 }

@@ -197,3 +197,39 @@ fn pipeline_accuracy_is_within_documented_tolerances() {
         assert!(volume_err <= 0.20, "volume error {volume_err}: {r}");
     }
 }
+
+#[test]
+fn calibrate_force_fits_the_simulators_gel_stiffness() {
+    let cache = std::env::temp_dir().join("gelgrip-test-cache");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_gelgrip"))
+        .args([
+            "calibrate",
+            "force",
+            "--sensor",
+            "f1.tip",
+            "--presses",
+            "12",
+            "--json",
+        ])
+        .env("GELGRIP_CACHE_DIR", &cache)
+        .env("RUST_LOG", "warn")
+        .output()
+        .expect("gelgrip runs");
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let r: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
+    // The simulator's gel is 0.08 N/mm³ per mm of indentation: the fit must find it.
+    let k = r["stiffness_n_per_mm3"].as_f64().expect("stiffness");
+    assert!((0.07..0.09).contains(&k), "{r}");
+    assert!(r["r2"].as_f64().is_some_and(|v| v > 0.95), "{r}");
+    assert_eq!(r["configured_stiffness_n_per_mm3"], 0.079);
+    let bad = std::process::Command::new(env!("CARGO_BIN_EXE_gelgrip"))
+        .args(["calibrate", "force", "--sensor", "f9.tip"])
+        .output()
+        .expect("gelgrip runs");
+    assert_eq!(bad.status.code(), Some(2));
+}

@@ -17,6 +17,7 @@ pub fn run(cmd: CalibrateCommand) -> anyhow::Result<u8> {
         CalibrateCommand::Collect(a) => collect(a),
         CalibrateCommand::Train(a) => train(a),
         CalibrateCommand::Eval(a) => eval(a),
+        CalibrateCommand::Force(a) => crate::commands::calibrate_force::run(a),
     }
 }
 

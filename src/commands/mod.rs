@@ -4,6 +4,7 @@ pub mod bench_bus;
 pub mod bench_grasp;
 pub mod bench_pipeline;
 pub mod calibrate;
+pub mod calibrate_force;
 pub mod check_config;
 pub mod depth;
 pub mod emulate;
