@@ -288,6 +288,21 @@ impl GraspTask {
         ))
     }
 
+    /// E-stop: every finger holds where it is at the minimum current; torque stays on.
+    pub fn estop(&mut self) {
+        if let Some(w) = self.log.as_mut() {
+            let _ = w.flush();
+        }
+        if let Ok(states) = self.bus.read_state() {
+            self.states = states;
+        }
+        let positions: Vec<f64> = self.states.iter().map(|s| s.position_deg).collect();
+        self.ctl.estop(&positions);
+        if let Err(e) = self.bus.write_goals(&self.ctl.goals()) {
+            tracing::error!("e-stop: could not write the hold goals: {e}");
+        }
+    }
+
     fn read(&mut self) -> anyhow::Result<Vec<ServoState>> {
         let states = self
             .bus

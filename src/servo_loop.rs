@@ -11,6 +11,8 @@ use gelgrip_controller::layout::HandLayout;
 
 /// Time to ramp the goal current to its cap, s.
 pub const RAMP_S: f64 = 2.0;
+/// Goal current of the e-stop hold, mA.
+pub const ESTOP_CURRENT_MA: f64 = 20.0;
 /// Servo command period, µs (50 Hz, as the hub's set rate allows).
 pub const PERIOD_US: u64 = 20_000;
 
@@ -77,6 +79,25 @@ impl ServoLoop {
         self.recovered
             .extend(self.bus.take_recovered().iter().map(ToString::to_string));
         Ok(())
+    }
+
+    /// E-stop: hold where the fingers are at the minimum current (20 mA); torque stays on.
+    pub fn estop(&mut self) {
+        let goals: Vec<FingerGoal> = self
+            .last
+            .iter()
+            .map(|s| FingerGoal {
+                position_deg: s.position_deg,
+                goal_current_ma: ESTOP_CURRENT_MA,
+                profile_velocity_rpm: 0.0,
+            })
+            .collect();
+        if goals.len() == self.bus.fingers()
+            && let Err(e) = self.bus.write_goals(&goals)
+        {
+            tracing::error!("e-stop: could not write the hold goals: {e}");
+        }
+        self.close_to_deg = None;
     }
 
     /// The safe state: torque off.

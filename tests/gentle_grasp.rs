@@ -140,3 +140,64 @@ fn a_dead_sensor_starves_the_gate_and_the_watchdog_stops_the_fingers() {
     );
     assert_eq!(r["grasped"], false);
 }
+
+#[test]
+fn an_estop_mid_grasp_holds_at_minimum_current_and_exits_1() {
+    let cache = std::env::temp_dir().join("gelgrip-test-cache");
+    let child = Command::new(env!("CARGO_BIN_EXE_gelgrip"))
+        .args([
+            "run",
+            "--headless",
+            "--json",
+            "--clock",
+            "virtual",
+            "--duration",
+            "25",
+        ])
+        .args([
+            "--scene",
+            "configs/scenes/rubber-duck.toml",
+            "--task",
+            "gentle-grasp",
+        ])
+        .env("GELGRIP_CACHE_DIR", &cache)
+        .env("RUST_LOG", "info")
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("gelgrip runs");
+    // Wait for the task to run (after any calibration); the duck then takes several
+    // seconds of wall time to settle, so the e-stop lands mid-grasp.
+    let mut child = child;
+    let stderr = child.stderr.take().expect("stderr");
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        use std::io::BufRead;
+        for line in std::io::BufReader::new(stderr)
+            .lines()
+            .map_while(Result::ok)
+        {
+            if line.contains("task running") {
+                let _ = tx.send(());
+            }
+        }
+    });
+    rx.recv_timeout(std::time::Duration::from_secs(300))
+        .expect("the task starts");
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    let status = Command::new("kill")
+        .args(["-USR1", &child.id().to_string()])
+        .status()
+        .expect("kill runs");
+    assert!(status.success());
+    let out = child.wait_with_output().expect("gelgrip ends");
+    assert_eq!(out.status.code(), Some(1));
+    let r: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    assert_eq!(r["end_reason"], "estop", "{r}");
+    assert!(
+        r["faults"].as_array().is_some_and(|f| f
+            .iter()
+            .any(|x| x.as_str().is_some_and(|s| s.contains("e-stop")))),
+        "{r}"
+    );
+}

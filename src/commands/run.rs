@@ -47,6 +47,20 @@ pub async fn shutdown_signal() {
     }
 }
 
+/// Resolves when an e-stop is requested: SIGUSR1 (from a supervisor or a hardware e-stop
+/// watcher; the dashboard adds its own button). Never on systems without it.
+async fn estop_signal() {
+    #[cfg(unix)]
+    {
+        use tokio::signal::unix::{SignalKind, signal};
+        if let Ok(mut usr1) = signal(SignalKind::user_defined1()) {
+            usr1.recv().await;
+            return;
+        }
+    }
+    std::future::pending::<()>().await;
+}
+
 /// Resolves at `deadline_us` on a real clock; never on a virtual one (whose time only moves
 /// with the work, so the loop checks it after each set instead).
 async fn real_deadline(clock: Arc<dyn Clock>, deadline_us: Option<u64>) {
@@ -138,6 +152,7 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
                 &options,
                 args.log.as_deref(),
             )?);
+            tracing::info!(task = name, "task running");
         }
         (Some(name), None) => {
             check_task(name)?;
@@ -155,11 +170,17 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
         (None, None) => {}
     }
     let shutdown = shutdown_signal();
+    let estop = estop_signal();
     let timer = real_deadline(clock.clone(), deadline);
-    tokio::pin!(shutdown, timer);
+    tokio::pin!(shutdown, estop, timer);
     let end_reason = loop {
         tokio::select! {
             biased;
+            _ = &mut estop => {
+                tracing::error!("e-stop: fingers hold at minimum current");
+                faults.push("e-stop requested (SIGUSR1)".to_string());
+                break "estop";
+            }
             _ = &mut shutdown => break "signal",
             _ = &mut timer => break "duration",
             step = acq.step() => {
@@ -206,13 +227,19 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
     };
     if let Some(s) = servos.as_mut() {
         faults.splice(0..0, s.recovered.drain(..));
-        if let Err(e) = s.stop() {
+        if end_reason == "estop" {
+            s.estop();
+        } else if let Err(e) = s.stop() {
             tracing::warn!("could not turn servo torque off: {e}");
         }
     }
     if let Some(t) = task.as_mut() {
         faults.splice(0..0, t.recovered.drain(..));
-        t.finish();
+        if end_reason == "estop" {
+            t.estop();
+        } else {
+            t.finish();
+        }
     }
     let scene = world.as_ref().and_then(|w| {
         let w = w.lock().ok()?;
@@ -256,5 +283,9 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
     } else {
         print!("{}", report.to_text());
     }
-    Ok(if end_reason == "fault" { 1 } else { 0 })
+    Ok(if matches!(end_reason, "fault" | "estop") {
+        1
+    } else {
+        0
+    })
 }
