@@ -387,7 +387,7 @@ impl GraspController {
                     }
                 }
                 Phase::Release => {
-                    let open = self.open_deg[f];
+                    let open = self.open_deg.get(f).copied().unwrap_or(0.0);
                     c.goal_deg = open;
                     c.current_ma = t.approach_current_ma.min(limit);
                     if present <= open + 2.0 {

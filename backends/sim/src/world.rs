@@ -53,6 +53,8 @@ pub type SharedWorld = Arc<Mutex<World>>;
 #[derive(Debug)]
 pub struct World {
     mounts: Vec<Mount>,
+    /// Per finger, per phalanx: the sensor on it.
+    finger_pads: Vec<Vec<Option<usize>>>,
     grids: Vec<PadGrid>,
     fingers: Vec<FingerMechanics>,
     motors: Vec<Xm430Motor>,
@@ -110,7 +112,22 @@ impl World {
         let object = scene
             .as_ref()
             .map(|s| ObjectState::new(s.object.clone(), s.slip_dir));
+        let finger_pads = layout
+            .fingers
+            .iter()
+            .enumerate()
+            .map(|(f, spec)| {
+                (0..spec.phalanges.len())
+                    .map(|phalanx| {
+                        mounts
+                            .iter()
+                            .position(|m| *m == Mount::Finger { finger: f, phalanx })
+                    })
+                    .collect()
+            })
+            .collect();
         Self {
+            finger_pads,
             contacts: vec![PadContact::default(); mounts.len()],
             log: WorldLog::new(mounts.len()),
             mounts,
@@ -251,24 +268,12 @@ impl World {
         }
     }
 
-    fn sensor_on(&self, finger: usize, phalanx: usize) -> Option<usize> {
-        self.mounts
-            .iter()
-            .position(|m| *m == Mount::Finger { finger, phalanx })
-    }
-
     fn step(&mut self, dt_s: f64) {
         for f in 0..self.fingers.len() {
             let load = self.fingers[f].servo_load_nm();
             self.readings[f] = self.motors[f].step(&self.commands[f], load, dt_s);
         }
-        let pads: Vec<Vec<Option<usize>>> = (0..self.fingers.len())
-            .map(|f| {
-                (0..self.fingers[f].spec().phalanges.len())
-                    .map(|p| self.sensor_on(f, p))
-                    .collect()
-            })
-            .collect();
+        let pads = &self.finger_pads;
         let object = self.object.as_ref();
         let grids = &self.grids;
         for (f, finger) in self.fingers.iter_mut().enumerate() {
