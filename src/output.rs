@@ -111,6 +111,45 @@ impl RunReport {
         );
         s += &format!("  frame drops   {}\n", counts_text(&self.drops));
         s += &format!("  sets rejected {}\n", counts_text(&self.sets_rejected));
+        for f in &self.faults {
+            s += &format!("  fault: {f}\n");
+        }
+        if let Some(servos) = &self.servos {
+            let line: Vec<String> = servos
+                .iter()
+                .map(|v| {
+                    format!(
+                        "{:.1}° {:.0} mA {:.0} °C",
+                        v.position_deg, v.current_ma, v.temperature_c
+                    )
+                })
+                .collect();
+            s += &format!("  servos: {}\n", line.join(" | "));
+        }
+        if let Some(scene) = &self.scene {
+            s += &format!(
+                "  scene {} ({}): touched {} (as expected: {}), crushed {}, dropped {}, slip {:.2} mm\n",
+                scene.name,
+                scene.object,
+                scene.touched.join(", "),
+                scene.contact_as_expected,
+                scene.crushed,
+                scene.dropped,
+                scene.slip_mm
+            );
+        }
+        if let Some(t) = &self.task {
+            s += &format!(
+                "  task {}: grasped {} ({}), peak {:.2} N for a {:.2} N target, stable after {} s, loop p99 {} ms\n",
+                t.task,
+                t.grasped,
+                t.reason,
+                t.peak_force_n,
+                t.target_force_n,
+                opt(t.time_to_stable_s),
+                opt(t.loop_latency_ms_p99)
+            );
+        }
         s
     }
 }
