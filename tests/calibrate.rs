@@ -200,7 +200,7 @@ fn pipeline_accuracy_is_within_documented_tolerances() {
 
 #[test]
 fn calibrate_force_fits_the_simulators_gel_stiffness() {
-    let cache = std::env::temp_dir().join("gelgrip-test-cache");
+    let cache = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("gelgrip-cache");
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_gelgrip"))
         .args([
             "calibrate",

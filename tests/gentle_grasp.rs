@@ -1,6 +1,6 @@
 //! `gelgrip run --scene … --task gentle-grasp`: the closed loop on fused tactile force, end
-//! to end on the simulator (virtual clock): the pipelines calibrate themselves (cached in a
-//! per-test directory), the controller closes, regulates and holds, and the run reports the
+//! to end on the simulator (virtual clock): the pipelines calibrate themselves (cached under
+//! the build's `target/tmp`, so a clean clone calibrates for real), the controller closes, regulates and holds, and the run reports the
 //! task fields and writes the CSV log.
 
 mod common;
@@ -8,7 +8,7 @@ mod common;
 use std::process::Command;
 
 fn grasp(scene: &str, log: &std::path::Path) -> serde_json::Value {
-    let cache = std::env::temp_dir().join("gelgrip-test-cache");
+    let cache = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("gelgrip-cache");
     let out = Command::new(env!("CARGO_BIN_EXE_gelgrip"))
         .args([
             "run",
@@ -96,7 +96,7 @@ fn an_unknown_task_is_a_usage_error() {
 
 #[test]
 fn a_dead_sensor_starves_the_gate_and_the_watchdog_stops_the_fingers() {
-    let cache = std::env::temp_dir().join("gelgrip-test-cache");
+    let cache = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("gelgrip-cache");
     let out = Command::new(env!("CARGO_BIN_EXE_gelgrip"))
         .args([
             "run",
@@ -143,7 +143,7 @@ fn a_dead_sensor_starves_the_gate_and_the_watchdog_stops_the_fingers() {
 
 #[test]
 fn an_estop_mid_grasp_holds_at_minimum_current_and_exits_1() {
-    let cache = std::env::temp_dir().join("gelgrip-test-cache");
+    let cache = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("gelgrip-cache");
     let child = Command::new(env!("CARGO_BIN_EXE_gelgrip"))
         .args([
             "run",
