@@ -1,45 +1,54 @@
 //! `gelgrip run --scene … --task gentle-grasp`: the closed loop on fused tactile force, end
-//! to end on the simulator (virtual clock): the pipelines calibrate themselves (cached under
-//! the build's `target/tmp`, so a clean clone calibrates for real), the controller closes, regulates and holds, and the run reports the
-//! task fields and writes the CSV log.
+//! to end on the simulator (virtual clock). The pipelines calibrate themselves (cached under
+//! the build's `target/tmp`, so a clean clone calibrates for real); the controller closes,
+//! regulates and holds; the run reports the task fields and writes the CSV log.
 
 mod common;
 
-use std::process::Command;
+use std::process::{Command, Output};
 
-fn grasp(scene: &str, log: &std::path::Path) -> serde_json::Value {
-    let cache = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("gelgrip-cache");
-    let out = Command::new(env!("CARGO_BIN_EXE_gelgrip"))
-        .args([
-            "run",
-            "--headless",
-            "--json",
-            "--clock",
-            "virtual",
-            "--duration",
-            "25",
-        ])
-        .args([
-            "--scene",
-            scene,
-            "--task",
-            "gentle-grasp",
-            "--target-force",
-            "1.5",
-        ])
-        .arg("--log")
-        .arg(log)
-        .env("GELGRIP_CACHE_DIR", &cache)
-        .env("RUST_LOG", "warn")
-        .output()
-        .expect("gelgrip runs");
+/// `gelgrip run --headless --json --clock virtual` with the tests' calibration cache, then
+/// `extra`.
+fn run_cmd(extra: &[&str]) -> Command {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_gelgrip"));
+    cmd.args(["run", "--headless", "--json", "--clock", "virtual"])
+        .args(extra)
+        .env(
+            "GELGRIP_CACHE_DIR",
+            std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("gelgrip-cache"),
+        )
+        .env("RUST_LOG", "warn");
+    cmd
+}
+
+/// The report of a run that exited with `code`.
+fn report(out: &Output, code: i32) -> serde_json::Value {
     assert_eq!(
         out.status.code(),
-        Some(0),
+        Some(code),
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
     serde_json::from_slice(&out.stdout).expect("one JSON object")
+}
+
+fn grasp(scene: &str, log: &std::path::Path) -> serde_json::Value {
+    let log = log.display().to_string();
+    let out = run_cmd(&[
+        "--duration",
+        "25",
+        "--scene",
+        scene,
+        "--task",
+        "gentle-grasp",
+        "--target-force",
+        "1.5",
+        "--log",
+        &log,
+    ])
+    .output()
+    .expect("gelgrip runs");
+    report(&out, 0)
 }
 
 #[test]
@@ -96,34 +105,17 @@ fn an_unknown_task_is_a_usage_error() {
 
 #[test]
 fn a_dead_sensor_starves_the_gate_and_the_watchdog_stops_the_fingers() {
-    let cache = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("gelgrip-cache");
-    let out = Command::new(env!("CARGO_BIN_EXE_gelgrip"))
-        .args([
-            "run",
-            "--headless",
-            "--json",
-            "--clock",
-            "virtual",
-            "--duration",
-            "10",
-        ])
-        .args([
-            "--config",
-            "tests/configs/dead-sensor.toml",
-            "--task",
-            "gentle-grasp",
-        ])
-        .env("GELGRIP_CACHE_DIR", &cache)
-        .env("RUST_LOG", "warn")
-        .output()
-        .expect("gelgrip runs");
-    assert_eq!(
-        out.status.code(),
-        Some(1),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let r: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    let out = run_cmd(&[
+        "--duration",
+        "10",
+        "--config",
+        "tests/configs/dead-sensor.toml",
+        "--task",
+        "gentle-grasp",
+    ])
+    .output()
+    .expect("gelgrip runs");
+    let r = report(&out, 1);
     assert_eq!(r["end_reason"], "fault");
     assert!(
         r["faults"][0]
@@ -143,29 +135,19 @@ fn a_dead_sensor_starves_the_gate_and_the_watchdog_stops_the_fingers() {
 
 #[test]
 fn an_estop_mid_grasp_holds_at_minimum_current_and_exits_1() {
-    let cache = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("gelgrip-cache");
-    let child = Command::new(env!("CARGO_BIN_EXE_gelgrip"))
-        .args([
-            "run",
-            "--headless",
-            "--json",
-            "--clock",
-            "virtual",
-            "--duration",
-            "25",
-        ])
-        .args([
-            "--scene",
-            "configs/scenes/rubber-duck.toml",
-            "--task",
-            "gentle-grasp",
-        ])
-        .env("GELGRIP_CACHE_DIR", &cache)
-        .env("RUST_LOG", "info")
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .expect("gelgrip runs");
+    let child = run_cmd(&[
+        "--duration",
+        "25",
+        "--scene",
+        "configs/scenes/rubber-duck.toml",
+        "--task",
+        "gentle-grasp",
+    ])
+    .env("RUST_LOG", "info")
+    .stdout(std::process::Stdio::piped())
+    .stderr(std::process::Stdio::piped())
+    .spawn()
+    .expect("gelgrip runs");
     // Wait for the task to run (after any calibration); the duck then takes several
     // seconds of wall time to settle, so the e-stop lands mid-grasp.
     let mut child = child;
@@ -191,8 +173,7 @@ fn an_estop_mid_grasp_holds_at_minimum_current_and_exits_1() {
         .expect("kill runs");
     assert!(status.success());
     let out = child.wait_with_output().expect("gelgrip ends");
-    assert_eq!(out.status.code(), Some(1));
-    let r: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    let r = report(&out, 1);
     assert_eq!(r["end_reason"], "estop", "{r}");
     assert!(
         r["faults"].as_array().is_some_and(|f| f
