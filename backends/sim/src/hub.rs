@@ -151,11 +151,6 @@ impl SimHub {
         Ok(hub)
     }
 
-    /// The shared world, when the hub renders one.
-    pub fn world(&self) -> Option<&SharedWorld> {
-        self.scene.as_ref().map(SceneFrames::world)
-    }
-
     /// The rendered frames (for tests and the calibration tools).
     pub fn pool(&self) -> &FramePool {
         &self.pool

@@ -59,11 +59,6 @@ impl SceneFrames {
         })
     }
 
-    /// The world.
-    pub fn world(&self) -> &SharedWorld {
-        &self.world
-    }
-
     /// Advance the world to `now_us` and return every sensor's frame for capture `nth`.
     /// Height maps and JPEGs of the touched pads are made in parallel.
     pub fn capture(&mut self, now_us: u64, nth: u64) -> Result<Vec<Bytes>, EncodeError> {

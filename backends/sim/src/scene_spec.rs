@@ -78,6 +78,8 @@ pub struct ObjectSpec {
 pub struct SceneSpec {
     /// Scene name.
     pub name: String,
+    /// What the scene shows.
+    pub description: String,
     /// The file it came from.
     pub file: String,
     /// The object.
@@ -234,7 +236,6 @@ impl SceneSpec {
         let check = FieldCheck::new(file);
         let raw: RawScene = check.parse(text)?;
         check.version(raw.version)?;
-        let _ = raw.description;
         let o = raw.object;
         check.range("object.shapes (count)", o.shapes.len() as f64, 1.0, 32.0)?;
         let shapes = o
@@ -327,6 +328,7 @@ impl SceneSpec {
         }
         Ok(Self {
             name: raw.name,
+            description: raw.description,
             file: file.to_string(),
             object: ObjectSpec {
                 name: o.name,

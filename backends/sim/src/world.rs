@@ -231,11 +231,6 @@ impl World {
         self.fingers.get(finger).map(FingerMechanics::joints_rad)
     }
 
-    /// Cable tension of `finger`, N.
-    pub fn tension_n(&self, finger: usize) -> Option<f64> {
-        self.fingers.get(finger).map(FingerMechanics::tension_n)
-    }
-
     /// The latest contact on sensor `sensor`.
     pub fn contact(&self, sensor: usize) -> Option<&PadContact> {
         self.contacts.get(sensor)
