@@ -173,6 +173,14 @@ impl GraspTask {
                         .iter()
                         .map(|s| format!("{}_deformation_mm3", s.id)),
                 );
+                if world.is_some() {
+                    header.extend(
+                        layout
+                            .sensors
+                            .iter()
+                            .map(|s| format!("{}_true_force_n", s.id)),
+                    );
+                }
                 for f in &layout.fingers {
                     header.push(format!("{}_state", f.id));
                     header.push(format!("{}_force_n", f.id));
@@ -203,6 +211,19 @@ impl GraspTask {
             log,
             recovered: Vec::new(),
         })
+    }
+
+    /// The simulator's ground-truth force on every pad, N (empty off the simulator).
+    fn true_forces_n(&self) -> Vec<f64> {
+        let Some(world) = self.world.as_ref() else {
+            return Vec::new();
+        };
+        let Ok(w) = world.lock() else {
+            return Vec::new();
+        };
+        (0..self.layout.sensors.len())
+            .map(|s| w.contact(s).map_or(0.0, |c| c.load.force_n))
+            .collect()
     }
 
     fn slip_mm(&self) -> Option<f64> {
@@ -327,6 +348,10 @@ impl GraspTask {
         let phases = self.ctl.phases();
         let goals = self.ctl.goals();
         let positions: Vec<f64> = self.states.iter().map(|s| s.position_deg).collect();
+        if self.log.is_none() {
+            return Ok(());
+        }
+        let truth = self.true_forces_n();
         let Some(w) = self.log.as_mut() else {
             return Ok(());
         };
@@ -336,6 +361,7 @@ impl GraspTask {
                 .iter()
                 .map(|d| d.map_or(String::new(), |v| format!("{v:.4}"))),
         );
+        row.extend(truth.iter().map(|f| format!("{f:.4}")));
         for (i, (p, f)) in phases.iter().zip(fingers).enumerate() {
             row.push(phase_name(*p).to_string());
             row.push(format!("{:.4}", f.force_n));

@@ -225,8 +225,14 @@ fn calibrate_force_fits_the_simulators_gel_stiffness() {
     // The simulator's gel is 0.08 N/mm³ per mm of indentation: the fit must find it.
     let k = r["stiffness_n_per_mm3"].as_f64().expect("stiffness");
     assert!((0.07..0.09).contains(&k), "{r}");
-    assert!(r["r2"].as_f64().is_some_and(|v| v > 0.95), "{r}");
-    assert_eq!(r["configured_stiffness_n_per_mm3"], 0.079);
+    assert!(r["r2"].as_f64().is_some_and(|v| v > 0.97), "{r}");
+    // Broad balls pressing across the pad's edge included: the depth's zero is not taken
+    // on the cut edge (that lost 30–50% of such a press's volume).
+    assert!(
+        r["worst_abs_err_pct"].as_f64().is_some_and(|v| v < 20.0),
+        "{r}"
+    );
+    assert_eq!(r["configured_stiffness_n_per_mm3"], 0.075);
     let bad = std::process::Command::new(env!("CARGO_BIN_EXE_gelgrip"))
         .args(["calibrate", "force", "--sensor", "f9.tip"])
         .output()

@@ -85,6 +85,8 @@ pub struct SensorPipeline {
     gy: Vec<f32>,
     depth_px: Vec<f32>,
     plans: HashMap<(usize, usize), PoissonPlan<f32>>,
+    /// Working space for the depth anchor.
+    scratch: Vec<f32>,
     noise: Option<NoiseModel>,
     last_window: (usize, usize, usize, usize),
 }
@@ -127,6 +129,7 @@ impl SensorPipeline {
             gy: vec![0.0; w * h],
             depth_px: vec![0.0; w * h],
             plans: HashMap::new(),
+            scratch: Vec::new(),
             noise: None,
             last_window: (0, 0, 0, 0),
             choice,
@@ -179,7 +182,7 @@ impl SensorPipeline {
             self.mark_near_active(None);
             activity.extend_from_slice(&self.blocks);
             if self.choice.stages.solver.is_some() {
-                let d = self.solve_window(window);
+                let d = self.solve_window(window, true);
                 depth.extend(d.iter().map(|v| (v * mm).abs()));
             }
         }
@@ -277,7 +280,12 @@ impl SensorPipeline {
 
     /// Gradients and depth (px) over window `(x, y, w, h)`; returns the window's depth.
     /// Pixels away from any active block get zero gradient: only the contact is integrated.
-    fn solve_window(&mut self, (x0, y0, w, h): (usize, usize, usize, usize)) -> &[f32] {
+    /// `no_contact` marks the noise calibration's frames.
+    fn solve_window(
+        &mut self,
+        (x0, y0, w, h): (usize, usize, usize, usize),
+        no_contact: bool,
+    ) -> &[f32] {
         let lut = &self.choice.lut;
         let width = self.width;
         let bw = self.width.div_ceil(BLOCK_PX);
@@ -315,9 +323,20 @@ impl SensorPipeline {
         let depth = &mut self.depth_px[..w * h];
         plan.solve(&self.gx[..w * h], &self.gy[..w * h], depth);
         if solver == Solver::Dct {
-            // Neumann leaves a free constant: take the window border as zero depth.
-            let border = border_mean(depth, w, h);
-            depth.iter_mut().for_each(|d| *d -= border);
+            // Neumann leaves a free constant. Zero depth is on the window's sides inside
+            // the image (the margin around the contact); a side on the image edge may cut
+            // through the contact (Neumann there is right, but its depth is not zero).
+            // When the window spans the whole image the contact may cover all of it; depth
+            // is never negative, so the shallowest pixels (2nd percentile) are zero.
+            // No-contact frames (the noise calibration) take the whole border as zero.
+            let window = (x0, y0, w, h);
+            let zero = if no_contact {
+                border_mean(depth, w, h)
+            } else {
+                interior_border_mean(depth, window, (self.width, self.height))
+                    .unwrap_or_else(|| low_percentile(depth, &mut self.scratch))
+            };
+            depth.iter_mut().for_each(|d| *d -= zero);
         }
         self.last_window = (x0, y0, w, h);
         &self.depth_px[..w * h]
@@ -352,7 +371,7 @@ impl SensorPipeline {
         let (x0, y0, w, _) = window;
         let mm = self.mm_per_px as f32;
         self.mark_near_active(Some(noise.block_threshold));
-        self.solve_window(window);
+        self.solve_window(window, false);
         let (_, _, ww, wh) = self.last_window;
         let depth = &mut self.depth_px[..ww * wh];
         depth.iter_mut().for_each(|d| *d *= mm);
@@ -401,6 +420,38 @@ pub fn process_set(
         .zip(frames.par_iter())
         .zip(out.par_iter_mut())
         .for_each(|((pipe, frame), slot)| *slot = pipe.process(frame, needs));
+}
+
+/// The 2nd percentile of `d` (finite values), using `scratch`; 0 when none is finite.
+fn low_percentile(d: &[f32], scratch: &mut Vec<f32>) -> f32 {
+    scratch.clear();
+    scratch.extend(d.iter().copied().filter(|v| v.is_finite()));
+    if scratch.is_empty() {
+        return 0.0;
+    }
+    let k = scratch.len() / 50;
+    *scratch.select_nth_unstable_by(k, f32::total_cmp).1
+}
+
+/// Mean depth over the window's border pixels on the sides that lie inside the image (not
+/// on its edge); `None` when the window spans the whole image.
+fn interior_border_mean(
+    d: &[f32],
+    (x0, y0, w, h): (usize, usize, usize, usize),
+    (width, height): (usize, usize),
+) -> Option<f32> {
+    let sides = [x0 > 0, x0 + w < width, y0 > 0, y0 + h < height];
+    let (mut sum, mut n) = (0.0f64, 0usize);
+    for y in 0..h {
+        for x in 0..w {
+            let on = [x == 0, x + 1 == w, y == 0, y + 1 == h];
+            if on.iter().zip(&sides).any(|(o, s)| *o && *s) {
+                sum += f64::from(d[y * w + x]);
+                n += 1;
+            }
+        }
+    }
+    (n > 0).then(|| (sum / n as f64) as f32)
 }
 
 fn border_mean(d: &[f32], w: usize, h: usize) -> f32 {
