@@ -57,8 +57,15 @@ pub struct TaskReport {
     /// The grasp succeeded (stable contact on at least two of fingers and palm) and, on the
     /// simulator, the object was held through the hold test.
     pub grasped: bool,
-    /// Peak fused force of any finger, N (what the controller measured).
+    /// Peak force of any finger during the grasp (until it ended, before the hold test), as
+    /// the controller regulates it (the fused force, median of three sets against one-set
+    /// outliers, averaged), N.
     pub peak_force_n: f64,
+    /// The same during the hold test, where slip may re-tighten a finger (simulator only).
+    pub hold_test_peak_force_n: Option<f64>,
+    /// The simulator's ground truth: peak force of any finger (the sum over its pads)
+    /// during the grasp, N (simulator only).
+    pub true_peak_force_n: Option<f64>,
     /// The requested force per finger, N.
     pub target_force_n: f64,
     /// From the task start to a stable grasp, s (null if never stable).
@@ -96,6 +103,8 @@ pub struct GraspTask {
     last_set_us: Option<u64>,
     outcome: Option<GraspOutcome>,
     peak_force_n: f64,
+    hold_test_peak_force_n: Option<f64>,
+    true_peak_force_n: Option<f64>,
     target_force_n: f64,
     time_to_stable_s: Option<f64>,
     loop_ms: Vec<f64>,
@@ -203,6 +212,8 @@ impl GraspTask {
             last_set_us: None,
             outcome: None,
             peak_force_n: 0.0,
+            hold_test_peak_force_n: None,
+            true_peak_force_n: None,
             target_force_n: options.target_force_n,
             time_to_stable_s: None,
             loop_ms: Vec::new(),
@@ -224,6 +235,23 @@ impl GraspTask {
         (0..self.layout.sensors.len())
             .map(|s| w.contact(s).map_or(0.0, |c| c.load.force_n))
             .collect()
+    }
+
+    /// The simulator's largest finger force now (the sum over each finger's pads), N.
+    fn true_finger_peak_n(&self) -> Option<f64> {
+        let pads = self.true_forces_n();
+        if pads.is_empty() {
+            return None;
+        }
+        let mut fingers = vec![0.0; self.layout.fingers.len()];
+        for (s, f) in pads.iter().enumerate() {
+            if let Some((finger, _)) = self.layout.phalanx_of_sensor(s)
+                && let Some(sum) = fingers.get_mut(finger)
+            {
+                *sum += f;
+            }
+        }
+        Some(fingers.into_iter().fold(0.0, f64::max))
     }
 
     fn slip_mm(&self) -> Option<f64> {
@@ -252,8 +280,19 @@ impl GraspTask {
         self.capture_ms
             .push(set.latency_us() as f64 / 1e3 + loop_ms);
         self.states = self.read()?;
-        for f in &fused.fingers {
-            self.peak_force_n = self.peak_force_n.max(f.force_n);
+        let regulated = self.ctl.forces_n().into_iter().fold(0.0, f64::max);
+        match self.stage {
+            Stage::Grasp => {
+                self.peak_force_n = self.peak_force_n.max(regulated);
+                if let Some(truth) = self.true_finger_peak_n() {
+                    self.true_peak_force_n = Some(self.true_peak_force_n.unwrap_or(0.0).max(truth));
+                }
+            }
+            Stage::HoldTest { .. } => {
+                self.hold_test_peak_force_n =
+                    Some(self.hold_test_peak_force_n.unwrap_or(0.0).max(regulated));
+            }
+            Stage::Done => {}
         }
         self.write_log(t_s - start, &fused.deformation_mm3, &fused.fingers)?;
         match self.stage {
@@ -403,6 +442,8 @@ impl GraspTask {
             task: "gentle-grasp",
             grasped: outcome.as_ref().is_some_and(|o| o.grasped) && held,
             peak_force_n: self.peak_force_n,
+            hold_test_peak_force_n: self.hold_test_peak_force_n,
+            true_peak_force_n: self.true_peak_force_n,
             target_force_n: self.target_force_n,
             time_to_stable_s: self.time_to_stable_s,
             loop_latency_ms_p50: quantile(&self.loop_ms, 0.5),

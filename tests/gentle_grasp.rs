@@ -64,6 +64,15 @@ fn the_tennis_ball_is_grasped_gently_held_and_logged() {
     assert_eq!(r["target_force_n"], 1.5);
     assert!(r["hold_slip_mm"].as_f64().is_some_and(|s| s < 1.0), "{r}");
     assert!(r["time_to_stable_s"].as_f64().is_some());
+    // The regulated force never runs more than 10% past the target while grasping.
+    assert!(
+        r["peak_force_n"].as_f64().is_some_and(|p| p <= 1.1 * 1.5),
+        "{r}"
+    );
+    assert!(
+        r["true_peak_force_n"].as_f64().is_some_and(f64::is_finite),
+        "{r}"
+    );
     for key in [
         "loop_latency_ms_p50",
         "loop_latency_ms_p99",
@@ -93,6 +102,10 @@ fn the_paper_cup_is_held_without_crushing_it() {
     let r = grasp("configs/scenes/paper-cup.toml", &dir.join("cup.csv"));
     assert_eq!(r["crushed"], false, "{}", r["scene"]);
     assert_eq!(r["grasped"], true, "{r}");
+    assert!(
+        r["peak_force_n"].as_f64().is_some_and(|p| p <= 1.1 * 1.5),
+        "{r}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 

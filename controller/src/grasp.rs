@@ -9,15 +9,19 @@
 //!   return springs take, measured as the finger moves; raised by a margin whenever the cap
 //!   holds the finger back) plus a small margin, so the first touch is soft. At the first
 //!   contact on any of its sensors the finger slows (**contact**) and the cap stops rising.
-//! - **Squeeze**: the goal sits a little beyond the present position, so the goal current
-//!   (the hard force cap) sets the force. The current is the free-motion current
-//!   (feed-forward) plus a PI term on the force error, never
-//!   above the request's current limit; the integrator only runs while the output is not
-//!   pinned in the error's direction (anti-windup).
-//! - **Hold**: after the force stays within ±5% of target for 0.5 s. The loop keeps running;
-//!   if the contact area drops or the centroid moves (slip), the finger re-tightens: its
-//!   target rises by 20% (up to the force that the current limit allows) and it squeezes
-//!   again.
+//! - **Squeeze**: the goal leads the present position by the force error (0.25° per N, at
+//!   most 15°), so the finger creeps toward the force target and stops there: in
+//!   current-based position mode the servo holds a goal it has reached. The goal current is
+//!   the hard force cap: the free-motion current (feed-forward) plus a PI term on the force
+//!   error, never above the request's current limit; the integrator only runs while the
+//!   output is not pinned in the error's direction (anti-windup). The force regulated is
+//!   the median of the last three sets' fused force (a one-set outlier never moves a
+//!   finger), averaged.
+//! - **Hold**: after the force stays within ±5% of target for 0.5 s. The loop keeps running.
+//!   Once every finger holds, the contact area and centroid are taken as the reference; if
+//!   on two sets in a row the area drops or the centroid moves (slip), the finger
+//!   re-tightens: its target rises by 20% and it squeezes again. (Before every finger
+//!   holds, the others move the object on purpose; that is not slip.)
 //! - **No object**: a finger that reaches its closing goal, or stalls, without contact.
 //! - **Stale**: a finger whose sensor is missing from the set holds where it is.
 //! - **Release**: back to the open position at the approach current.
@@ -86,8 +90,11 @@ pub struct Tuning {
     pub approach_margin_ma: f64,
     /// Speed share kept after first contact.
     pub contact_speed_share: f64,
-    /// Goal lead beyond the present position while squeezing, degrees.
+    /// Largest goal lead beyond the present position while squeezing, degrees.
     pub squeeze_lead_deg: f64,
+    /// Goal lead per N of force error while squeezing and holding, degrees per N: the
+    /// position creeps toward the force target and stops there.
+    pub squeeze_deg_per_n: f64,
     /// Proportional gain, mA per N of force error.
     pub kp_ma_per_n: f64,
     /// Integral gain, mA per N·s.
@@ -108,7 +115,11 @@ pub struct Tuning {
     pub slip_shift_mm: f64,
     /// Target multiplier per re-tightening.
     pub retighten_factor: f64,
-    /// Weight of each new force reading in the regulated average (1 = no averaging).
+    /// Consecutive sets that must show slip before the finger re-tightens.
+    pub slip_sets: u32,
+    /// Weight of each new force reading in the regulated average (1 = no averaging); the
+    /// readings are first the median of the last three sets, which rejects a one-set
+    /// outlier.
     pub force_filter: f64,
 }
 
@@ -119,6 +130,7 @@ impl Default for Tuning {
             approach_margin_ma: 30.0,
             contact_speed_share: 0.25,
             squeeze_lead_deg: 15.0,
+            squeeze_deg_per_n: 0.25,
             kp_ma_per_n: 15.0,
             ki_ma_per_n_s: 25.0,
             min_current_ma: 20.0,
@@ -129,7 +141,8 @@ impl Default for Tuning {
             slip_area_share: 0.75,
             slip_shift_mm: 0.5,
             retighten_factor: 1.2,
-            force_filter: 0.12,
+            slip_sets: 2,
+            force_filter: 0.3,
         }
     }
 }
@@ -156,6 +169,9 @@ pub struct ControlOutput {
     pub done: Option<GraspOutcome>,
 }
 
+/// Contact area (mm²) and centroid (sensor, x mm, y mm) that slip is measured against.
+type SlipReference = (f64, Option<(usize, f64, f64)>);
+
 #[derive(Debug, Clone, PartialEq)]
 struct FingerCtl {
     phase: Phase,
@@ -169,9 +185,13 @@ struct FingerCtl {
     target_n: f64,
     stable_since_s: Option<f64>,
     stall_ref: Option<(f64, f64)>,
-    hold_area_mm2: f64,
-    hold_centroid: Option<(usize, f64, f64)>,
+    /// Contact area and centroid that slip is measured against (armed once the whole
+    /// grasp holds, since until then the other fingers move the object on purpose).
+    slip_ref: Option<SlipReference>,
+    slip_seen: u32,
     status: FingerStatus,
+    /// The last three fused forces, newest last, N.
+    recent_n: [f64; 3],
     force_n: f64,
 }
 
@@ -190,6 +210,10 @@ pub struct GraspController {
 
 fn finite_or(v: f64, default: f64) -> f64 {
     if v.is_finite() { v } else { default }
+}
+
+fn median3([a, b, c]: [f64; 3]) -> f64 {
+    a.max(b).min(a.min(b).max(c))
 }
 
 impl GraspController {
@@ -215,9 +239,10 @@ impl GraspController {
                 target_n: target,
                 stable_since_s: None,
                 stall_ref: None,
-                hold_area_mm2: 0.0,
-                hold_centroid: None,
+                slip_ref: None,
+                slip_seen: 0,
                 status: FingerStatus::AtGoal,
+                recent_n: [0.0; 3],
                 force_n: 0.0,
             })
             .collect();
@@ -236,6 +261,11 @@ impl GraspController {
     /// Each finger's phase.
     pub fn phases(&self) -> Vec<Phase> {
         self.fingers.iter().map(|f| f.phase).collect()
+    }
+
+    /// Each finger's force as the controller regulates it (outlier-rejected, averaged), N.
+    pub fn forces_n(&self) -> Vec<f64> {
+        self.fingers.iter().map(|f| f.force_n).collect()
     }
 
     /// Each finger's force target now (it rises when hold re-tightens), N.
@@ -266,6 +296,7 @@ impl GraspController {
         let limit = self.limit();
         let t = self.tuning.clone();
         let speed = finite_or(self.request.speed_deg_s, 0.0).max(0.0);
+        let settled = self.settled();
         for f in 0..self.fingers.len() {
             let present = servos
                 .get(f)
@@ -288,11 +319,14 @@ impl GraspController {
                 c.goal_deg = present; // hold, never guess
                 continue;
             }
-            // The pipeline's force is noisy frame to frame; regulate on a short average.
+            // Regulate on a short average of the median of the last three sets: a one-set
+            // outlier of the pipeline never moves the finger.
+            c.recent_n = [c.recent_n[1], c.recent_n[2], finite_or(fused.force_n, 0.0)];
+            let median = median3(c.recent_n);
             c.force_n = if c.force_n == 0.0 {
-                fused.force_n
+                median
             } else {
-                c.force_n + (fused.force_n - c.force_n) * t.force_filter
+                c.force_n + (median - c.force_n) * t.force_filter
             };
             let force_n = c.force_n;
             match c.phase {
@@ -356,7 +390,12 @@ impl GraspController {
                         c.integral_ma += t.ki_ma_per_n_s * e * dt;
                     }
                     c.current_ma = (c.feedforward_ma + p + c.integral_ma).clamp(min, limit);
-                    c.goal_deg = (present + t.squeeze_lead_deg).min(close.max(present));
+                    // The goal creeps by the force error: in current-based position mode the
+                    // servo holds a goal it has reached, so the force stops at the target
+                    // instead of running on to the current cap.
+                    let lead =
+                        (t.squeeze_deg_per_n * e).clamp(-t.squeeze_lead_deg, t.squeeze_lead_deg);
+                    c.goal_deg = (present + lead).min(close.max(present));
                     let in_band = e.abs() <= t.stable_band * c.target_n.max(1e-6);
                     if c.phase == Phase::Squeeze {
                         if in_band {
@@ -364,25 +403,36 @@ impl GraspController {
                             if t_s - since >= t.stable_s {
                                 c.phase = Phase::Hold;
                                 c.status = FingerStatus::ContactClosing;
-                                c.hold_area_mm2 = fused.area_mm2;
-                                c.hold_centroid = fused.centroid;
+                                c.slip_ref = None;
+                                c.slip_seen = 0;
                             }
                         } else {
                             c.stable_since_s = None;
                         }
-                    } else if c.status == FingerStatus::ContactClosing {
-                        let area_drop = fused.area_mm2 < t.slip_area_share * c.hold_area_mm2;
-                        let shifted = match (c.hold_centroid, fused.centroid) {
+                    } else if c.status == FingerStatus::ContactClosing && settled {
+                        let Some((area0, centroid0)) = c.slip_ref else {
+                            c.slip_ref = Some((fused.area_mm2, fused.centroid));
+                            continue;
+                        };
+                        let area_drop = fused.area_mm2 < t.slip_area_share * area0;
+                        let shifted = match (centroid0, fused.centroid) {
                             (Some((s0, x0, y0)), Some((s1, x1, y1))) => {
                                 s0 != s1 || (x1 - x0).hypot(y1 - y0) > t.slip_shift_mm
                             }
                             (Some(_), None) => true,
                             _ => false,
                         };
-                        if area_drop || shifted {
+                        c.slip_seen = if area_drop || shifted {
+                            c.slip_seen + 1
+                        } else {
+                            0
+                        };
+                        if c.slip_seen >= t.slip_sets {
                             c.target_n *= t.retighten_factor;
                             c.phase = Phase::Squeeze;
                             c.stable_since_s = None;
+                            c.slip_ref = None;
+                            c.slip_seen = 0;
                         }
                     }
                 }
@@ -407,15 +457,20 @@ impl GraspController {
         }
     }
 
-    fn check_done(&self, elapsed_s: f64, set: Option<&FusedSet>) -> Option<GraspOutcome> {
-        let active: Vec<&FingerCtl> = self.fingers.iter().filter(|c| c.active).collect();
-        let settled = active.iter().all(|c| {
+    /// Every active finger holds (on the object, or having found none).
+    fn settled(&self) -> bool {
+        self.fingers.iter().filter(|c| c.active).all(|c| {
             c.phase == Phase::Hold
                 && matches!(
                     c.status,
                     FingerStatus::ContactClosing | FingerStatus::NoObject
                 )
-        });
+        })
+    }
+
+    fn check_done(&self, elapsed_s: f64, set: Option<&FusedSet>) -> Option<GraspOutcome> {
+        let active: Vec<&FingerCtl> = self.fingers.iter().filter(|c| c.active).collect();
+        let settled = self.settled();
         let timed_out = elapsed_s >= finite_or(self.request.timeout_s, f64::INFINITY);
         if !settled && !timed_out {
             return None;

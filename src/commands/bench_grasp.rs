@@ -12,11 +12,13 @@ use serde_json::Value;
 use crate::cli::BenchGraspArgs;
 
 /// Fields copied from each run's report into the row.
-const FIELDS: [&str; 13] = [
+const FIELDS: [&str; 15] = [
     "object",
     "grasped",
     "crushed",
     "peak_force_n",
+    "true_peak_force_n",
+    "hold_test_peak_force_n",
     "target_force_n",
     "time_to_stable_s",
     "loop_latency_ms_p50",
@@ -120,18 +122,27 @@ pub fn run(args: BenchGraspArgs) -> anyhow::Result<u8> {
         return Ok(0);
     }
     println!(
-        "{:<12} {:>7} {:>7} {:>8} {:>8} {:>8} {:>9} {:>8}  reason",
-        "scene", "grasped", "crushed", "peak N", "true N", "stable s", "loop p99", "slip mm"
+        "{:<12} {:>7} {:>7} {:>8} {:>8} {:>8} {:>8} {:>9} {:>8}  reason",
+        "scene",
+        "grasped",
+        "crushed",
+        "peak N",
+        "true N",
+        "hold N",
+        "stable s",
+        "loop p99",
+        "slip mm"
     );
     let num = |v: &Value, d: usize| v.as_f64().map_or("-".to_string(), |x| format!("{x:.d$}"));
     for r in &rows {
         println!(
-            "{:<12} {:>7} {:>7} {:>8} {:>8} {:>8} {:>9} {:>8}  {}",
+            "{:<12} {:>7} {:>7} {:>8} {:>8} {:>8} {:>8} {:>9} {:>8}  {}",
             r["scene"].as_str().unwrap_or(""),
             r["grasped"],
             r["crushed"],
             num(&r["peak_force_n"], 2),
-            num(&r["peak_true_pad_force_n"], 2),
+            num(&r["true_peak_force_n"], 2),
+            num(&r["hold_test_peak_force_n"], 2),
             num(&r["time_to_stable_s"], 1),
             num(&r["loop_latency_ms_p99"], 1),
             num(&r["hold_slip_mm"], 2),

@@ -230,7 +230,12 @@ fn a_stale_finger_holds_and_slip_retightens() {
         palm: None,
         deformation_mm3: Vec::new(),
     };
+    // One set with a shift is not slip yet (a glitch must not squeeze harder)…
     ctl.step(20.1, Some(&slip), &states);
+    assert_eq!(ctl.targets_n()[1], 2.0, "{:?}", ctl.targets_n());
+    assert_eq!(ctl.phases()[1], Phase::Hold);
+    // …the second in a row is.
+    ctl.step(20.133, Some(&slip), &states);
     assert!(ctl.targets_n()[1] > 2.0 * 1.1, "{:?}", ctl.targets_n());
     assert_eq!(ctl.phases()[1], Phase::Squeeze);
 }
@@ -264,4 +269,29 @@ fn estop_holds_at_minimum_current_and_release_opens() {
     };
     let out = ctl.step(10.0, Some(&set), &states);
     assert!(out.goals.iter().all(|g| g.position_deg == 0.0));
+}
+
+#[test]
+fn a_one_set_outlier_does_not_move_the_finger() {
+    let mut ctl = controller(2.0);
+    let mut f = toy(Some(50.0));
+    run(&mut ctl, &mut f, 10.0, 30.0);
+    let states: Vec<ServoState> = f
+        .iter()
+        .zip(&ctl.goals())
+        .map(|(x, g)| x.state(g))
+        .collect();
+    let normal = FusedSet {
+        fingers: f.iter().map(ToyFinger::fused).collect(),
+        palm: None,
+        deformation_mm3: Vec::new(),
+    };
+    let mut spike = normal.clone();
+    spike.fingers[0].force_n *= 10.0;
+    let mut a = ctl.clone();
+    let mut b = ctl.clone();
+    let quiet = a.step(10.5, Some(&normal), &states);
+    let glitch = b.step(10.5, Some(&spike), &states);
+    assert_eq!(quiet.goals, glitch.goals);
+    assert_eq!(a.forces_n(), b.forces_n());
 }
