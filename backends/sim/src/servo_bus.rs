@@ -138,9 +138,12 @@ impl ServoBus for SimServoBus {
         check_goal_count(goals, self.ids.len())?;
         let torque_on = self.torque_on;
         let limit = self.current_limit_ma;
-        let mut w = self.world()?;
+        // The goals take effect now; the world steps up to now when it is next read or
+        // rendered, so the write itself costs no physics (as on the real bus).
+        let now_us = self.clock.now_us();
+        let mut w = lock(&self.world)?;
         for (f, g) in goals.iter().enumerate() {
-            w.set_command(
+            w.command_at(
                 f,
                 MotorCommand {
                     torque_on,
@@ -148,6 +151,7 @@ impl ServoBus for SimServoBus {
                     goal_current_ma: g.goal_current_ma.clamp(0.0, limit),
                     profile_velocity_rpm: g.profile_velocity_rpm.max(0.0),
                 },
+                now_us,
             );
         }
         Ok(())

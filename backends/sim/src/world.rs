@@ -59,6 +59,9 @@ pub struct World {
     fingers: Vec<FingerMechanics>,
     motors: Vec<Xm430Motor>,
     commands: Vec<MotorCommand>,
+    /// Commands written ahead of the world's time: (host time µs, finger, command), in
+    /// the order written; each takes effect from the step in which its time falls.
+    pending: Vec<(u64, usize, MotorCommand)>,
     readings: Vec<MotorReading>,
     object: Option<ObjectState>,
     scene: Option<SceneSpec>,
@@ -140,6 +143,7 @@ impl World {
                 .collect(),
             motors: vec![Xm430Motor::default(); n],
             commands: vec![MotorCommand::default(); n],
+            pending: Vec::new(),
             readings: vec![MotorReading::default(); n],
             object,
             scene,
@@ -194,6 +198,20 @@ impl World {
     pub fn set_command(&mut self, finger: usize, command: MotorCommand) {
         if let Some(c) = self.commands.get_mut(finger) {
             *c = command;
+        }
+    }
+
+    /// Command finger `finger`'s motor from host time `at_us` on, without stepping the world
+    /// there now: the command takes effect from the step in which `at_us` falls, exactly as
+    /// [`World::advance_to`]`(at_us)` followed by [`World::set_command`] would, but the
+    /// stepping is left to whoever next advances the world (so a servo write costs no
+    /// physics).
+    pub fn command_at(&mut self, finger: usize, command: MotorCommand, at_us: u64) {
+        match self.t_us {
+            Some(origin) if at_us >= origin + self.elapsed_us + STEP_US => {
+                self.pending.push((at_us, finger, command));
+            }
+            _ => self.set_command(finger, command),
         }
     }
 
@@ -258,6 +276,19 @@ impl World {
     pub fn advance_to(&mut self, now_us: u64) {
         let origin = *self.t_us.get_or_insert(now_us);
         while origin + self.elapsed_us + STEP_US <= now_us {
+            let step_end_us = origin + self.elapsed_us + STEP_US;
+            if !self.pending.is_empty() {
+                let due: Vec<(u64, usize, MotorCommand)> = self
+                    .pending
+                    .iter()
+                    .filter(|(t, _, _)| *t < step_end_us)
+                    .copied()
+                    .collect();
+                self.pending.retain(|(t, _, _)| *t >= step_end_us);
+                for (_, finger, command) in due {
+                    self.set_command(finger, command);
+                }
+            }
             self.step(STEP_US as f64 / 1e6);
             self.elapsed_us += STEP_US;
         }
