@@ -76,7 +76,8 @@ pub struct TaskReport {
     pub loop_latency_ms_p99: Option<f64>,
     /// p99 capture-to-command latency, ms.
     pub capture_to_command_ms_p99: Option<f64>,
-    /// Why the grasp ended (`stable`, `no_object`, `timeout …`, `watchdog …`).
+    /// Why the grasp ended (`stable`, `force_limited`: held at what the current limit
+    /// allows, `no_object`, `timeout …`, `watchdog …`).
     pub reason: String,
     /// Per finger: `moving`, `contact_closing`, `at_goal` or `no_object`.
     pub finger_status: Vec<FingerStatus>,
@@ -298,7 +299,7 @@ impl GraspTask {
         match self.stage {
             Stage::Grasp => {
                 if let Some(outcome) = out.done {
-                    let stable = outcome.reason == "stable";
+                    let stable = matches!(outcome.reason.as_str(), "stable" | "force_limited");
                     if stable {
                         self.time_to_stable_s = Some(t_s - start);
                     }

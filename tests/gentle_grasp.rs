@@ -110,6 +110,39 @@ fn the_paper_cup_is_held_without_crushing_it() {
 }
 
 #[test]
+fn a_target_beyond_the_current_cap_holds_what_the_cap_allows_without_overloading() {
+    // Servos allowed up to their stall current, and a target no cap can reach: the
+    // controller must stall at its holding limit, hold a little below it and say so,
+    // rather than strain until the servos overload.
+    let out = run_cmd(&[
+        "--duration",
+        "25",
+        "--config",
+        "tests/configs/strong-servos.toml",
+        "--scene",
+        "configs/scenes/tennis-ball.toml",
+        "--task",
+        "gentle-grasp",
+        "--target-force",
+        "200",
+    ])
+    .output()
+    .expect("gelgrip runs");
+    let r = report(&out, 0);
+    assert_eq!(r["reason"], "force_limited", "{r}");
+    assert_eq!(r["grasped"], true, "{r}");
+    assert_eq!(r["faults"], serde_json::json!([]), "no overload: {r}");
+    for s in r["servos"].as_array().expect("servos") {
+        let ma = s["current_ma"].as_f64().expect("current");
+        assert!(ma.is_finite() && ma <= 1200.0 + 50.0, "{s}");
+    }
+    assert!(
+        r["peak_force_n"].as_f64().is_some_and(f64::is_finite),
+        "{r}"
+    );
+}
+
+#[test]
 fn an_unknown_task_is_a_usage_error() {
     let out = common::gelgrip(&["run", "--headless", "--duration", "1", "--task", "juggle"]);
     assert_eq!(out.status.code(), Some(2));

@@ -101,6 +101,10 @@ pub struct Tuning {
     pub ki_ma_per_n_s: f64,
     /// Smallest goal current while in contact, mA.
     pub min_current_ma: f64,
+    /// Largest goal current the controller holds a squeeze at, whatever the request's
+    /// limit, mA: a stalled XM430 held near its stall current overloads and cuts torque
+    /// (in the motor model, 1.5 A for 1 s), so a squeeze never strains there.
+    pub max_hold_current_ma: f64,
     /// "Stable": within this share of the target…
     pub stable_band: f64,
     /// …for this long, s.
@@ -134,6 +138,7 @@ impl Default for Tuning {
             kp_ma_per_n: 15.0,
             ki_ma_per_n_s: 25.0,
             min_current_ma: 20.0,
+            max_hold_current_ma: 1200.0,
             stable_band: 0.05,
             stable_s: 0.5,
             stall_s: 0.5,
@@ -189,6 +194,11 @@ struct FingerCtl {
     /// grasp holds, since until then the other fingers move the object on purpose).
     slip_ref: Option<SlipReference>,
     slip_seen: u32,
+    /// Since when (s), and at what force (N), the goal current has been pinned at the
+    /// limit while squeezing.
+    cap_ref: Option<(f64, f64)>,
+    /// The current limit allowed no more force: the finger holds what it reached.
+    force_limited: bool,
     status: FingerStatus,
     /// The last three fused forces, newest last, N.
     recent_n: [f64; 3],
@@ -241,6 +251,8 @@ impl GraspController {
                 stall_ref: None,
                 slip_ref: None,
                 slip_seen: 0,
+                cap_ref: None,
+                force_limited: false,
                 status: FingerStatus::AtGoal,
                 recent_n: [0.0; 3],
                 force_n: 0.0,
@@ -278,8 +290,11 @@ impl GraspController {
         self.done.as_ref()
     }
 
+    /// The request's current limit, and never more than the largest holding current.
     fn limit(&self) -> f64 {
-        finite_or(self.request.current_limit_ma, 0.0).max(0.0)
+        finite_or(self.request.current_limit_ma, 0.0)
+            .max(0.0)
+            .min(self.tuning.max_hold_current_ma)
     }
 
     /// One control step at `t_s`, with the newest gated set (`None` if none arrived since the
@@ -397,7 +412,28 @@ impl GraspController {
                         (t.squeeze_deg_per_n * e).clamp(-t.squeeze_lead_deg, t.squeeze_lead_deg);
                     c.goal_deg = (present + lead).min(close.max(present));
                     let in_band = e.abs() <= t.stable_band * c.target_n.max(1e-6);
-                    if c.phase == Phase::Squeeze {
+                    // Stall at the cap: the current limit allows no more force. Straining
+                    // there would overload the servo, so the finger holds a little below
+                    // what it reached and says so.
+                    let pinned =
+                        c.phase == Phase::Squeeze && e > 0.0 && c.current_ma >= limit - 1.0;
+                    let (since_s, force0) = if pinned {
+                        *c.cap_ref.get_or_insert((t_s, force_n))
+                    } else {
+                        c.cap_ref = None;
+                        (t_s, force_n)
+                    };
+                    if pinned && force_n > force0 * (1.0 + t.stable_band) {
+                        c.cap_ref = Some((t_s, force_n));
+                    } else if pinned && t_s - since_s >= t.stall_s {
+                        c.target_n = force_n * (1.0 - 2.0 * t.stable_band);
+                        c.force_limited = true;
+                        c.cap_ref = None;
+                        c.phase = Phase::Hold;
+                        c.status = FingerStatus::ContactClosing;
+                        c.slip_ref = None;
+                        c.slip_seen = 0;
+                    } else if c.phase == Phase::Squeeze {
                         if in_band {
                             let since = *c.stable_since_s.get_or_insert(t_s);
                             if t_s - since >= t.stable_s {
@@ -481,7 +517,10 @@ impl GraspController {
             .count()
             + usize::from(set.and_then(|s| s.palm).is_some_and(|p| p.contact));
         let grasped = settled && holding >= 2;
-        let reason = if settled && grasped {
+        let limited = active.iter().any(|c| c.force_limited);
+        let reason = if settled && grasped && limited {
+            "force_limited".to_string()
+        } else if settled && grasped {
             "stable".to_string()
         } else if settled {
             "no_object".to_string()

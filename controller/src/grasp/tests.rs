@@ -163,7 +163,11 @@ fn the_same_inputs_give_the_same_outputs() {
 fn force_never_exceeds_what_the_current_cap_allows_even_for_a_huge_target() {
     let mut ctl = controller(1e9);
     let mut f = toy(Some(30.0));
-    let (_, forces) = run(&mut ctl, &mut f, 6.0, 30.0);
+    let (done, forces) = run(&mut ctl, &mut f, 6.0, 30.0);
+    // It stalls at the cap, says so, and holds below it instead of straining.
+    let done = done.expect("a stall at the cap ends the grasp");
+    assert_eq!(done.reason, "force_limited");
+    assert!(done.grasped);
     let cap = N_PER_MA * (1000.0 - SPRING_MA);
     assert!(
         forces
