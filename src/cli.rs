@@ -343,6 +343,10 @@ pub struct RunArgs {
     /// Gentle grasp: give up after this many seconds.
     #[arg(long, default_value_t = 20.0)]
     pub task_timeout: f64,
+    /// Gentle grasp: once stable, keep holding (and regulating) for this many seconds
+    /// before the hold test and the end of the task.
+    #[arg(long, default_value_t = 0.0, value_parser = parse_hold_s)]
+    pub hold: f64,
     /// Write the task's signals (time, stage, deformation per sensor, state and force per
     /// finger) to this CSV file.
     #[arg(long)]
@@ -360,17 +364,34 @@ fn parse_force_n(s: &str) -> Result<f64, String> {
     }
 }
 
-fn parse_current_ma(s: &str) -> Result<f64, String> {
+/// `s` as a number within `range`, or a message naming `what` it should be and its `unit`.
+fn parse_within(
+    s: &str,
+    what: &str,
+    unit: &str,
+    range: std::ops::RangeInclusive<f64>,
+) -> Result<f64, String> {
     let v: f64 = s
         .parse()
-        .map_err(|_| format!("`{s}` is not a current in mA"))?;
-    if (0.0..=3209.0).contains(&v) {
+        .map_err(|_| format!("`{s}` is not {what} in {unit}"))?;
+    if range.contains(&v) {
         Ok(v)
     } else {
         Err(format!(
-            "{v} mA is outside 0..=3209 (the XM430's current range)"
+            "{v} {unit} is outside {}..={} {unit}",
+            range.start(),
+            range.end()
         ))
     }
+}
+
+fn parse_hold_s(s: &str) -> Result<f64, String> {
+    parse_within(s, "a duration", "s", 0.0..=3600.0)
+}
+
+fn parse_current_ma(s: &str) -> Result<f64, String> {
+    parse_within(s, "a current", "mA", 0.0..=3209.0)
+        .map_err(|e| format!("{e} (the XM430's current range)"))
 }
 
 /// `gelgrip check-config`.

@@ -47,6 +47,8 @@ pub struct GraspOptions {
     pub speed_deg_s: f64,
     /// Give up after, s.
     pub timeout_s: f64,
+    /// Once stable, keep holding this long before the hold test, s.
+    pub hold_s: f64,
 }
 
 /// Task fields of `run --json` (CONTRACTS.md) and a few more.
@@ -57,14 +59,15 @@ pub struct TaskReport {
     /// The grasp succeeded (stable contact on at least two of fingers and palm) and, on the
     /// simulator, the object was held through the hold test.
     pub grasped: bool,
-    /// Peak force of any finger during the grasp (until it ended, before the hold test), as
+    /// Peak force of any finger during the grasp (and the `--hold` that follows it, before
+    /// the hold test), as
     /// the controller regulates it (the fused force, median of three sets against one-set
     /// outliers, averaged), N.
     pub peak_force_n: f64,
     /// The same during the hold test, where slip may re-tighten a finger (simulator only).
     pub hold_test_peak_force_n: Option<f64>,
     /// The simulator's ground truth: peak force of any finger (the sum over its pads)
-    /// during the grasp, N (simulator only).
+    /// during the grasp and the hold, N (simulator only).
     pub true_peak_force_n: Option<f64>,
     /// The requested force per finger, N.
     pub target_force_n: f64,
@@ -87,6 +90,7 @@ pub struct TaskReport {
 
 enum Stage {
     Grasp,
+    Hold { until_s: f64 },
     HoldTest { since_s: f64, slip0_mm: f64 },
     Done,
 }
@@ -107,6 +111,7 @@ pub struct GraspTask {
     hold_test_peak_force_n: Option<f64>,
     true_peak_force_n: Option<f64>,
     target_force_n: f64,
+    hold_s: f64,
     time_to_stable_s: Option<f64>,
     loop_ms: Vec<f64>,
     capture_ms: Vec<f64>,
@@ -216,6 +221,7 @@ impl GraspTask {
             hold_test_peak_force_n: None,
             true_peak_force_n: None,
             target_force_n: options.target_force_n,
+            hold_s: options.hold_s,
             time_to_stable_s: None,
             loop_ms: Vec::new(),
             capture_ms: Vec::new(),
@@ -283,7 +289,7 @@ impl GraspTask {
         self.states = self.read()?;
         let regulated = self.ctl.forces_n().into_iter().fold(0.0, f64::max);
         match self.stage {
-            Stage::Grasp => {
+            Stage::Grasp | Stage::Hold { .. } => {
                 self.peak_force_n = self.peak_force_n.max(regulated);
                 if let Some(truth) = self.true_finger_peak_n() {
                     self.true_peak_force_n = Some(self.true_peak_force_n.unwrap_or(0.0).max(truth));
@@ -304,21 +310,18 @@ impl GraspTask {
                         self.time_to_stable_s = Some(t_s - start);
                     }
                     self.outcome = Some(outcome);
-                    match (stable, self.world.clone(), self.slip_mm()) {
-                        (true, Some(world), Some(slip0)) => {
-                            if let Ok(mut w) = world.lock() {
-                                w.load_test(HOLD_TEST_FACTOR);
-                            }
-                            self.stage = Stage::HoldTest {
-                                since_s: t_s,
-                                slip0_mm: slip0,
-                            };
-                        }
-                        _ => {
-                            self.stage = Stage::Done;
-                            return Ok(Some("done"));
-                        }
+                    if stable && self.hold_s > 0.0 {
+                        self.stage = Stage::Hold {
+                            until_s: t_s + self.hold_s,
+                        };
+                    } else {
+                        return Ok(self.begin_hold_test(stable, t_s));
                     }
+                }
+            }
+            Stage::Hold { until_s } => {
+                if t_s >= until_s {
+                    return Ok(self.begin_hold_test(true, t_s));
                 }
             }
             Stage::HoldTest { since_s, slip0_mm } => {
@@ -331,6 +334,27 @@ impl GraspTask {
             Stage::Done => return Ok(Some("done")),
         }
         Ok(None)
+    }
+
+    /// After a stable grasp, on the simulator: let the object go and pull it (the hold
+    /// test); otherwise the task ends (returns the end reason).
+    fn begin_hold_test(&mut self, stable: bool, t_s: f64) -> Option<&'static str> {
+        match (stable, self.world.clone(), self.slip_mm()) {
+            (true, Some(world), Some(slip0)) => {
+                if let Ok(mut w) = world.lock() {
+                    w.load_test(HOLD_TEST_FACTOR);
+                }
+                self.stage = Stage::HoldTest {
+                    since_s: t_s,
+                    slip0_mm: slip0,
+                };
+                None
+            }
+            _ => {
+                self.stage = Stage::Done;
+                Some("done")
+            }
+        }
     }
 
     /// Check the watchdog at host time `now_us`; returns a fault description when it fires
@@ -382,6 +406,7 @@ impl GraspTask {
     ) -> anyhow::Result<()> {
         let stage = match self.stage {
             Stage::Grasp => "grasp",
+            Stage::Hold { .. } => "hold",
             Stage::HoldTest { .. } => "hold_test",
             Stage::Done => "done",
         };

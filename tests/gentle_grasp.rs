@@ -228,3 +228,123 @@ fn an_estop_mid_grasp_holds_at_minimum_current_and_exits_1() {
         "{r}"
     );
 }
+
+/// Direction reversals of `ys`, ignoring moves smaller than `deadband`.
+fn reversals(ys: &[f64], deadband: f64) -> usize {
+    let (mut count, mut dir, mut extreme) = (0, 0i8, ys.first().copied().unwrap_or(0.0));
+    for &y in ys.iter().skip(1) {
+        let moved = if y > extreme { 1 } else { -1 };
+        if dir == 0 {
+            if (y - extreme).abs() > deadband {
+                dir = moved;
+                extreme = y;
+            }
+        } else if moved == dir {
+            extreme = y;
+        } else if (y - extreme).abs() > deadband {
+            count += 1;
+            dir = moved;
+            extreme = y;
+        }
+    }
+    count
+}
+
+/// Grasp the tennis ball with `config`, hold 2.5 s once stable, and check the simulator's
+/// true finger forces over the hold: peak-to-peak under 5% of the target, at most one
+/// reversal (beyond 1% of the target) per second, goal currents within the limit, and
+/// every logged number finite.
+fn steady_hold(config: &str) {
+    let dir = std::env::temp_dir().join(format!(
+        "gelgrip-steady-{}-{}",
+        std::process::id(),
+        config.replace('/', "_")
+    ));
+    std::fs::create_dir_all(&dir).expect("dir");
+    let log = dir.join("hold.csv");
+    let target = 1.5;
+    let out = run_cmd(&[
+        "--duration",
+        "40",
+        "--config",
+        config,
+        "--task",
+        "gentle-grasp",
+        "--target-force",
+        "1.5",
+        "--hold",
+        "2.5",
+        "--log",
+        &log.display().to_string(),
+    ])
+    .output()
+    .expect("gelgrip runs");
+    let r = report(&out, 0);
+    assert_eq!(r["reason"], "stable", "{config}: {r}");
+    let csv = std::fs::read_to_string(&log).expect("log");
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().expect("header").split(',').collect();
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    for row in &rows {
+        for (name, v) in header.iter().zip(row) {
+            if *name != "stage" && !name.ends_with("_state") && !v.is_empty() {
+                let x: f64 = v.parse().expect("a number");
+                assert!(x.is_finite(), "{config}: {name} = {v}");
+            }
+            if name.ends_with("_goal_current_ma") {
+                assert!(
+                    v.parse::<f64>().is_ok_and(|ma| ma <= 1000.0),
+                    "{config}: {v}"
+                );
+            }
+        }
+    }
+    let col = |name: &str| header.iter().position(|h| *h == name).expect(name);
+    let stage = col("stage");
+    let hold: Vec<&Vec<&str>> = rows.iter().filter(|r| r[stage] == "hold").collect();
+    let t = col("t_s");
+    let span_s: f64 = hold.last().expect("hold rows")[t]
+        .parse::<f64>()
+        .expect("t")
+        - hold[0][t].parse::<f64>().expect("t");
+    assert!(span_s >= 2.0, "{config}: held {span_s} s");
+    for finger in ["f1", "f2", "f3"] {
+        let pads: Vec<usize> = header
+            .iter()
+            .enumerate()
+            .filter(|(_, h)| h.starts_with(&format!("{finger}.")) && h.ends_with("_true_force_n"))
+            .map(|(i, _)| i)
+            .collect();
+        let force: Vec<f64> = hold
+            .iter()
+            .map(|r| {
+                pads.iter()
+                    .map(|i| r[*i].parse::<f64>().expect("force"))
+                    .sum()
+            })
+            .collect();
+        let (lo, hi) = force
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(a, b), y| (a.min(*y), b.max(*y)));
+        assert!(
+            hi - lo < 0.05 * target,
+            "{config} {finger}: true force {lo:.3}..{hi:.3} N over the hold"
+        );
+        let turns = reversals(&force, 0.01 * target);
+        assert!(
+            turns as f64 <= span_s.ceil(),
+            "{config} {finger}: {turns} reversals in {span_s:.1} s"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn the_held_force_is_steady_without_camera_noise_at_187_hz() {
+    steady_hold("tests/configs/steady-noise0.toml");
+}
+
+#[test]
+fn the_held_force_is_steady_at_the_bus_maximum_of_53_hz() {
+    steady_hold("tests/configs/steady-ratemax.toml");
+}

@@ -144,6 +144,7 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
                 target_force_n: args.target_force,
                 speed_deg_s: args.speed,
                 timeout_s: args.task_timeout,
+                hold_s: args.hold,
             };
             task = Some(GraspTask::start(
                 &config,
