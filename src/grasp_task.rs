@@ -1,6 +1,7 @@
 //! The built-in `gentle-grasp` task: every gated set goes through the tactile pipelines,
-//! is fused per finger, and steps the grasp controller, whose goals are written to the
-//! servos at once. When the grasp is stable the task tests the hold on the simulator (the
+//! is fused per finger, and steps the grasp controller through the grasp API
+//! ([`gelgrip_controller::gripper`]: the task asks for the grasp, stop and e-stop through
+//! its handle, as the dashboard will), whose goals are written to the servos at once. When the grasp is stable the task tests the hold on the simulator (the
 //! object is let go and pulled with twice its weight for 1 s; held = it slips less than
 //! 1 mm), then ends.
 //!
@@ -21,9 +22,8 @@ use gelgrip_controller::actuator::{ServoBus, ServoState};
 use gelgrip_controller::config::AppConfig;
 use gelgrip_controller::frame::FrameSet;
 use gelgrip_controller::fusion::fuse;
-use gelgrip_controller::grasp::{
-    FingerStatus, GraspController, GraspOutcome, GraspRequest, Phase, Tuning,
-};
+use gelgrip_controller::grasp::{FingerStatus, GraspOutcome, GraspRequest, Phase, Tuning};
+use gelgrip_controller::gripper::{GripperHandle, GripperService, PendingGrasp};
 use gelgrip_controller::layout::HandLayout;
 use gelgrip_sim::world::SharedWorld;
 
@@ -97,7 +97,10 @@ enum Stage {
 
 /// The running task.
 pub struct GraspTask {
-    ctl: GraspController,
+    /// The grasp API: the service this task steps, its handle, and the grasp it asked for.
+    gripper: GripperService,
+    handle: GripperHandle,
+    pending: Option<PendingGrasp>,
     tactile: Tactile,
     bus: Box<dyn ServoBus>,
     world: Option<SharedWorld>,
@@ -169,12 +172,15 @@ impl GraspTask {
             timeout_s: options.timeout_s,
         };
         let close: Vec<f64> = layout.fingers.iter().map(|f| f.servo_range_deg).collect();
-        let ctl = GraspController::new(
-            request,
+        let (gripper, handle) = GripperService::new(
             Tuning::default(),
             close,
             vec![0.0; layout.fingers.len()],
+            config.servos.current_limit_ma,
         );
+        let pending = handle
+            .start_grasp(request)
+            .map_err(|e| crate::cli::UsageError(e.to_string()))?;
         let log = match log {
             None => None,
             Some(path) => {
@@ -207,7 +213,9 @@ impl GraspTask {
             }
         };
         Ok(Self {
-            ctl,
+            gripper,
+            handle,
+            pending: Some(pending),
             tactile,
             bus,
             world,
@@ -277,17 +285,23 @@ impl GraspTask {
         if self.states.is_empty() {
             self.states = self.read()?;
         }
-        let out = self.ctl.step(t_s, Some(&fused), &self.states);
-        tracing::debug!(t_s, goals = ?out.goals, phases = ?self.ctl.phases(), "grasp step");
-        self.bus
-            .write_goals(&out.goals)
-            .map_err(|e| anyhow::anyhow!("servo fault: {e}"))?;
+        let positions: Vec<f64> = self.states.iter().map(|s| s.position_deg).collect();
+        self.gripper.apply_commands(&positions);
+        if let Some(goals) = self.gripper.step(t_s, Some(&fused), &self.states) {
+            tracing::debug!(t_s, ?goals, "grasp step");
+            self.bus
+                .write_goals(&goals)
+                .map_err(|e| anyhow::anyhow!("servo fault: {e}"))?;
+        }
         let loop_ms = handed_over.elapsed().as_secs_f64() * 1e3;
         self.loop_ms.push(loop_ms);
         self.capture_ms
             .push(set.latency_us() as f64 / 1e3 + loop_ms);
         self.states = self.read()?;
-        let regulated = self.ctl.forces_n().into_iter().fold(0.0, f64::max);
+        let regulated = self
+            .gripper
+            .controller()
+            .map_or(0.0, |c| c.forces_n().into_iter().fold(0.0, f64::max));
         match self.stage {
             Stage::Grasp | Stage::Hold { .. } => {
                 self.peak_force_n = self.peak_force_n.max(regulated);
@@ -304,7 +318,10 @@ impl GraspTask {
         self.write_log(t_s - start, &fused.deformation_mm3, &fused.fingers)?;
         match self.stage {
             Stage::Grasp => {
-                if let Some(outcome) = out.done {
+                let ended = self.pending.as_mut().and_then(PendingGrasp::try_outcome);
+                if let Some(outcome) = ended {
+                    self.pending = None;
+                    let outcome = outcome.map_err(|e| anyhow::anyhow!("grasp: {e}"))?;
                     let stable = matches!(outcome.reason.as_str(), "stable" | "force_limited");
                     if stable {
                         self.time_to_stable_s = Some(t_s - start);
@@ -365,9 +382,8 @@ impl GraspTask {
         if silent_ms < WATCHDOG_MS {
             return None;
         }
-        let positions: Vec<f64> = self.states.iter().map(|s| s.position_deg).collect();
-        self.ctl.stop(&positions);
-        let _ = self.bus.write_goals(&self.ctl.goals());
+        let _ = self.handle.stop();
+        self.hold_now();
         Some(format!(
             "watchdog: no synchronized set for {silent_ms} ms; fingers hold"
         ))
@@ -381,10 +397,18 @@ impl GraspTask {
         if let Ok(states) = self.bus.read_state() {
             self.states = states;
         }
+        let _ = self.handle.estop();
+        self.hold_now();
+    }
+
+    /// Apply the queued stop or e-stop and write its hold goals at once.
+    fn hold_now(&mut self) {
         let positions: Vec<f64> = self.states.iter().map(|s| s.position_deg).collect();
-        self.ctl.estop(&positions);
-        if let Err(e) = self.bus.write_goals(&self.ctl.goals()) {
-            tracing::error!("e-stop: could not write the hold goals: {e}");
+        self.gripper.apply_commands(&positions);
+        if let Some(goals) = self.gripper.goals()
+            && let Err(e) = self.bus.write_goals(&goals)
+        {
+            tracing::error!("could not write the hold goals: {e}");
         }
     }
 
@@ -410,8 +434,11 @@ impl GraspTask {
             Stage::HoldTest { .. } => "hold_test",
             Stage::Done => "done",
         };
-        let phases = self.ctl.phases();
-        let goals = self.ctl.goals();
+        let (phases, goals) = self
+            .gripper
+            .controller()
+            .map(|c| (c.phases(), c.goals()))
+            .unwrap_or_default();
         let positions: Vec<f64> = self.states.iter().map(|s| s.position_deg).collect();
         if self.log.is_none() {
             return Ok(());

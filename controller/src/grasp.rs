@@ -280,6 +280,11 @@ impl GraspController {
         self.fingers.iter().map(|f| f.force_n).collect()
     }
 
+    /// Each finger's status now.
+    pub fn statuses(&self) -> Vec<FingerStatus> {
+        self.fingers.iter().map(|f| f.status).collect()
+    }
+
     /// Each finger's force target now (it rises when hold re-tightens), N.
     pub fn targets_n(&self) -> Vec<f64> {
         self.fingers.iter().map(|f| f.target_n).collect()
@@ -305,6 +310,7 @@ impl GraspController {
         set: Option<&FusedSet>,
         servos: &[ServoState],
     ) -> ControlOutput {
+        let first_step = self.started_s.is_none();
         let start = *self.started_s.get_or_insert(t_s);
         let dt = (t_s - self.last_s.unwrap_or(t_s)).clamp(0.0, 0.5);
         self.last_s = Some(t_s);
@@ -322,7 +328,9 @@ impl GraspController {
             if !c.active || matches!(c.phase, Phase::Fault) {
                 continue;
             }
-            if c.phase == Phase::Open {
+            // Only the grasp's first step starts the approach: a finger that a release
+            // opened stays open.
+            if c.phase == Phase::Open && first_step {
                 c.phase = Phase::Approach;
                 c.goal_deg = present;
                 c.status = FingerStatus::Moving;
@@ -577,4 +585,4 @@ impl GraspController {
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

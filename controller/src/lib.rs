@@ -15,6 +15,7 @@ pub mod frame;
 pub mod fusion;
 pub mod gate;
 pub mod grasp;
+pub mod gripper;
 pub mod hub;
 pub mod hubtime;
 pub mod layout;

@@ -5,8 +5,8 @@
 use super::*;
 use crate::fusion::FusedContact;
 
-struct ToyFinger {
-    position_deg: f64,
+pub(crate) struct ToyFinger {
+    pub(crate) position_deg: f64,
     contact_deg: Option<f64>,
     force_n: f64,
 }
@@ -15,7 +15,7 @@ const SPRING_MA: f64 = 100.0;
 const N_PER_MA: f64 = 0.05;
 
 impl ToyFinger {
-    fn step(&mut self, goal: &FingerGoal, dt: f64) {
+    pub(crate) fn step(&mut self, goal: &FingerGoal, dt: f64) {
         let limit = self.contact_deg.unwrap_or(f64::INFINITY);
         let max_step = 90.0 * dt;
         let wanted = (goal.position_deg - self.position_deg).clamp(-max_step, max_step);
@@ -32,7 +32,7 @@ impl ToyFinger {
         self.force_n += (steady - self.force_n) * (dt / 0.05).min(1.0);
     }
 
-    fn state(&self, goal: &FingerGoal) -> ServoState {
+    pub(crate) fn state(&self, goal: &FingerGoal) -> ServoState {
         ServoState {
             position_deg: self.position_deg,
             current_ma: if self.force_n > 0.0 {
@@ -44,7 +44,7 @@ impl ToyFinger {
         }
     }
 
-    fn fused(&self) -> FusedContact {
+    pub(crate) fn fused(&self) -> FusedContact {
         FusedContact {
             contact: self.force_n > 0.01,
             area_mm2: self.force_n * 20.0,
@@ -56,7 +56,16 @@ impl ToyFinger {
     }
 }
 
-fn request(target_n: f64) -> GraspRequest {
+/// The fused set the toy fingers give.
+pub(crate) fn toy_set(fingers: &[ToyFinger]) -> FusedSet {
+    FusedSet {
+        fingers: fingers.iter().map(ToyFinger::fused).collect(),
+        palm: None,
+        deformation_mm3: Vec::new(),
+    }
+}
+
+pub(crate) fn request(target_n: f64) -> GraspRequest {
     GraspRequest {
         target_force_n: target_n,
         speed_deg_s: 60.0,
@@ -78,11 +87,7 @@ fn run(
     let mut goals = ctl.goals();
     for k in 0..(seconds * rate_hz) as usize {
         let t = k as f64 * dt;
-        let set = FusedSet {
-            fingers: fingers.iter().map(ToyFinger::fused).collect(),
-            palm: None,
-            deformation_mm3: Vec::new(),
-        };
+        let set = toy_set(fingers);
         let states: Vec<ServoState> = fingers
             .iter()
             .zip(&goals)
@@ -101,7 +106,7 @@ fn run(
     (ctl.outcome().cloned(), forces)
 }
 
-fn toy(contact: Option<f64>) -> Vec<ToyFinger> {
+pub(crate) fn toy(contact: Option<f64>) -> Vec<ToyFinger> {
     (0..3)
         .map(|_| ToyFinger {
             position_deg: 0.0,
@@ -285,11 +290,7 @@ fn a_one_set_outlier_does_not_move_the_finger() {
         .zip(&ctl.goals())
         .map(|(x, g)| x.state(g))
         .collect();
-    let normal = FusedSet {
-        fingers: f.iter().map(ToyFinger::fused).collect(),
-        palm: None,
-        deformation_mm3: Vec::new(),
-    };
+    let normal = toy_set(&f);
     let mut spike = normal.clone();
     spike.fingers[0].force_n *= 10.0;
     let mut a = ctl.clone();

@@ -1,0 +1,312 @@
+//! The grasp API: a cloneable [`GripperHandle`] through which any task (the CLI's gentle
+//! grasp, the dashboard) asks for `grasp`, `release`, `stop` and `estop`, and the
+//! [`GripperService`] that the run loop owns and steps once per gated set.
+//!
+//! The handle never touches the servos: it queues commands, and the run loop applies them
+//! at its next step (or at once for `stop` and `estop`, see
+//! [`GripperService::apply_commands`]). A grasp call resolves with the controller's outcome
+//! (`grasped`, per-finger status, `final_force_n`, `reason`) when the grasp ends: stable,
+//! force-limited, no object, or its own timeout. No call can block forever: a grasp that is
+//! replaced by another, released, stopped or e-stopped resolves at once with that reason,
+//! and when the run loop ends every waiting call gets [`GripperError::Stopped`].
+
+use thiserror::Error;
+use tokio::sync::{mpsc, oneshot};
+
+use crate::actuator::{FingerGoal, ServoState};
+use crate::fusion::FusedSet;
+use crate::grasp::{FingerStatus, GraspController, GraspOutcome, GraspRequest, Tuning};
+
+/// Why a grasp-API call failed.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum GripperError {
+    /// The run loop that drives the gripper has ended (or never started).
+    #[error("the gripper's run loop has stopped: no command can be carried out")]
+    Stopped,
+    /// The request cannot be carried out as given.
+    #[error("invalid grasp request: {field} = {value} ({expected})")]
+    InvalidRequest {
+        /// The offending field.
+        field: &'static str,
+        /// Its value, as given.
+        value: String,
+        /// What is allowed.
+        expected: String,
+    },
+}
+
+enum Command {
+    Grasp(GraspRequest, oneshot::Sender<GraspOutcome>),
+    Release,
+    Stop,
+    Estop,
+}
+
+/// A grasp in progress: its outcome arrives when it ends.
+#[derive(Debug)]
+pub struct PendingGrasp {
+    reply: oneshot::Receiver<GraspOutcome>,
+}
+
+impl PendingGrasp {
+    /// The outcome if the grasp has ended, without waiting.
+    pub fn try_outcome(&mut self) -> Option<Result<GraspOutcome, GripperError>> {
+        match self.reply.try_recv() {
+            Ok(outcome) => Some(Ok(outcome)),
+            Err(oneshot::error::TryRecvError::Empty) => None,
+            Err(oneshot::error::TryRecvError::Closed) => Some(Err(GripperError::Stopped)),
+        }
+    }
+
+    /// Wait for the outcome.
+    pub async fn outcome(self) -> Result<GraspOutcome, GripperError> {
+        self.reply.await.map_err(|_| GripperError::Stopped)
+    }
+}
+
+/// The caller's side of the grasp API; clone it freely.
+#[derive(Debug, Clone)]
+pub struct GripperHandle {
+    tx: mpsc::UnboundedSender<Command>,
+    fingers: usize,
+}
+
+impl std::fmt::Debug for Command {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Command::Grasp(..) => "Grasp",
+            Command::Release => "Release",
+            Command::Stop => "Stop",
+            Command::Estop => "Estop",
+        })
+    }
+}
+
+fn invalid(field: &'static str, value: impl ToString, expected: &str) -> GripperError {
+    GripperError::InvalidRequest {
+        field,
+        value: value.to_string(),
+        expected: expected.to_string(),
+    }
+}
+
+impl GripperHandle {
+    /// Check `request` against this gripper.
+    pub fn validate(&self, request: &GraspRequest) -> Result<(), GripperError> {
+        let positive = |v: f64| v.is_finite() && v > 0.0;
+        if !positive(request.target_force_n) {
+            return Err(invalid(
+                "target_force_n",
+                request.target_force_n,
+                "a finite force above 0 N",
+            ));
+        }
+        if !positive(request.speed_deg_s) {
+            return Err(invalid(
+                "speed_deg_s",
+                request.speed_deg_s,
+                "a finite speed above 0 deg/s",
+            ));
+        }
+        if !(request.current_limit_ma.is_finite() && request.current_limit_ma >= 0.0) {
+            return Err(invalid(
+                "current_limit_ma",
+                request.current_limit_ma,
+                "a finite current of at least 0 mA",
+            ));
+        }
+        if !positive(request.timeout_s) {
+            return Err(invalid(
+                "timeout_s",
+                request.timeout_s,
+                "a finite time above 0 s",
+            ));
+        }
+        if request.fingers.is_empty() || request.fingers.iter().any(|f| *f >= self.fingers) {
+            return Err(invalid(
+                "fingers",
+                format!("{:?}", request.fingers),
+                &format!("finger indices below {}, at least one", self.fingers),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Start a grasp; a grasp already running is replaced (its caller gets `preempted`).
+    pub fn start_grasp(&self, request: GraspRequest) -> Result<PendingGrasp, GripperError> {
+        self.validate(&request)?;
+        let (reply, rx) = oneshot::channel();
+        self.send(Command::Grasp(request, reply))?;
+        Ok(PendingGrasp { reply: rx })
+    }
+
+    /// Grasp and wait for the outcome.
+    pub async fn grasp(&self, request: GraspRequest) -> Result<GraspOutcome, GripperError> {
+        self.start_grasp(request)?.outcome().await
+    }
+
+    /// Open every finger.
+    pub fn release(&self) -> Result<(), GripperError> {
+        self.send(Command::Release)
+    }
+
+    /// Every finger holds where it is.
+    pub fn stop(&self) -> Result<(), GripperError> {
+        self.send(Command::Stop)
+    }
+
+    /// Every finger holds where it is at the minimum current.
+    pub fn estop(&self) -> Result<(), GripperError> {
+        self.send(Command::Estop)
+    }
+
+    fn send(&self, command: Command) -> Result<(), GripperError> {
+        self.tx.send(command).map_err(|_| GripperError::Stopped)
+    }
+}
+
+/// The run loop's side of the grasp API: the controller, driven by the commands queued
+/// through the handles.
+#[derive(Debug)]
+pub struct GripperService {
+    rx: mpsc::UnboundedReceiver<Command>,
+    tuning: Tuning,
+    close_deg: Vec<f64>,
+    open_deg: Vec<f64>,
+    current_limit_ma: f64,
+    ctl: Option<GraspController>,
+    waiting: Option<oneshot::Sender<GraspOutcome>>,
+}
+
+impl GripperService {
+    /// A service for fingers that close toward `close_deg` and open to `open_deg`, whose
+    /// release, stop and e-stop (without a grasp) use `current_limit_ma`; and its handle.
+    pub fn new(
+        tuning: Tuning,
+        close_deg: Vec<f64>,
+        open_deg: Vec<f64>,
+        current_limit_ma: f64,
+    ) -> (Self, GripperHandle) {
+        let (tx, rx) = mpsc::unbounded_channel();
+        let handle = GripperHandle {
+            tx,
+            fingers: close_deg.len(),
+        };
+        let service = Self {
+            rx,
+            tuning,
+            close_deg,
+            open_deg,
+            current_limit_ma,
+            ctl: None,
+            waiting: None,
+        };
+        (service, handle)
+    }
+
+    /// The controller of the current (or last) grasp.
+    pub fn controller(&self) -> Option<&GraspController> {
+        self.ctl.as_ref()
+    }
+
+    /// The goals in force (`None` before any command).
+    pub fn goals(&self) -> Option<Vec<FingerGoal>> {
+        self.ctl.as_ref().map(GraspController::goals)
+    }
+
+    /// A controller for commands that come without a grasp: every finger, no force.
+    fn idle_controller(&self) -> GraspController {
+        GraspController::new(
+            GraspRequest {
+                target_force_n: 0.0,
+                speed_deg_s: 0.0,
+                current_limit_ma: self.current_limit_ma,
+                fingers: (0..self.close_deg.len()).collect(),
+                timeout_s: f64::INFINITY,
+            },
+            self.tuning.clone(),
+            self.close_deg.clone(),
+            self.open_deg.clone(),
+        )
+    }
+
+    /// Resolve the waiting grasp call, if any, with `reason`.
+    fn end_waiting(&mut self, reason: &str) {
+        if let Some(reply) = self.waiting.take() {
+            let n = self.close_deg.len();
+            let outcome = GraspOutcome {
+                grasped: false,
+                status: self.ctl.as_ref().map_or_else(
+                    || vec![FingerStatus::Moving; n],
+                    |c| {
+                        c.outcome()
+                            .map_or_else(|| c.statuses(), |o| o.status.clone())
+                    },
+                ),
+                final_force_n: self.ctl.as_ref().map_or(0.0, |c| c.forces_n().iter().sum()),
+                reason: reason.to_string(),
+            };
+            let _ = reply.send(outcome);
+        }
+    }
+
+    /// Apply every queued command; `positions` are the servos' last positions (stop and
+    /// e-stop hold there). Returns true when the goals changed in a way that must reach
+    /// the servos at once (stop, e-stop), without waiting for the next set.
+    pub fn apply_commands(&mut self, positions: &[f64]) -> bool {
+        let mut urgent = false;
+        while let Ok(command) = self.rx.try_recv() {
+            match command {
+                Command::Grasp(request, reply) => {
+                    self.end_waiting("preempted");
+                    self.ctl = Some(GraspController::new(
+                        request,
+                        self.tuning.clone(),
+                        self.close_deg.clone(),
+                        self.open_deg.clone(),
+                    ));
+                    self.waiting = Some(reply);
+                }
+                Command::Release => {
+                    self.end_waiting("released");
+                    let idle = self.idle_controller();
+                    self.ctl.get_or_insert(idle).release();
+                }
+                Command::Stop => {
+                    self.end_waiting("stopped");
+                    let idle = self.idle_controller();
+                    self.ctl.get_or_insert(idle).stop(positions);
+                    urgent = true;
+                }
+                Command::Estop => {
+                    self.end_waiting("estop");
+                    let idle = self.idle_controller();
+                    self.ctl.get_or_insert(idle).estop(positions);
+                    urgent = true;
+                }
+            }
+        }
+        urgent
+    }
+
+    /// One control step with the newest gated set; returns the goals to write (`None`
+    /// before any command). A grasp that ends here resolves its caller.
+    pub fn step(
+        &mut self,
+        t_s: f64,
+        set: Option<&FusedSet>,
+        servos: &[ServoState],
+    ) -> Option<Vec<FingerGoal>> {
+        let ctl = self.ctl.as_mut()?;
+        let out = ctl.step(t_s, set, servos);
+        if let Some(outcome) = out.done
+            && let Some(reply) = self.waiting.take()
+        {
+            let _ = reply.send(outcome);
+        }
+        Some(out.goals)
+    }
+}
+
+#[cfg(test)]
+mod tests;
