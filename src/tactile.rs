@@ -18,6 +18,7 @@ use gelgrip_controller::fusion::SensorReading;
 use gelgrip_plugins::calibrate;
 use gelgrip_plugins::config::PipelineConfig;
 use gelgrip_plugins::contact::ContactSummary;
+use gelgrip_plugins::dataset::PressDataset;
 use gelgrip_plugins::lut::Input;
 use gelgrip_plugins::lut::LutModel;
 use gelgrip_plugins::pipeline::{Needs, SensorPipeline, StageChoice, process_set};
@@ -27,8 +28,12 @@ use gelgrip_sim::pool::SensorCamera;
 
 use crate::simcam;
 
-/// Simulated presses per sensor for an automatic calibration.
+/// Simulated presses per sensor for an automatic calibration, shared between the balls.
 const CALIBRATION_PRESSES: usize = 50;
+/// Ball diameters of the automatic calibration, mm: a small ball for steep gradients and a
+/// broad one for the shallow gradients of grasped objects (trained on the small ball
+/// alone, the LUT read broad contacts 20–30% low).
+const CALIBRATION_BALLS_MM: [f64; 2] = [6.0, 25.0];
 /// No-contact frames averaged into each sensor's reference.
 const REFERENCE_FRAMES: u64 = 12;
 
@@ -118,8 +123,13 @@ fn sensor_model(
             .with_context(|| format!("sensor {id}: model {}", path.display()));
     }
     let cached = cache_dir().join(format!(
-        "sim-seed{}-{id}-{}x{}-q{}-lut.safetensors",
-        sim.seed, cam.width, cam.height, sim.jpeg_quality
+        "sim-seed{}-{id}-{}x{}-q{}-lut-{}+{}mm.safetensors",
+        sim.seed,
+        cam.width,
+        cam.height,
+        sim.jpeg_quality,
+        CALIBRATION_BALLS_MM[0],
+        CALIBRATION_BALLS_MM[1]
     ));
     if let Ok(m) = LutModel::load(&cached) {
         return Ok(m);
@@ -129,10 +139,27 @@ fn sensor_model(
         presses = CALIBRATION_PRESSES,
         "calibrating on simulated presses (cached for later runs)"
     );
-    let tmp = std::env::temp_dir().join(format!("gelgrip-autocal-{}-{id}", std::process::id()));
-    let ds = simcam::collect(cam, sim, CALIBRATION_PRESSES, &tmp, |_| {})?;
-    let model = calibrate::train_lut(&ds, Input::Diff, gelgrip_plugins::lut::DEFAULT_BINS)?;
-    let _ = std::fs::remove_dir_all(&tmp);
+    let mut datasets = Vec::new();
+    for (k, ball_mm) in CALIBRATION_BALLS_MM.into_iter().enumerate() {
+        let tmp = std::env::temp_dir().join(format!(
+            "gelgrip-autocal-{}-{id}-{ball_mm}mm",
+            std::process::id()
+        ));
+        let balls = SimConfig {
+            ball_diameter_mm: ball_mm,
+            seed: sim.seed ^ k as u64,
+            ..sim.clone()
+        };
+        let presses = CALIBRATION_PRESSES / CALIBRATION_BALLS_MM.len();
+        datasets.push(simcam::collect(cam, &balls, presses, &tmp, |_| {})?);
+    }
+    let refs: Vec<&PressDataset> = datasets.iter().collect();
+    let model = calibrate::train_lut_on(&refs, Input::Diff, gelgrip_plugins::lut::DEFAULT_BINS);
+    // The images are read while training; the temporary datasets go afterwards.
+    for ds in &datasets {
+        let _ = std::fs::remove_dir_all(&ds.dir);
+    }
+    let model = model?;
     if let Some(dir) = cached.parent() {
         let _ = std::fs::create_dir_all(dir);
     }

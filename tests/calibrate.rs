@@ -232,7 +232,7 @@ fn calibrate_force_fits_the_simulators_gel_stiffness() {
         r["worst_abs_err_pct"].as_f64().is_some_and(|v| v < 20.0),
         "{r}"
     );
-    assert_eq!(r["configured_stiffness_n_per_mm3"], 0.075);
+    assert_eq!(r["configured_stiffness_n_per_mm3"], 0.081);
     let bad = std::process::Command::new(env!("CARGO_BIN_EXE_gelgrip"))
         .args(["calibrate", "force", "--sensor", "f9.tip"])
         .output()

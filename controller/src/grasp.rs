@@ -357,9 +357,13 @@ impl GraspController {
                     let measured = servos
                         .get(f)
                         .map_or(0.0, |s| finite_or(s.current_ma.abs(), 0.0));
+                    // A contact that goes away before the squeeze was not one: approach on.
                     if fused.contact && c.phase == Phase::Approach {
                         c.phase = Phase::Contact;
                         c.contact_since_s = Some(t_s);
+                    } else if !fused.contact && c.phase == Phase::Contact {
+                        c.phase = Phase::Approach;
+                        c.contact_since_s = None;
                     }
                     if c.phase == Phase::Approach {
                         // Learn what the return springs take: track the free-motion current,

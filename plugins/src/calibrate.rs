@@ -29,25 +29,53 @@ fn key(img: &RgbImage, bg: &RgbImage, p: usize, input: Input) -> [f32; 3] {
 /// Background pixels are added with zero gradient, one in five of the contact pixels' count,
 /// so that the no-contact colours map to zero.
 pub fn train_lut(ds: &PressDataset, input: Input, bins: usize) -> Result<LutModel, DatasetError> {
-    let (w, h) = (ds.background.width, ds.background.height);
+    train_lut_on(&[ds], input, bins)
+}
+
+/// Train one LUT on the training rows of several datasets of the same sensor (for example
+/// presses of a small and of a broad ball, so that both steep and shallow gradients are
+/// learnt). Every dataset must have the first one's image size.
+pub fn train_lut_on(
+    datasets: &[&PressDataset],
+    input: Input,
+    bins: usize,
+) -> Result<LutModel, DatasetError> {
+    let Some(first) = datasets.first() else {
+        return Err(DatasetError::Format {
+            path: String::new(),
+            detail: "no dataset to train on".into(),
+        });
+    };
+    let (w, h) = (first.background.width, first.background.height);
     let mut trainer = LutTrainer::new(input, bins);
-    let r = ds.ball_radius_px();
-    for press in &ds.presses[..split_index(ds.presses.len())] {
-        let img = ds.press_image(press)?;
-        let truth = PressTruth::new(press, r, w, h);
-        let (gx, gy) = truth.gradients(w, h);
-        let inside = truth.inside.iter().filter(|v| **v).count().max(1);
-        let outside = (w * h - inside).max(1);
-        let stride = (outside * 5 / inside).max(1);
-        for p in 0..w * h {
-            if truth.inside[p] {
-                trainer.add(
-                    key(&img, &ds.background, p, input),
-                    gx[p] as f32,
-                    gy[p] as f32,
-                );
-            } else if p % stride == 0 && truth.depth_px[p] == 0.0 {
-                trainer.add(key(&img, &ds.background, p, input), 0.0, 0.0);
+    for ds in datasets {
+        if (ds.background.width, ds.background.height) != (w, h) {
+            return Err(DatasetError::Format {
+                path: ds.dir.display().to_string(),
+                detail: format!(
+                    "images are {}x{}, the first dataset's are {w}x{h}",
+                    ds.background.width, ds.background.height
+                ),
+            });
+        }
+        let r = ds.ball_radius_px();
+        for press in &ds.presses[..split_index(ds.presses.len())] {
+            let img = ds.press_image(press)?;
+            let truth = PressTruth::new(press, r, w, h);
+            let (gx, gy) = truth.gradients(w, h);
+            let inside = truth.inside.iter().filter(|v| **v).count().max(1);
+            let outside = (w * h - inside).max(1);
+            let stride = (outside * 5 / inside).max(1);
+            for p in 0..w * h {
+                if truth.inside[p] {
+                    trainer.add(
+                        key(&img, &ds.background, p, input),
+                        gx[p] as f32,
+                        gy[p] as f32,
+                    );
+                } else if p % stride == 0 && truth.depth_px[p] == 0.0 {
+                    trainer.add(key(&img, &ds.background, p, input), 0.0, 0.0);
+                }
             }
         }
     }

@@ -17,6 +17,9 @@
 pub const BLOCK_PX: usize = 8;
 /// Multiples of the noise standard deviation above its mean that count as signal.
 pub const NOISE_SIGMAS: f64 = 5.0;
+/// Fewer pixels above the depth threshold than this are noise, not contact (a 6 mm ball
+/// 0.1 mm deep already covers about 450 px at 0.0625 mm/px).
+pub const MIN_CONTACT_PX: usize = 16;
 /// Default stiffness of the force proxy, N/mm³.
 pub const DEFAULT_STIFFNESS_N_PER_MM3: f64 = 0.1;
 
@@ -92,7 +95,7 @@ pub fn summarize(
             cy += (y0 + k / w) as f64 * d;
         }
     }
-    if n == 0 {
+    if n < MIN_CONTACT_PX {
         return ContactSummary {
             max_depth_mm: Some(0.0),
             mean_depth_mm: Some(0.0),
@@ -136,15 +139,22 @@ mod tests {
             block_threshold: 1.0,
             depth_threshold_mm: 0.01,
         };
+        // A 4×4 plateau at (1..5, 1..5): exactly the fewest pixels that count as contact.
         let mut depth = vec![0.0f32; 100];
-        for k in [11, 12, 21, 22] {
-            depth[k] = 0.5;
+        for y in 1..5 {
+            for x in 1..5 {
+                depth[y * 10 + x] = 0.5;
+            }
         }
         let s = summarize(&depth, 10, (100, 50), 0.1, 1.0, &noise, 0.1);
         assert!(s.in_contact);
-        assert!((s.area_mm2 - 0.04).abs() < 1e-12);
-        assert!((s.volume_mm3.unwrap_or(0.0) - 0.02).abs() < 1e-9);
-        assert_eq!(s.centroid_px, Some((101.5, 51.5)));
+        assert!((s.area_mm2 - 0.16).abs() < 1e-12);
+        assert!((s.volume_mm3.unwrap_or(0.0) - 0.08).abs() < 1e-9);
+        assert_eq!(s.centroid_px, Some((102.5, 52.5)));
+        // One pixel fewer is noise.
+        depth[44] = 0.0;
+        let s = summarize(&depth, 10, (100, 50), 0.1, 1.0, &noise, 0.1);
+        assert!(!s.in_contact);
         let none = summarize(&[f32::NAN; 4], 2, (0, 0), 0.1, 1.0, &noise, 0.1);
         assert!(!none.in_contact);
     }

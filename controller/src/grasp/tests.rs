@@ -300,3 +300,29 @@ fn a_one_set_outlier_does_not_move_the_finger() {
     assert_eq!(quiet.goals, glitch.goals);
     assert_eq!(a.forces_n(), b.forces_n());
 }
+
+#[test]
+fn a_contact_that_vanishes_before_the_squeeze_was_not_one() {
+    let mut ctl = controller(2.0);
+    let f = toy(None);
+    let states: Vec<ServoState> = f
+        .iter()
+        .map(|x| ServoState {
+            position_deg: x.position_deg,
+            ..ServoState::default()
+        })
+        .collect();
+    let mut glitch = toy_set(&f);
+    glitch.fingers[0].contact = true;
+    ctl.step(0.0, Some(&toy_set(&f)), &states);
+    ctl.step(0.033, Some(&glitch), &states);
+    assert_eq!(ctl.phases()[0], Phase::Contact);
+    ctl.step(0.066, Some(&toy_set(&f)), &states);
+    assert_eq!(ctl.phases()[0], Phase::Approach, "back to approaching");
+    // Long after, it has not squeezed blindly: the cap is still the approach cap.
+    for k in 3..30 {
+        ctl.step(k as f64 * 0.033, Some(&toy_set(&f)), &states);
+    }
+    assert_eq!(ctl.phases()[0], Phase::Approach);
+    assert!(ctl.goals()[0].goal_current_ma <= Tuning::default().approach_current_ma);
+}
