@@ -1,7 +1,8 @@
 //! The built-in `gentle-grasp` task: every gated set goes through the tactile pipelines,
 //! is fused per finger, and steps the grasp controller through the grasp API
 //! ([`gelgrip_controller::gripper`]: the task asks for the grasp, stop and e-stop through
-//! its handle, as the dashboard will), whose goals are written to the servos at once. When the grasp is stable the task tests the hold on the simulator (the
+//! its handle, as the dashboard will), whose goals are written to the servos at once. When
+//! the grasp is stable (and after `--hold`), the task tests the hold on the simulator (the
 //! object is let go and pulled with twice its weight for 1 s; held = it slips less than
 //! 1 mm), then ends.
 //!
@@ -60,9 +61,8 @@ pub struct TaskReport {
     /// simulator, the object was held through the hold test.
     pub grasped: bool,
     /// Peak force of any finger during the grasp (and the `--hold` that follows it, before
-    /// the hold test), as
-    /// the controller regulates it (the fused force, median of three sets against one-set
-    /// outliers, averaged), N.
+    /// the hold test), as the controller regulates it (the fused force, median of three
+    /// sets against one-set outliers, averaged), N.
     pub peak_force_n: f64,
     /// The same during the hold test, where slip may re-tighten a finger (simulator only).
     pub hold_test_peak_force_n: Option<f64>,
