@@ -104,7 +104,9 @@ pub fn open_servos(
                 ))
                 .into());
             }
-            let bus = SimServoBus::new(world.clone(), clock, &s.ids, s.current_limit_ma)?;
+            let faults = servo_faults(config)?;
+            let bus = SimServoBus::new(world.clone(), clock, &s.ids, s.current_limit_ma)?
+                .with_faults(faults);
             Ok(Some(Box::new(bus)))
         }
     }
@@ -121,7 +123,16 @@ pub fn load_config(path: Option<&Path>, registry: &TransportRegistry) -> anyhow:
         )?,
     };
     gelgrip_plugins::config::PipelineConfig::from_section(&config.pipeline, &config.layout)?;
+    servo_faults(&config)?;
     Ok(config)
+}
+
+/// The simulated servo bus's scheduled faults (`[[servos.sim.faults]]`), validated.
+fn servo_faults(
+    config: &AppConfig,
+) -> Result<Vec<gelgrip_sim::servo_fault_plan::ScheduledFault>, ConfigError> {
+    let check = gelgrip_controller::config::FieldCheck::new(config.file.clone());
+    gelgrip_sim::servo_fault_plan::parse(&check, &config.servos.sim, &config.servos.ids)
 }
 
 /// The clock for `arg`.

@@ -142,6 +142,62 @@ fn a_target_beyond_the_current_cap_holds_what_the_cap_allows_without_overloading
     );
 }
 
+/// The gentle grasp on the tennis ball with `config` (a scheduled servo fault).
+fn faulted_grasp(config: &str) -> Output {
+    run_cmd(&[
+        "--duration",
+        "25",
+        "--config",
+        config,
+        "--task",
+        "gentle-grasp",
+    ])
+    .output()
+    .expect("gelgrip runs")
+}
+
+#[test]
+fn an_overload_mid_squeeze_is_recovered_listed_and_the_grasp_completes() {
+    let r = report(&faulted_grasp("tests/configs/overload-mid-squeeze.toml"), 0);
+    assert_eq!(r["end_reason"], "done", "{r}");
+    let faults = r["faults"].as_array().expect("faults");
+    assert!(
+        faults.iter().any(|f| f
+            .as_str()
+            .is_some_and(|f| f.contains("servo 2") && f.contains("overload recovered"))),
+        "{r}"
+    );
+    assert_eq!(r["grasped"], true, "{r}");
+    assert!(
+        r["peak_force_n"].as_f64().is_some_and(|p| p <= 1.1 * 1.5),
+        "{r}"
+    );
+}
+
+#[test]
+fn a_servo_that_cannot_recover_mid_squeeze_ends_the_run_as_a_fault() {
+    let r = report(
+        &faulted_grasp("tests/configs/overheating-mid-squeeze.toml"),
+        1,
+    );
+    assert_eq!(r["end_reason"], "fault", "{r}");
+    assert_eq!(r["grasped"], false, "{r}");
+    assert!(
+        r["faults"].as_array().is_some_and(|f| f.iter().any(|f| f
+            .as_str()
+            .is_some_and(|f| f.contains("servo 2") && f.contains("persists")))),
+        "{r}"
+    );
+}
+
+#[test]
+fn a_fault_on_an_unknown_servo_is_a_config_error() {
+    let out = common::gelgrip(&["check-config", "tests/configs/bad-servo-fault.toml"]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("servos.sim.faults[0].servo"), "{err}");
+}
+
 #[test]
 fn an_unknown_task_is_a_usage_error() {
     let out = common::gelgrip(&["run", "--headless", "--duration", "1", "--task", "juggle"]);

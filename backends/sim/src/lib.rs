@@ -30,6 +30,7 @@ pub mod scene;
 pub mod scene_frames;
 pub mod scene_spec;
 pub mod servo_bus;
+pub mod servo_fault_plan;
 pub mod shapes;
 pub mod timeline;
 pub mod unit;

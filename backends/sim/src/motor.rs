@@ -89,6 +89,13 @@ impl Xm430Motor {
         self.faults
     }
 
+    /// The same motor with an Overload fault raised now (fault injection): torque is cut
+    /// until a reboot clears it.
+    pub fn overloaded(mut self) -> Self {
+        self.faults |= OVERLOAD;
+        self
+    }
+
     /// The same motor with its windings at `temperature_c` (a motor that has been working).
     pub fn with_temperature(mut self, temperature_c: f64) -> Self {
         if temperature_c.is_finite() {

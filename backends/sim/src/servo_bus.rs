@@ -7,7 +7,7 @@
 //! ([`gelgrip_controller::actuator::recover`]). Calls never block: the bus is in-process,
 //! so no wire time is charged.
 
-use std::sync::{Arc, MutexGuard};
+use std::sync::{Arc, Mutex, MutexGuard};
 
 use gelgrip_controller::actuator::{
     FingerGoal, MotorCommand, RecoveredFault, ServoBus, ServoError, ServoState, check_goal_count,
@@ -15,7 +15,12 @@ use gelgrip_controller::actuator::{
 };
 use gelgrip_controller::clock::Clock;
 
+use crate::servo_fault_plan::{ScheduledFault, ServoFaultKind};
 use crate::world::{SharedWorld, World};
+
+/// Winding temperature of an injected overheating, °C (above the 80 °C limit, and it takes
+/// minutes to cool).
+const OVERHEATED_C: f64 = 95.0;
 
 /// Simulated servos, one per finger of the world.
 pub struct SimServoBus {
@@ -25,6 +30,8 @@ pub struct SimServoBus {
     current_limit_ma: f64,
     torque_on: bool,
     recovered: Vec<RecoveredFault>,
+    /// Faults still to strike, earliest first.
+    faults: Mutex<Vec<ScheduledFault>>,
 }
 
 impl std::fmt::Debug for SimServoBus {
@@ -59,12 +66,32 @@ impl SimServoBus {
             current_limit_ma,
             torque_on: false,
             recovered: Vec::new(),
+            faults: Mutex::new(Vec::new()),
         })
+    }
+
+    /// The same bus, with `faults` to strike at their times (`[[servos.sim.faults]]`).
+    pub fn with_faults(mut self, faults: Vec<ScheduledFault>) -> Self {
+        self.faults = Mutex::new(faults);
+        self
     }
 
     fn world(&self) -> Result<MutexGuard<'_, World>, ServoError> {
         let mut w = lock(&self.world)?;
         w.advance_to(self.clock.now_us());
+        let now_s = w.elapsed_s();
+        let mut faults = self
+            .faults
+            .lock()
+            .map_err(|_| ServoError::Bus("the fault schedule's lock is poisoned".into()))?;
+        let due = faults.iter().take_while(|f| f.at_s <= now_s).count();
+        for f in faults.drain(..due) {
+            tracing::warn!(finger = f.finger, kind = ?f.kind, "injected servo fault");
+            w.change_motor(f.finger, |m| match f.kind {
+                ServoFaultKind::Overload => m.overloaded(),
+                ServoFaultKind::Overheating => m.with_temperature(OVERHEATED_C),
+            });
+        }
         Ok(w)
     }
 

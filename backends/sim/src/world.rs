@@ -232,6 +232,14 @@ impl World {
         }
     }
 
+    /// Replace `finger`'s motor by `change` of it (fault injection: a servo that overloads
+    /// or overheats now).
+    pub fn change_motor(&mut self, finger: usize, change: impl FnOnce(Xm430Motor) -> Xm430Motor) {
+        if let Some(m) = self.motors.get_mut(finger) {
+            *m = change(m.clone());
+        }
+    }
+
     /// Clear `finger`'s motor faults (a servo reboot).
     pub fn reboot_motor(&mut self, finger: usize) {
         let Some(m) = self.motors.get_mut(finger) else {

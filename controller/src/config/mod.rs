@@ -61,6 +61,8 @@ pub struct ServoSettings {
     pub ids: Vec<u8>,
     /// Current Limit written to every servo, and the cap on every goal current, mA.
     pub current_limit_ma: f64,
+    /// `[servos.sim]`, unparsed: the simulated bus validates it (fault injection).
+    pub sim: toml::Table,
 }
 
 /// `[http]`.
@@ -188,6 +190,7 @@ struct RawServos {
     baud: u32,
     ids: Vec<u8>,
     current_limit_ma: f64,
+    sim: toml::Table,
 }
 
 impl Default for RawServos {
@@ -198,6 +201,7 @@ impl Default for RawServos {
             baud: 1_000_000,
             ids: vec![1, 2, 3],
             current_limit_ma: 1000.0,
+            sim: toml::Table::new(),
         }
     }
 }
@@ -385,6 +389,7 @@ fn validate_servos(check: &FieldCheck, raw: RawServos) -> Result<ServoSettings, 
         baud: raw.baud,
         ids: raw.ids,
         current_limit_ma,
+        sim: raw.sim,
     })
 }
 
