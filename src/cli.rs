@@ -248,9 +248,24 @@ pub struct BenchPipelineArgs {
     /// Timed sets (the median needs at least 200).
     #[arg(long, default_value = "200", value_parser = clap::value_parser!(u32).range(1..=100_000))]
     pub sets: u32,
+    /// Diameter of the ball pressing every sensor, mm (6: a fingertip probe; 30 with
+    /// `--press-depth-mm 1`: a broad contact such as a grasped object makes).
+    #[arg(long, default_value_t = 6.0, value_parser = parse_ball_mm)]
+    pub ball_mm: f64,
+    /// Depth of the press, mm.
+    #[arg(long, default_value_t = 0.5, value_parser = parse_press_depth_mm)]
+    pub press_depth_mm: f64,
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,
+}
+
+fn parse_ball_mm(s: &str) -> Result<f64, String> {
+    parse_within(s, "a diameter", "mm", 0.5..=50.0)
+}
+
+fn parse_press_depth_mm(s: &str) -> Result<f64, String> {
+    parse_within(s, "a depth", "mm", 0.0..=3.0)
 }
 
 impl BenchPipelineArgs {

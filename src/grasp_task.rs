@@ -79,6 +79,9 @@ pub struct TaskReport {
     pub loop_latency_ms_p99: Option<f64>,
     /// p99 capture-to-command latency, ms.
     pub capture_to_command_ms_p99: Option<f64>,
+    /// p99 of the tactile pipelines' share of the loop (JPEG to contact, every sensor),
+    /// ms: the loop's own overhead is the loop latency less this.
+    pub pipeline_ms_p99: Option<f64>,
     /// Why the grasp ended (`stable`, `force_limited`: held at what the current limit
     /// allows, `no_object`, `timeout …`, `watchdog …`).
     pub reason: String,
@@ -118,6 +121,7 @@ pub struct GraspTask {
     time_to_stable_s: Option<f64>,
     loop_ms: Vec<f64>,
     capture_ms: Vec<f64>,
+    pipeline_ms: Vec<f64>,
     hold_slip_mm: Option<f64>,
     log: Option<std::io::BufWriter<std::fs::File>>,
     /// Recovered servo faults, described.
@@ -233,6 +237,7 @@ impl GraspTask {
             time_to_stable_s: None,
             loop_ms: Vec::new(),
             capture_ms: Vec::new(),
+            pipeline_ms: Vec::new(),
             hold_slip_mm: None,
             log,
             recovered: Vec::new(),
@@ -281,6 +286,8 @@ impl GraspTask {
         let t_s = now_us as f64 / 1e6;
         let start = *self.start_s.get_or_insert(t_s);
         let readings = self.tactile.process(set);
+        self.pipeline_ms
+            .push(handed_over.elapsed().as_secs_f64() * 1e3);
         let fused = fuse(&self.layout, &readings);
         if self.states.is_empty() {
             self.states = self.read()?;
@@ -502,6 +509,7 @@ impl GraspTask {
             loop_latency_ms_p50: quantile(&self.loop_ms, 0.5),
             loop_latency_ms_p99: quantile(&self.loop_ms, 0.99),
             capture_to_command_ms_p99: quantile(&self.capture_ms, 0.99),
+            pipeline_ms_p99: quantile(&self.pipeline_ms, 0.99),
             reason: outcome
                 .as_ref()
                 .map_or_else(|| "not finished".into(), |o| o.reason.clone()),

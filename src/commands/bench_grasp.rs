@@ -12,7 +12,7 @@ use serde_json::Value;
 use crate::cli::BenchGraspArgs;
 
 /// Fields copied from each run's report into the row.
-const FIELDS: [&str; 15] = [
+const FIELDS: [&str; 16] = [
     "object",
     "grasped",
     "crushed",
@@ -24,6 +24,7 @@ const FIELDS: [&str; 15] = [
     "loop_latency_ms_p50",
     "loop_latency_ms_p99",
     "capture_to_command_ms_p99",
+    "pipeline_ms_p99",
     "reason",
     "hold_slip_mm",
     "end_reason",
@@ -122,7 +123,7 @@ pub fn run(args: BenchGraspArgs) -> anyhow::Result<u8> {
         return Ok(0);
     }
     println!(
-        "{:<12} {:>7} {:>7} {:>8} {:>8} {:>8} {:>8} {:>9} {:>8}  reason",
+        "{:<12} {:>7} {:>7} {:>8} {:>8} {:>8} {:>8} {:>9} {:>9} {:>8}  reason",
         "scene",
         "grasped",
         "crushed",
@@ -131,12 +132,13 @@ pub fn run(args: BenchGraspArgs) -> anyhow::Result<u8> {
         "hold N",
         "stable s",
         "loop p99",
+        "pipe p99",
         "slip mm"
     );
     let num = |v: &Value, d: usize| v.as_f64().map_or("-".to_string(), |x| format!("{x:.d$}"));
     for r in &rows {
         println!(
-            "{:<12} {:>7} {:>7} {:>8} {:>8} {:>8} {:>8} {:>9} {:>8}  {}",
+            "{:<12} {:>7} {:>7} {:>8} {:>8} {:>8} {:>8} {:>9} {:>9} {:>8}  {}",
             r["scene"].as_str().unwrap_or(""),
             r["grasped"],
             r["crushed"],
@@ -145,6 +147,7 @@ pub fn run(args: BenchGraspArgs) -> anyhow::Result<u8> {
             num(&r["hold_test_peak_force_n"], 2),
             num(&r["time_to_stable_s"], 1),
             num(&r["loop_latency_ms_p99"], 1),
+            num(&r["pipeline_ms_p99"], 1),
             num(&r["hold_slip_mm"], 2),
             r["reason"].as_str().unwrap_or("")
         );

@@ -2,7 +2,9 @@
 //! at 320×240, from JPEG bytes to contact, with the results checked against the simulator's
 //! truth.
 //!
-//! Every sensor is pressed by a 6 mm ball 0.5 mm deep. Each sensor is calibrated first, as it
+//! Every sensor is pressed by a ball, 6 mm and 0.5 mm deep unless `--ball-mm` and
+//! `--press-depth-mm` say otherwise (a broad press gives the large depth windows of a
+//! grasp). Each sensor is calibrated first, as it
 //! would be on hardware: 50 simulated presses, a LUT trained on them, then a 20-frame
 //! no-contact capture for the reference and the noise thresholds. The timed loop processes
 //! the sensors of each set in parallel (`process_set`: rayon, one task per sensor) and
@@ -106,12 +108,11 @@ pub fn run(args: BenchPipelineArgs) -> anyhow::Result<u8> {
         .hub
         .section
         .table
-        .insert("ball_diameter_mm".into(), toml::Value::Float(6.0));
-    config
-        .hub
-        .section
-        .table
-        .insert("press_depth_mm".into(), toml::Value::Float(0.5));
+        .insert("ball_diameter_mm".into(), toml::Value::Float(args.ball_mm));
+    config.hub.section.table.insert(
+        "press_depth_mm".into(),
+        toml::Value::Float(args.press_depth_mm),
+    );
     if args.model == crate::cli::ModelKind::Mlp {
         anyhow::bail!(crate::cli::UsageError(
             "--model mlp arrives with the calibration issue (MLP); available: lut".into()
