@@ -1,8 +1,9 @@
 //! The live tactile pipelines of a run: one `SensorPipeline` per sensor, built from the
 //! `[pipeline]` section, with each sensor's gradient model either from its configured
-//! `model` file or, on the simulator, calibrated from simulated ball presses of that very
-//! sensor (as `calibrate collect` + `calibrate train` would) and cached on disk, keyed by
-//! the seed, sensor, resolution and JPEG quality, so later runs start at once.
+//! `model` file or, on the simulator, calibrated from simulated presses of a 6 mm and a
+//! 25 mm ball on that very sensor (as `calibrate collect` + `calibrate train` would) and
+//! cached on disk, keyed by the recipe's version, the seed, sensor, resolution, JPEG
+//! quality and camera noise, so later runs start at once.
 //!
 //! Each gated set goes through [`Tactile::process`], the sensors in parallel, and comes out
 //! as the controller's per-sensor readings (`None` for a sensor whose frame failed).
@@ -34,6 +35,9 @@ const CALIBRATION_PRESSES: usize = 50;
 /// broad one for the shallow gradients of grasped objects (trained on the small ball
 /// alone, the LUT read broad contacts 20–30% low).
 const CALIBRATION_BALLS_MM: [f64; 2] = [6.0, 25.0];
+/// Version of the self-calibration recipe; raise it when the recipe changes so cached
+/// models from an older one are not reused.
+const CALIBRATION_VERSION: u32 = 2;
 /// No-contact frames averaged into each sensor's reference.
 const REFERENCE_FRAMES: u64 = 12;
 
@@ -122,12 +126,15 @@ fn sensor_model(
         return LutModel::load(path)
             .with_context(|| format!("sensor {id}: model {}", path.display()));
     }
+    // Everything the calibration depends on is in the key, so a changed camera or recipe
+    // never reuses an old model.
     let cached = cache_dir().join(format!(
-        "sim-seed{}-{id}-{}x{}-q{}-lut-{}+{}mm.safetensors",
+        "sim-v{CALIBRATION_VERSION}-seed{}-{id}-{}x{}-q{}-noise{}-lut-{}+{}mm.safetensors",
         sim.seed,
         cam.width,
         cam.height,
         sim.jpeg_quality,
+        sim.noise_sigma,
         CALIBRATION_BALLS_MM[0],
         CALIBRATION_BALLS_MM[1]
     ));
