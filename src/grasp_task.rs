@@ -257,9 +257,9 @@ impl GraspTask {
             .collect()
     }
 
-    /// The simulator's largest finger force now (the sum over each finger's pads), N.
-    fn true_finger_peak_n(&self) -> Option<f64> {
-        let pads = self.true_forces_n();
+    /// The largest finger force (the sum over each finger's pads) of the simulator's pad
+    /// forces `pads`, N (`None` off the simulator).
+    fn true_finger_peak_n(&self, pads: &[f64]) -> Option<f64> {
         if pads.is_empty() {
             return None;
         }
@@ -305,6 +305,7 @@ impl GraspTask {
         self.capture_ms
             .push(set.latency_us() as f64 / 1e3 + loop_ms);
         self.states = self.read()?;
+        let truth = self.true_forces_n();
         let regulated = self
             .gripper
             .controller()
@@ -312,8 +313,8 @@ impl GraspTask {
         match self.stage {
             Stage::Grasp | Stage::Hold { .. } => {
                 self.peak_force_n = self.peak_force_n.max(regulated);
-                if let Some(truth) = self.true_finger_peak_n() {
-                    self.true_peak_force_n = Some(self.true_peak_force_n.unwrap_or(0.0).max(truth));
+                if let Some(peak) = self.true_finger_peak_n(&truth) {
+                    self.true_peak_force_n = Some(self.true_peak_force_n.unwrap_or(0.0).max(peak));
                 }
             }
             Stage::HoldTest { .. } => {
@@ -322,7 +323,7 @@ impl GraspTask {
             }
             Stage::Done => {}
         }
-        self.write_log(t_s - start, &fused.deformation_mm3, &fused.fingers)?;
+        self.write_log(t_s - start, &fused.deformation_mm3, &truth, &fused.fingers)?;
         match self.stage {
             Stage::Grasp => {
                 let ended = self.pending.as_mut().and_then(PendingGrasp::try_outcome);
@@ -433,6 +434,7 @@ impl GraspTask {
         &mut self,
         t_s: f64,
         deformation: &[Option<f64>],
+        truth: &[f64],
         fingers: &[gelgrip_controller::fusion::FusedContact],
     ) -> anyhow::Result<()> {
         let stage = match self.stage {
@@ -447,10 +449,6 @@ impl GraspTask {
             .map(|c| (c.phases(), c.goals()))
             .unwrap_or_default();
         let positions: Vec<f64> = self.states.iter().map(|s| s.position_deg).collect();
-        if self.log.is_none() {
-            return Ok(());
-        }
-        let truth = self.true_forces_n();
         let Some(w) = self.log.as_mut() else {
             return Ok(());
         };

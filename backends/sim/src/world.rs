@@ -284,17 +284,16 @@ impl World {
     pub fn advance_to(&mut self, now_us: u64) {
         let origin = *self.t_us.get_or_insert(now_us);
         while origin + self.elapsed_us + STEP_US <= now_us {
+            // Pending commands are in time order (host time only moves forward).
             let step_end_us = origin + self.elapsed_us + STEP_US;
-            if !self.pending.is_empty() {
-                let due: Vec<(u64, usize, MotorCommand)> = self
-                    .pending
-                    .iter()
-                    .filter(|(t, _, _)| *t < step_end_us)
-                    .copied()
-                    .collect();
-                self.pending.retain(|(t, _, _)| *t >= step_end_us);
-                for (_, finger, command) in due {
-                    self.set_command(finger, command);
+            let due = self
+                .pending
+                .iter()
+                .take_while(|(t, _, _)| *t < step_end_us)
+                .count();
+            for (_, finger, command) in self.pending.drain(..due) {
+                if let Some(c) = self.commands.get_mut(finger) {
+                    *c = command;
                 }
             }
             self.step(STEP_US as f64 / 1e6);
