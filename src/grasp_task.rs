@@ -8,30 +8,22 @@
 //!
 //! Safety: the controller acts only on gated sets; a finger with a missing sensor holds; a
 //! watchdog stops all motion (hold at the present position) when no set arrives within
-//! [`WATCHDOG_MS`]; an unrecovered servo fault ends the run. Loop latency is wall-clock
+//! [`crate::task_io::WATCHDOG_MS`]; an unrecovered servo fault ends the run. Loop latency is wall-clock
 //! time from the gate handing over the set to the servo write; capture-to-command adds the
 //! set's age at emission.
 
-use std::io::Write;
 use std::path::Path;
-use std::time::Instant;
 
-use anyhow::Context;
 use serde::Serialize;
 
 use gelgrip_controller::actuator::{ServoBus, ServoState};
 use gelgrip_controller::config::AppConfig;
 use gelgrip_controller::frame::FrameSet;
-use gelgrip_controller::fusion::fuse;
-use gelgrip_controller::grasp::{FingerStatus, GraspOutcome, GraspRequest, Phase, Tuning};
+use gelgrip_controller::grasp::{FingerStatus, GraspOutcome, GraspRequest, Tuning};
 use gelgrip_controller::gripper::{GripperHandle, GripperService, PendingGrasp};
-use gelgrip_controller::layout::HandLayout;
 use gelgrip_sim::world::SharedWorld;
 
-use crate::tactile::Tactile;
-
-/// No gated set for this long stops all motion, ms.
-pub const WATCHDOG_MS: u64 = 500;
+use crate::task_io::{LogRow, TaskIo};
 /// Length of the hold test, s.
 const HOLD_TEST_S: f64 = 1.0;
 /// Weight multiple of the hold test.
@@ -56,7 +48,7 @@ pub struct GraspOptions {
 #[derive(Debug, Serialize)]
 pub struct TaskReport {
     /// Task name.
-    pub task: &'static str,
+    pub task: String,
     /// The grasp succeeded (stable contact on at least two of fingers and palm) and, on the
     /// simulator, the object was held through the hold test.
     pub grasped: bool,
@@ -104,14 +96,9 @@ pub struct GraspTask {
     gripper: GripperService,
     handle: GripperHandle,
     pending: Option<PendingGrasp>,
-    tactile: Tactile,
-    bus: Box<dyn ServoBus>,
-    world: Option<SharedWorld>,
-    layout: HandLayout,
-    states: Vec<ServoState>,
+    io: TaskIo,
     stage: Stage,
     start_s: Option<f64>,
-    last_set_us: Option<u64>,
     outcome: Option<GraspOutcome>,
     peak_force_n: f64,
     hold_test_peak_force_n: Option<f64>,
@@ -119,55 +106,20 @@ pub struct GraspTask {
     target_force_n: f64,
     hold_s: f64,
     time_to_stable_s: Option<f64>,
-    loop_ms: Vec<f64>,
-    capture_ms: Vec<f64>,
-    pipeline_ms: Vec<f64>,
     hold_slip_mm: Option<f64>,
-    log: Option<std::io::BufWriter<std::fs::File>>,
-    /// Recovered servo faults, described.
-    pub recovered: Vec<String>,
-}
-
-fn quantile(v: &[f64], q: f64) -> Option<f64> {
-    if v.is_empty() {
-        return None;
-    }
-    let mut s = v.to_vec();
-    s.sort_by(f64::total_cmp);
-    Some(s[((s.len() - 1) as f64 * q).round() as usize])
-}
-
-fn phase_name(p: Phase) -> &'static str {
-    match p {
-        Phase::Open => "open",
-        Phase::Approach => "approach",
-        Phase::Contact => "contact",
-        Phase::Squeeze => "squeeze",
-        Phase::Hold => "hold",
-        Phase::Release => "release",
-        Phase::Fault => "fault",
-    }
 }
 
 impl GraspTask {
     /// Set up the task: pipelines, controller, servos (configured) and the CSV log.
     pub fn start(
         config: &AppConfig,
-        mut bus: Box<dyn ServoBus>,
+        bus: Box<dyn ServoBus>,
         world: Option<SharedWorld>,
         options: &GraspOptions,
         log: Option<&Path>,
     ) -> anyhow::Result<Self> {
-        let layout = config.layout.clone();
-        if layout.fingers.is_empty() {
-            anyhow::bail!(crate::cli::UsageError(format!(
-                "the gentle grasp needs finger mechanics; layout {} declares no [[fingers]]",
-                layout.name
-            )));
-        }
-        let tactile = Tactile::open(config)?;
-        bus.configure()
-            .map_err(|e| anyhow::anyhow!("configuring the servos: {e}"))?;
+        let io = TaskIo::open(config, bus, world, log)?;
+        let layout = &io.layout;
         let request = GraspRequest {
             target_force_n: options.target_force_n,
             speed_deg_s: options.speed_deg_s,
@@ -185,49 +137,13 @@ impl GraspTask {
         let pending = handle
             .start_grasp(request)
             .map_err(|e| crate::cli::UsageError(e.to_string()))?;
-        let log = match log {
-            None => None,
-            Some(path) => {
-                let file = std::fs::File::create(path)
-                    .with_context(|| format!("creating the log {}", path.display()))?;
-                let mut w = std::io::BufWriter::new(file);
-                let mut header = vec!["t_s".to_string(), "stage".to_string()];
-                header.extend(
-                    layout
-                        .sensors
-                        .iter()
-                        .map(|s| format!("{}_deformation_mm3", s.id)),
-                );
-                if world.is_some() {
-                    header.extend(
-                        layout
-                            .sensors
-                            .iter()
-                            .map(|s| format!("{}_true_force_n", s.id)),
-                    );
-                }
-                for f in &layout.fingers {
-                    header.push(format!("{}_state", f.id));
-                    header.push(format!("{}_force_n", f.id));
-                    header.push(format!("{}_goal_current_ma", f.id));
-                    header.push(format!("{}_position_deg", f.id));
-                }
-                writeln!(w, "{}", header.join(","))?;
-                Some(w)
-            }
-        };
         Ok(Self {
             gripper,
             handle,
             pending: Some(pending),
-            tactile,
-            bus,
-            world,
-            layout,
-            states: Vec::new(),
+            io,
             stage: Stage::Grasp,
             start_s: None,
-            last_set_us: None,
             outcome: None,
             peak_force_n: 0.0,
             hold_test_peak_force_n: None,
@@ -235,77 +151,26 @@ impl GraspTask {
             target_force_n: options.target_force_n,
             hold_s: options.hold_s,
             time_to_stable_s: None,
-            loop_ms: Vec::new(),
-            capture_ms: Vec::new(),
-            pipeline_ms: Vec::new(),
             hold_slip_mm: None,
-            log,
-            recovered: Vec::new(),
         })
     }
 
-    /// The simulator's ground-truth force on every pad, N (empty off the simulator).
-    fn true_forces_n(&self) -> Vec<f64> {
-        let Some(world) = self.world.as_ref() else {
-            return Vec::new();
-        };
-        let Ok(w) = world.lock() else {
-            return Vec::new();
-        };
-        (0..self.layout.sensors.len())
-            .map(|s| w.contact(s).map_or(0.0, |c| c.load.force_n))
-            .collect()
-    }
-
-    /// The largest finger force (the sum over each finger's pads) of the simulator's pad
-    /// forces `pads`, N (`None` off the simulator).
-    fn true_finger_peak_n(&self, pads: &[f64]) -> Option<f64> {
-        if pads.is_empty() {
-            return None;
-        }
-        let mut fingers = vec![0.0; self.layout.fingers.len()];
-        for (s, f) in pads.iter().enumerate() {
-            if let Some((finger, _)) = self.layout.phalanx_of_sensor(s)
-                && let Some(sum) = fingers.get_mut(finger)
-            {
-                *sum += f;
-            }
-        }
-        Some(fingers.into_iter().fold(0.0, f64::max))
-    }
-
     fn slip_mm(&self) -> Option<f64> {
-        let w = self.world.as_ref()?.lock().ok()?;
+        let w = self.io.world()?.lock().ok()?;
         w.object().map(|o| o.slip_mm)
     }
 
     /// Handle one gated set at host time `now_us`; returns an end reason when the task ends.
     pub fn on_set(&mut self, set: &FrameSet, now_us: u64) -> anyhow::Result<Option<&'static str>> {
-        let handed_over = Instant::now();
-        self.last_set_us = Some(now_us);
         let t_s = now_us as f64 / 1e6;
         let start = *self.start_s.get_or_insert(t_s);
-        let readings = self.tactile.process(set);
-        self.pipeline_ms
-            .push(handed_over.elapsed().as_secs_f64() * 1e3);
-        let fused = fuse(&self.layout, &readings);
-        if self.states.is_empty() {
-            self.states = self.read()?;
-        }
-        let positions: Vec<f64> = self.states.iter().map(|s| s.position_deg).collect();
-        self.gripper.apply_commands(&positions);
-        if let Some(goals) = self.gripper.step(t_s, Some(&fused), &self.states) {
-            tracing::debug!(t_s, ?goals, "grasp step");
-            self.bus
-                .write_goals(&goals)
-                .map_err(|e| anyhow::anyhow!("servo fault: {e}"))?;
-        }
-        let loop_ms = handed_over.elapsed().as_secs_f64() * 1e3;
-        self.loop_ms.push(loop_ms);
-        self.capture_ms
-            .push(set.latency_us() as f64 / 1e3 + loop_ms);
-        self.states = self.read()?;
-        let truth = self.true_forces_n();
+        let sensed = self.io.sense(set, now_us)?;
+        self.gripper.apply_commands(&self.io.positions());
+        let goals = self
+            .gripper
+            .step(t_s, Some(&sensed.fused), self.io.states());
+        self.io.command(&sensed, goals.as_deref())?;
+        let truth = self.io.true_forces_n();
         let regulated = self
             .gripper
             .controller()
@@ -313,7 +178,7 @@ impl GraspTask {
         match self.stage {
             Stage::Grasp | Stage::Hold { .. } => {
                 self.peak_force_n = self.peak_force_n.max(regulated);
-                if let Some(peak) = self.true_finger_peak_n(&truth) {
+                if let Some(peak) = self.io.true_finger_peak_n(&truth) {
                     self.true_peak_force_n = Some(self.true_peak_force_n.unwrap_or(0.0).max(peak));
                 }
             }
@@ -323,7 +188,19 @@ impl GraspTask {
             }
             Stage::Done => {}
         }
-        self.write_log(t_s - start, &fused.deformation_mm3, &truth, &fused.fingers)?;
+        let (phases, goals) = self
+            .gripper
+            .controller()
+            .map(|c| (c.phases(), c.goals()))
+            .unwrap_or_default();
+        self.io.log(&LogRow {
+            t_s: t_s - start,
+            stage: self.stage_name(),
+            fused: &sensed.fused,
+            truth: &truth,
+            phases: &phases,
+            goals: &goals,
+        })?;
         match self.stage {
             Stage::Grasp => {
                 let ended = self.pending.as_mut().and_then(PendingGrasp::try_outcome);
@@ -364,7 +241,7 @@ impl GraspTask {
     /// After a stable grasp, on the simulator: let the object go and pull it (the hold
     /// test); otherwise the task ends (returns the end reason).
     fn begin_hold_test(&mut self, stable: bool, t_s: f64) -> Option<&'static str> {
-        match (stable, self.world.clone(), self.slip_mm()) {
+        match (stable, self.io.world().cloned(), self.slip_mm()) {
             (true, Some(world), Some(slip0)) => {
                 if let Ok(mut w) = world.lock() {
                     w.load_test(HOLD_TEST_FACTOR);
@@ -385,11 +262,7 @@ impl GraspTask {
     /// Check the watchdog at host time `now_us`; returns a fault description when it fires
     /// (all motion stopped: every finger holds where it is).
     pub fn watchdog(&mut self, now_us: u64) -> Option<String> {
-        let last = *self.last_set_us.get_or_insert(now_us);
-        let silent_ms = now_us.saturating_sub(last) / 1000;
-        if silent_ms < WATCHDOG_MS {
-            return None;
-        }
+        let silent_ms = self.io.watchdog_silence_ms(now_us)?;
         let _ = self.handle.stop();
         self.hold_now();
         Some(format!(
@@ -399,115 +272,61 @@ impl GraspTask {
 
     /// E-stop: every finger holds where it is at the minimum current; torque stays on.
     pub fn estop(&mut self) {
-        if let Some(w) = self.log.as_mut() {
-            let _ = w.flush();
-        }
-        if let Ok(states) = self.bus.read_state() {
-            self.states = states;
-        }
+        self.io.flush();
+        self.io.refresh_states();
         let _ = self.handle.estop();
         self.hold_now();
     }
 
     /// Apply the queued stop or e-stop and write its hold goals at once.
     fn hold_now(&mut self) {
-        let positions: Vec<f64> = self.states.iter().map(|s| s.position_deg).collect();
-        self.gripper.apply_commands(&positions);
-        if let Some(goals) = self.gripper.goals()
-            && let Err(e) = self.bus.write_goals(&goals)
-        {
-            tracing::error!("could not write the hold goals: {e}");
+        self.gripper.apply_commands(&self.io.positions());
+        if let Some(goals) = self.gripper.goals() {
+            self.io.write_now(&goals);
         }
     }
 
-    fn read(&mut self) -> anyhow::Result<Vec<ServoState>> {
-        let states = self
-            .bus
-            .read_state()
-            .map_err(|e| anyhow::anyhow!("servo fault: {e}"))?;
-        self.recovered
-            .extend(self.bus.take_recovered().iter().map(ToString::to_string));
-        Ok(states)
-    }
-
-    fn write_log(
-        &mut self,
-        t_s: f64,
-        deformation: &[Option<f64>],
-        truth: &[f64],
-        fingers: &[gelgrip_controller::fusion::FusedContact],
-    ) -> anyhow::Result<()> {
-        let stage = match self.stage {
+    fn stage_name(&self) -> &'static str {
+        match self.stage {
             Stage::Grasp => "grasp",
             Stage::Hold { .. } => "hold",
             Stage::HoldTest { .. } => "hold_test",
             Stage::Done => "done",
-        };
-        let (phases, goals) = self
-            .gripper
-            .controller()
-            .map(|c| (c.phases(), c.goals()))
-            .unwrap_or_default();
-        let positions: Vec<f64> = self.states.iter().map(|s| s.position_deg).collect();
-        let Some(w) = self.log.as_mut() else {
-            return Ok(());
-        };
-        let mut row = vec![format!("{t_s:.4}"), stage.to_string()];
-        row.extend(
-            deformation
-                .iter()
-                .map(|d| d.map_or(String::new(), |v| format!("{v:.4}"))),
-        );
-        row.extend(truth.iter().map(|f| format!("{f:.4}")));
-        for (i, (p, f)) in phases.iter().zip(fingers).enumerate() {
-            row.push(phase_name(*p).to_string());
-            row.push(format!("{:.4}", f.force_n));
-            row.push(
-                goals
-                    .get(i)
-                    .map_or(String::new(), |g| format!("{:.1}", g.goal_current_ma)),
-            );
-            row.push(
-                positions
-                    .get(i)
-                    .map_or(String::new(), |p| format!("{p:.2}")),
-            );
         }
-        writeln!(w, "{}", row.join(","))?;
-        Ok(())
     }
 
     /// The safe state at the end: torque off (the springs open the fingers).
     pub fn finish(&mut self) {
-        if let Some(w) = self.log.as_mut() {
-            let _ = w.flush();
-        }
-        if let Err(e) = self.bus.set_torque(false) {
-            tracing::warn!("could not turn servo torque off: {e}");
-        }
+        self.io.finish();
+    }
+
+    /// Recovered servo faults, described (taken).
+    pub fn take_recovered(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.io.recovered)
     }
 
     /// The last servo states.
     pub fn states(&self) -> &[ServoState] {
-        &self.states
+        self.io.states()
     }
 
     /// The task fields.
     pub fn report(&self) -> TaskReport {
         let outcome = self.outcome.clone();
         let held = self.hold_slip_mm.is_none_or(|s| s < HELD_SLIP_MM);
+        let lat = self.io.latencies();
         TaskReport {
-            task: "gentle-grasp",
+            task: "gentle-grasp".into(),
             grasped: outcome.as_ref().is_some_and(|o| o.grasped) && held,
             peak_force_n: self.peak_force_n,
             hold_test_peak_force_n: self.hold_test_peak_force_n,
             true_peak_force_n: self.true_peak_force_n,
             target_force_n: self.target_force_n,
             time_to_stable_s: self.time_to_stable_s,
-            loop_latency_ms_p50: quantile(&self.loop_ms, 0.5),
-            loop_latency_ms_p99: quantile(&self.loop_ms, 0.99),
-            capture_to_command_ms_p99: quantile(&self.capture_ms, 0.99),
-            pipeline_ms_p99: quantile(&self.pipeline_ms, 0.99),
+            loop_latency_ms_p50: lat.loop_p50,
+            loop_latency_ms_p99: lat.loop_p99,
+            capture_to_command_ms_p99: lat.capture_p99,
+            pipeline_ms_p99: lat.pipeline_p99,
             reason: outcome
                 .as_ref()
                 .map_or_else(|| "not finished".into(), |o| o.reason.clone()),

@@ -10,6 +10,7 @@ mod scene_report;
 mod servo_loop;
 mod simcam;
 mod tactile;
+mod task_io;
 mod wiring;
 
 use std::process::ExitCode;

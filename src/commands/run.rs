@@ -235,7 +235,7 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
         }
     }
     if let Some(t) = task.as_mut() {
-        faults.splice(0..0, t.recovered.drain(..));
+        faults.splice(0..0, t.take_recovered());
         if end_reason == "estop" {
             t.estop();
         } else {
