@@ -42,6 +42,22 @@ pub enum Command {
     Emulate(EmulateCommand),
     /// Field tools for a Dynamixel servo bus.
     Servo(ServoArgs),
+    /// Plot a task log (`run --task … --log`): each sensor's deformation signal over time
+    /// with the stages shaded.
+    Plot(PlotArgs),
+}
+
+/// `gelgrip plot`.
+#[derive(Debug, Args)]
+pub struct PlotArgs {
+    /// The CSV log.
+    pub log: PathBuf,
+    /// The figure: `.svg` or `.png`.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Title (default: names the log).
+    #[arg(long)]
+    pub title: Option<String>,
 }
 
 /// What `gelgrip servo` does.
@@ -345,7 +361,9 @@ pub struct RunArgs {
     /// Goal-current cap the fingers ramp to when closing on a scene without a task, mA.
     #[arg(long, default_value_t = 800.0, value_parser = parse_current_ma)]
     pub close_current_ma: f64,
-    /// Run a task: `gentle-grasp` (built in).
+    /// Run a task: `gentle-grasp` (built in), a task script NAME (`configs/tasks/NAME.toml`,
+    /// or the embedded copy: `screwdriver`), or a script FILE (anything with a `/` or
+    /// ending in `.toml`). See docs/tasks.md.
     #[arg(long)]
     pub task: Option<String>,
     /// Gentle grasp: force per finger, N.

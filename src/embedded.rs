@@ -23,4 +23,11 @@ pub const FILES: EmbeddedFiles = EmbeddedFiles(&[
         "layouts/five-finger.toml",
         include_str!("../configs/layouts/five-finger.toml"),
     ),
+    (
+        "tasks/screwdriver.toml",
+        include_str!("../configs/tasks/screwdriver.toml"),
+    ),
 ]);
+
+/// Names of the embedded task scripts (`tasks/NAME.toml`).
+pub const TASKS: &[&str] = &["screwdriver"];

@@ -16,7 +16,7 @@ use std::path::Path;
 
 use serde::Serialize;
 
-use gelgrip_controller::actuator::{ServoBus, ServoState};
+use gelgrip_controller::actuator::ServoBus;
 use gelgrip_controller::config::AppConfig;
 use gelgrip_controller::frame::FrameSet;
 use gelgrip_controller::grasp::{FingerStatus, GraspOutcome, GraspRequest, Tuning};
@@ -81,6 +81,11 @@ pub struct TaskReport {
     pub finger_status: Vec<FingerStatus>,
     /// Slip during the hold test, mm (simulator only).
     pub hold_slip_mm: Option<f64>,
+    /// A task script's stages in the order they ran: name, start and end (s since the
+    /// task's start), how each ended (`exit`, `fail`, `timeout`, `interrupted`) and the
+    /// conditions that ended it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stages: Option<Vec<gelgrip_controller::task::StageRecord>>,
 }
 
 enum Stage {
@@ -295,19 +300,14 @@ impl GraspTask {
         }
     }
 
-    /// The safe state at the end: torque off (the springs open the fingers).
-    pub fn finish(&mut self) {
-        self.io.finish();
+    /// The hardware side.
+    pub fn io(&self) -> &TaskIo {
+        &self.io
     }
 
-    /// Recovered servo faults, described (taken).
-    pub fn take_recovered(&mut self) -> Vec<String> {
-        std::mem::take(&mut self.io.recovered)
-    }
-
-    /// The last servo states.
-    pub fn states(&self) -> &[ServoState] {
-        self.io.states()
+    /// The hardware side, mutably.
+    pub fn io_mut(&mut self) -> &mut TaskIo {
+        &mut self.io
     }
 
     /// The task fields.
@@ -332,6 +332,7 @@ impl GraspTask {
                 .map_or_else(|| "not finished".into(), |o| o.reason.clone()),
             finger_status: outcome.map(|o| o.status).unwrap_or_default(),
             hold_slip_mm: self.hold_slip_mm,
+            stages: None,
         }
     }
 }

@@ -6,11 +6,14 @@ mod commands;
 mod embedded;
 mod grasp_task;
 mod output;
+mod plot;
 mod scene_report;
+mod script_task;
 mod servo_loop;
 mod simcam;
 mod tactile;
 mod task_io;
+mod tasks;
 mod wiring;
 
 use std::process::ExitCode;
@@ -57,6 +60,7 @@ fn main() -> ExitCode {
             Command::Depth(args) => commands::depth::run(args),
             Command::Emulate(EmulateCommand::Servos(args)) => commands::emulate::run(args).await,
             Command::Servo(args) => commands::servo::run(args),
+            Command::Plot(args) => commands::plot::run(args),
         }
     });
     match result {

@@ -7,34 +7,11 @@ mod common;
 
 use std::process::{Command, Output};
 
-/// `gelgrip run --headless --json --clock virtual` with the tests' calibration cache, then
-/// `extra`.
-fn run_cmd(extra: &[&str]) -> Command {
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_gelgrip"));
-    cmd.args(["run", "--headless", "--json", "--clock", "virtual"])
-        .args(extra)
-        .env(
-            "GELGRIP_CACHE_DIR",
-            std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("gelgrip-cache"),
-        )
-        .env("RUST_LOG", "warn");
-    cmd
-}
-
-/// The report of a run that exited with `code`.
-fn report(out: &Output, code: i32) -> serde_json::Value {
-    assert_eq!(
-        out.status.code(),
-        Some(code),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).expect("one JSON object")
-}
+use common::report;
 
 fn grasp(scene: &str, log: &std::path::Path) -> serde_json::Value {
     let log = log.display().to_string();
-    let out = run_cmd(&[
+    let out = common::virtual_run(&[
         "--duration",
         "25",
         "--scene",
@@ -114,7 +91,7 @@ fn a_target_beyond_the_current_cap_holds_what_the_cap_allows_without_overloading
     // Servos allowed up to their stall current, and a target no cap can reach: the
     // controller must stall at its holding limit, hold a little below it and say so,
     // rather than strain until the servos overload.
-    let out = run_cmd(&[
+    let out = common::virtual_run(&[
         "--duration",
         "25",
         "--config",
@@ -144,7 +121,7 @@ fn a_target_beyond_the_current_cap_holds_what_the_cap_allows_without_overloading
 
 /// The gentle grasp on the tennis ball with `config` (a scheduled servo fault).
 fn faulted_grasp(config: &str) -> Output {
-    run_cmd(&[
+    common::virtual_run(&[
         "--duration",
         "25",
         "--config",
@@ -207,7 +184,7 @@ fn an_unknown_task_is_a_usage_error() {
 
 #[test]
 fn a_dead_sensor_starves_the_gate_and_the_watchdog_stops_the_fingers() {
-    let out = run_cmd(&[
+    let out = common::virtual_run(&[
         "--duration",
         "10",
         "--config",
@@ -237,7 +214,7 @@ fn a_dead_sensor_starves_the_gate_and_the_watchdog_stops_the_fingers() {
 
 #[test]
 fn an_estop_mid_grasp_holds_at_minimum_current_and_exits_1() {
-    let child = run_cmd(&[
+    let child = common::virtual_run(&[
         "--duration",
         "25",
         "--scene",
@@ -319,7 +296,7 @@ fn steady_hold(config: &str) {
     std::fs::create_dir_all(&dir).expect("dir");
     let log = dir.join("hold.csv");
     let target = 1.5;
-    let out = run_cmd(&[
+    let out = common::virtual_run(&[
         "--duration",
         "40",
         "--config",

@@ -51,6 +51,9 @@ pub struct FusedSet {
     pub palm: Option<FusedContact>,
     /// Per sensor, the deformation signal, mm³ (`None` when the reading is missing).
     pub deformation_mm3: Vec<Option<f64>>,
+    /// Per sensor, its reading as the pipeline gave it (`None` when missing); task
+    /// scripts' conditions on a named sensor read these.
+    pub sensors: Vec<Option<SensorReading>>,
 }
 
 impl FusedSet {
@@ -90,11 +93,13 @@ pub fn fuse(layout: &HandLayout, readings: &[Option<SensorReading>]) -> FusedSet
         fingers: vec![FusedContact::default(); layout.fingers.len()],
         palm: None,
         deformation_mm3: Vec::with_capacity(layout.sensors.len()),
+        sensors: Vec::with_capacity(layout.sensors.len()),
     };
     let mut best = vec![0.0; layout.fingers.len()];
     let mut palm_best = 0.0;
     for (s, spec) in layout.sensors.iter().enumerate() {
         let reading = readings.get(s).copied().flatten();
+        set.sensors.push(reading);
         set.deformation_mm3.push(
             reading
                 .map(|r| r.volume_mm3)

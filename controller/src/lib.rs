@@ -20,3 +20,4 @@ pub mod hub;
 pub mod hubtime;
 pub mod layout;
 pub mod registry;
+pub mod task;

@@ -8,5 +8,6 @@ pub mod calibrate_force;
 pub mod check_config;
 pub mod depth;
 pub mod emulate;
+pub mod plot;
 pub mod run;
 pub mod servo;

@@ -10,18 +10,10 @@ use crate::cli::{ClockArg, RunArgs};
 use crate::grasp_task::{GraspOptions, GraspTask};
 use crate::output::{RunReport, ServoReport, latency_ms};
 use crate::scene_report::SceneReport;
+use crate::script_task::{ScriptTask, load_script};
 use crate::servo_loop::ServoLoop;
+use crate::tasks::Task;
 
-/// Only the built-in task exists until task scripts arrive.
-fn check_task(name: &str) -> anyhow::Result<()> {
-    if name == "gentle-grasp" {
-        return Ok(());
-    }
-    Err(crate::cli::UsageError(format!(
-        "task `{name}`: task scripts (configs/tasks/*.toml) arrive with the task-script issue; built in: gentle-grasp"
-    ))
-    .into())
-}
 use crate::wiring;
 
 /// Resolves on SIGINT or SIGTERM.
@@ -138,25 +130,41 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
     let mut task = None;
     let mut servos = None;
     match (args.task.as_deref(), bus) {
-        (Some(name), Some(bus)) => {
-            check_task(name)?;
+        (Some("gentle-grasp"), Some(bus)) => {
             let options = GraspOptions {
                 target_force_n: args.target_force,
                 speed_deg_s: args.speed,
                 timeout_s: args.task_timeout,
                 hold_s: args.hold,
             };
-            task = Some(GraspTask::start(
+            task = Some(Task::Grasp(GraspTask::start(
                 &config,
                 bus,
                 world.clone(),
                 &options,
                 args.log.as_deref(),
-            )?);
-            tracing::info!(task = name, "task running");
+            )?));
+            tracing::info!(task = "gentle-grasp", "task running");
+        }
+        (Some(name), Some(bus)) => {
+            let script = load_script(name, &config)?;
+            tracing::info!(
+                task = script.name,
+                stages = script.stages.len(),
+                "task script running"
+            );
+            task = Some(Task::Script(ScriptTask::start(
+                &config,
+                script,
+                bus,
+                world.clone(),
+                args.log.as_deref(),
+            )?));
         }
         (Some(name), None) => {
-            check_task(name)?;
+            if name != "gentle-grasp" {
+                load_script(name, &config)?;
+            }
             anyhow::bail!(crate::cli::UsageError(format!(
                 "task {name} needs finger servos; layout {} has no [[fingers]]",
                 config.layout.name
@@ -277,7 +285,7 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
             .map(|s| s.last.as_slice())
             .or(task.as_ref().map(|t| t.states()))
             .map(|s| s.iter().map(ServoReport::from).collect()),
-        task: task.as_ref().map(GraspTask::report),
+        task: task.as_ref().map(Task::report),
     };
     if args.json {
         println!("{}", serde_json::to_string(&report)?);

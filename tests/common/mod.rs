@@ -94,3 +94,28 @@ impl Drop for ServoEmulator {
         }
     }
 }
+
+/// `gelgrip run --headless --json --clock virtual` with the tests' shared calibration cache
+/// (under the build's `target/tmp`) and logs at warn; the caller adds `extra`.
+pub fn virtual_run(extra: &[&str]) -> Command {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_gelgrip"));
+    cmd.args(["run", "--headless", "--json", "--clock", "virtual"])
+        .args(extra)
+        .env(
+            "GELGRIP_CACHE_DIR",
+            std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("gelgrip-cache"),
+        )
+        .env("RUST_LOG", "warn");
+    cmd
+}
+
+/// The JSON report of a run that exited with `code` (fails with stderr otherwise).
+pub fn report(out: &Output, code: i32) -> serde_json::Value {
+    assert_eq!(
+        out.status.code(),
+        Some(code),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("one JSON object")
+}

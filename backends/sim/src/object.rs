@@ -25,6 +25,9 @@ pub struct ObjectState {
     local_bounds: (DVec3, f64),
     /// Displacement along `slip_dir`, mm.
     pub slip_mm: f64,
+    /// Elastic turn of the handle into the hand under the bolt's reaction, at the grip,
+    /// along `slip_dir`, mm.
+    pub deflection_mm: f64,
     /// Trigger displacement, mm.
     pub trigger_mm: f64,
     /// The tool's switch is closed.
@@ -64,6 +67,7 @@ impl ObjectState {
             spec,
             slip_dir,
             slip_mm: 0.0,
+            deflection_mm: 0.0,
             trigger_mm: 0.0,
             switch_on: false,
             bolt_turns: 0.0,
@@ -80,7 +84,7 @@ impl ObjectState {
     }
 
     fn origin(&self) -> DVec3 {
-        self.spec.position_mm + self.slip_dir * self.slip_mm
+        self.spec.position_mm + self.slip_dir * (self.slip_mm + self.deflection_mm)
     }
 
     fn rotation(&self) -> DQuat {
@@ -117,6 +121,7 @@ impl ObjectState {
         };
         if !self.switch_on {
             self.bolt_torque_nm = 0.0;
+            self.deflection_mm = 0.0;
             return 0.0;
         }
         let torque = bolt_torque(&b, self.bolt_turns);
@@ -129,7 +134,9 @@ impl ObjectState {
             self.bolt_turns += rpm / 60.0 * dt_s;
             self.bolt_torque_nm = bolt_torque(&b, self.bolt_turns).min(b.stall_torque_nm);
         }
-        self.bolt_torque_nm / (b.lever_mm / 1000.0)
+        let reaction_n = self.bolt_torque_nm / (b.lever_mm / 1000.0);
+        self.deflection_mm = reaction_n * b.deflection_mm_per_n;
+        reaction_n
     }
 }
 

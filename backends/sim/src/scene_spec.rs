@@ -44,6 +44,10 @@ pub struct BoltSpec {
     pub stall_torque_nm: f64,
     /// Lever from the tool axis to the grip: the hand feels torque / lever, mm.
     pub lever_mm: f64,
+    /// Compliance of the tool's hold on the bolt (bit play, shaft wind-up), seen at the
+    /// grip: under a reaction R the handle turns into the hand by R × this, mm per N (0 =
+    /// rigid, and the hand feels the reaction only once it overcomes friction).
+    pub deflection_mm_per_n: f64,
 }
 
 /// The object.
@@ -169,6 +173,8 @@ struct RawBolt {
     tighten_nm_per_turn: f64,
     stall_torque_nm: f64,
     lever_mm: f64,
+    #[serde(default)]
+    deflection_mm_per_n: f64,
 }
 
 fn unit(check: &FieldCheck, field: &str, v: [f64; 3]) -> Result<DVec3, ConfigError> {
@@ -298,6 +304,12 @@ impl SceneSpec {
                         1e3,
                     )?,
                     lever_mm: check.range("object.bolt.lever_mm", b.lever_mm, 1.0, 1e3)?,
+                    deflection_mm_per_n: check.range(
+                        "object.bolt.deflection_mm_per_n",
+                        b.deflection_mm_per_n,
+                        0.0,
+                        1.0,
+                    )?,
                 })
             }
         };

@@ -75,6 +75,9 @@ fn closing_on_each_scene_touches_exactly_the_expected_sensors_with_monotonic_for
                     .any(|(q, p)| *q >= p.limit_deg.to_radians() - 1e-6)
             });
             let crushed = world.log().has(EventKind::Crushed);
+            // Once the screwdriver runs, its reaction turns the handle into one finger and
+            // away from the others: their forces may fall.
+            let tool_ran = world.log().has(EventKind::TriggerOn);
             for (s, prev) in last.iter_mut().enumerate() {
                 let c = world.contact(s).expect("sensor");
                 let now = (c.load.force_n, c.max_depth_mm);
@@ -82,7 +85,7 @@ fn closing_on_each_scene_touches_exactly_the_expected_sensors_with_monotonic_for
                 if world.log().first_contact_s()[s].is_none() {
                     assert_eq!(now, (0.0, 0.0), "{file}: sensor {s} before contact");
                 }
-                if !crushed && !limited {
+                if !crushed && !limited && !tool_ran {
                     assert!(
                         now.0 >= prev.0 * 0.995 - 0.005,
                         "{file}: sensor {s} force fell from {} to {} at {current} mA",

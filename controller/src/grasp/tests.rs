@@ -60,8 +60,7 @@ impl ToyFinger {
 pub(crate) fn toy_set(fingers: &[ToyFinger]) -> FusedSet {
     FusedSet {
         fingers: fingers.iter().map(ToyFinger::fused).collect(),
-        palm: None,
-        deformation_mm3: Vec::new(),
+        ..FusedSet::default()
     }
 }
 
@@ -221,8 +220,7 @@ fn a_stale_finger_holds_and_slip_retightens() {
             f[1].fused(),
             f[2].fused(),
         ],
-        palm: None,
-        deformation_mm3: Vec::new(),
+        ..FusedSet::default()
     };
     let states: Vec<ServoState> = f.iter().zip(&before).map(|(x, g)| x.state(g)).collect();
     let out = ctl.step(20.0, Some(&stale), &states);
@@ -236,8 +234,7 @@ fn a_stale_finger_holds_and_slip_retightens() {
     moved.centroid = Some((0, 3.0, 0.0));
     let slip = FusedSet {
         fingers: vec![f[0].fused(), moved, f[2].fused()],
-        palm: None,
-        deformation_mm3: Vec::new(),
+        ..FusedSet::default()
     };
     // One set with a shift is not slip yet (a glitch must not squeeze harder)…
     ctl.step(20.1, Some(&slip), &states);
