@@ -74,6 +74,9 @@ pub struct TaskReport {
     /// p99 of the tactile pipelines' share of the loop (JPEG to contact, every sensor),
     /// ms: the loop's own overhead is the loop latency less this.
     pub pipeline_ms_p99: Option<f64>,
+    /// Total fused force (fingers and palm) when the grasp ended, as the grasp API returns
+    /// it, N (null when it never ended).
+    pub final_force_n: Option<f64>,
     /// Why the grasp ended (`stable`, `force_limited`: held at what the current limit
     /// allows, `no_object`, `timeout …`, `watchdog …`).
     pub reason: String,
@@ -327,6 +330,7 @@ impl GraspTask {
             loop_latency_ms_p99: lat.loop_p99,
             capture_to_command_ms_p99: lat.capture_p99,
             pipeline_ms_p99: lat.pipeline_p99,
+            final_force_n: outcome.as_ref().map(|o| o.final_force_n),
             reason: outcome
                 .as_ref()
                 .map_or_else(|| "not finished".into(), |o| o.reason.clone()),

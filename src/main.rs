@@ -1,6 +1,7 @@
 //! `gelgrip`: the command-line entry point. Parses arguments, sets up logging and hands off to
 //! a command; all wiring of concrete adapters lives in [`wiring`].
 
+mod bench_config;
 mod cli;
 mod commands;
 mod embedded;
@@ -56,6 +57,7 @@ fn main() -> ExitCode {
             Command::Bench(BenchCommand::Bus(args)) => commands::bench_bus::run(args).await,
             Command::Bench(BenchCommand::Pipeline(args)) => commands::bench_pipeline::run(args),
             Command::Bench(BenchCommand::Grasp(args)) => commands::bench_grasp::run(args),
+            Command::Bench(BenchCommand::Sync(args)) => commands::bench_sync::run(args),
             Command::Calibrate(cmd) => commands::calibrate::run(cmd),
             Command::Depth(args) => commands::depth::run(args),
             Command::Emulate(EmulateCommand::Servos(args)) => commands::emulate::run(args).await,

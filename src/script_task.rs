@@ -209,6 +209,7 @@ impl ScriptTask {
             loop_latency_ms_p99: lat.loop_p99,
             capture_to_command_ms_p99: lat.capture_p99,
             pipeline_ms_p99: lat.pipeline_p99,
+            final_force_n: None,
             reason: end.map_or_else(|| "not finished".into(), |e| e.reason.clone()),
             finger_status: Vec::new(),
             hold_slip_mm: None,

@@ -1,0 +1,234 @@
+//! `gelgrip bench sync [--json]`: the paper's synchronization experiment. One sensor
+//! captures late (`[[hub.sim.faults]] capture_delay_us`, 0–60 ms) while the gripper
+//! grasps a deformable object gently, once with the gate on (the configured limits) and
+//! once with it off (any spread, any age). Each run is its own `gelgrip run --task
+//! gentle-grasp --clock virtual` process, the code path users run.
+//!
+//! Overshoot is the simulator's true peak finger force against the target: what the object
+//! felt, whatever the controller believed. A gated run whose sets all fail the gate never
+//! squeezes, and its row says so (`grasped: false` and the reason).
+
+use std::path::Path;
+use std::process::Command;
+
+use anyhow::Context;
+use serde::Serialize;
+use serde_json::Value;
+
+use crate::bench_config::{BenchDir, load_config, section};
+use crate::cli::{BenchSyncArgs, UsageError};
+
+/// The configuration every run starts from.
+const BASE_CONFIG: &str = "configs/gelgripper-sim.toml";
+
+/// One row of the bench.
+#[derive(Debug, Clone, Serialize)]
+pub struct SyncRow {
+    /// Capture delay injected into the sensor, ms.
+    pub delay_ms: f64,
+    /// The gate was on.
+    pub gating: bool,
+    /// The grasp succeeded (and held through the hold test).
+    pub grasped: bool,
+    /// The object was crushed.
+    pub crushed: bool,
+    /// Why the grasp ended, or why it never squeezed.
+    pub reason: String,
+    /// (True peak finger force − target) / target, % (null if nothing was squeezed).
+    pub overshoot_pct: Option<f64>,
+    /// Total fused force when the grasp ended, N (null if it never ended).
+    pub final_force_n: Option<f64>,
+    /// The simulator's peak finger force, N.
+    pub true_peak_force_n: Option<f64>,
+    /// Sets that passed the gate.
+    pub sets: u64,
+    /// Sets the gate refused.
+    pub sets_rejected: u64,
+}
+
+/// `base` with the gate opened (`gating == false`) and a capture delay on `sensor`.
+fn run_config(
+    base: &toml::Table,
+    sensor: &str,
+    delay_ms: f64,
+    gating: bool,
+) -> anyhow::Result<toml::Table> {
+    let mut table = base.clone();
+    if !gating {
+        let gate = section(&mut table, "gate")?;
+        gate.insert("max_spread_us".into(), 1_000_000.into());
+        gate.insert("max_age_ms".into(), 60_000.0.into());
+    }
+    let sim = section(section(&mut table, "hub")?, "sim")?;
+    let mut fault = toml::Table::new();
+    fault.insert("sensor".into(), sensor.into());
+    fault.insert(
+        "capture_delay_us".into(),
+        ((delay_ms * 1000.0).round() as i64).into(),
+    );
+    sim.insert("faults".into(), toml::Value::Array(vec![fault.into()]));
+    Ok(table)
+}
+
+fn rejected(report: &Value) -> u64 {
+    report["sets_rejected"]
+        .as_object()
+        .map_or(0, |m| m.values().filter_map(Value::as_u64).sum())
+}
+
+fn row(delay_ms: f64, gating: bool, target_n: f64, report: &Value) -> SyncRow {
+    let sets = report["sets"].as_u64().unwrap_or(0);
+    let true_peak = report["true_peak_force_n"].as_f64();
+    let squeezed = true_peak.is_some_and(|p| p > 0.0);
+    let reason = if sets == 0 {
+        format!(
+            "never squeezed: no set passed the gate ({} refused); {}",
+            rejected(report),
+            report["faults"][0].as_str().unwrap_or("the run ended")
+        )
+    } else {
+        report["reason"].as_str().unwrap_or("").to_string()
+    };
+    SyncRow {
+        delay_ms,
+        gating,
+        grasped: report["grasped"].as_bool().unwrap_or(false),
+        crushed: report["crushed"].as_bool().unwrap_or(false),
+        reason,
+        overshoot_pct: true_peak
+            .filter(|_| squeezed)
+            .map(|p| 100.0 * (p - target_n) / target_n),
+        final_force_n: report["final_force_n"].as_f64(),
+        true_peak_force_n: true_peak,
+        sets,
+        sets_rejected: rejected(report),
+    }
+}
+
+/// Run the bench; returns the exit code.
+pub fn run(args: BenchSyncArgs) -> anyhow::Result<u8> {
+    if let Some(plot) = &args.plot {
+        crate::plot::Format::of(plot)?;
+    }
+    if !args.scene.exists() {
+        return Err(UsageError(format!(
+            "{}: no such scene (run the bench from the repository, or pass --scene)",
+            args.scene.display()
+        ))
+        .into());
+    }
+    let exe = std::env::current_exe().context("locating the gelgrip binary")?;
+    let dir = BenchDir::new("bench-sync")?;
+    let base = load_config(Path::new(BASE_CONFIG))?;
+    let total = 2 * args.delays_ms.len();
+    let mut rows = Vec::with_capacity(total);
+    for gating in [true, false] {
+        for &delay_ms in &args.delays_ms {
+            eprintln!(
+                "[{}/{total}] {} capture delay {delay_ms} ms, gating {}",
+                rows.len() + 1,
+                args.sensor,
+                if gating { "on" } else { "off" }
+            );
+            let config = dir.write(
+                &format!("d{delay_ms}-{gating}.toml"),
+                &run_config(&base, &args.sensor, delay_ms, gating)?,
+            )?;
+            let out = Command::new(&exe)
+                .args(["run", "--headless", "--json", "--clock", "virtual"])
+                .args(["--task", "gentle-grasp"])
+                .arg("--config")
+                .arg(&config)
+                .arg("--scene")
+                .arg(&args.scene)
+                .args(["--duration", &args.duration.to_string()])
+                .args(["--target-force", &args.target_force.to_string()])
+                .env("RUST_LOG", "error")
+                .output()
+                .context("running the grasp")?;
+            let report: Value = serde_json::from_slice(&out.stdout).with_context(|| {
+                format!(
+                    "delay {delay_ms} ms: no report (exit {:?}): {}",
+                    out.status.code(),
+                    String::from_utf8_lossy(&out.stderr)
+                        .lines()
+                        .last()
+                        .unwrap_or("")
+                )
+            })?;
+            rows.push(row(delay_ms, gating, args.target_force, &report));
+        }
+    }
+    if let Some(plot) = &args.plot {
+        crate::plot::save(&figure(&rows, &args), plot)?;
+        eprintln!("plot: {}", plot.display());
+    }
+    if args.json {
+        println!("{}", serde_json::to_string(&rows)?);
+    } else {
+        print!("{}", table(&rows));
+    }
+    Ok(0)
+}
+
+fn figure(rows: &[SyncRow], args: &BenchSyncArgs) -> crate::plot::Figure {
+    let series = |gating: bool, name: &str| crate::plot::Series {
+        name: name.to_string(),
+        points: rows
+            .iter()
+            .filter(|r| r.gating == gating)
+            .map(|r| (r.delay_ms, r.overshoot_pct))
+            .collect(),
+    };
+    crate::plot::Figure {
+        title: format!(
+            "Gentle grasp ({}, {} N) with {} capturing late: true force overshoot",
+            args.scene
+                .file_stem()
+                .map_or_else(String::new, |s| s.to_string_lossy().into_owned()),
+            args.target_force,
+            args.sensor
+        ),
+        x_label: "injected capture delay (ms)".into(),
+        y_label: "overshoot of the true peak force (%)".into(),
+        series: vec![
+            series(false, "gating off"),
+            series(true, "gating on (gaps: never squeezed)"),
+        ],
+        bands: Vec::new(),
+        markers: true,
+        legend: Some(plotters::prelude::SeriesLabelPosition::UpperLeft),
+    }
+}
+
+fn table(rows: &[SyncRow]) -> String {
+    let num = |v: Option<f64>, d: usize| v.map_or("-".to_string(), |x| format!("{x:.d$}"));
+    let mut s = format!(
+        "{:>8} {:>6} {:>7} {:>7} {:>10} {:>8} {:>8} {:>5} {:>8}  reason\n",
+        "delay ms",
+        "gating",
+        "grasped",
+        "crushed",
+        "overshoot%",
+        "final N",
+        "true N",
+        "sets",
+        "rejected"
+    );
+    for r in rows {
+        s += &format!(
+            "{:>8} {:>6} {:>7} {:>7} {:>10} {:>8} {:>8} {:>5} {:>8}  {}\n",
+            r.delay_ms,
+            if r.gating { "on" } else { "off" },
+            r.grasped,
+            r.crushed,
+            num(r.overshoot_pct, 1),
+            num(r.final_force_n, 2),
+            num(r.true_peak_force_n, 2),
+            r.sets,
+            r.sets_rejected,
+            r.reason
+        );
+    }
+    s
+}
