@@ -352,9 +352,23 @@ pub struct BenchGraspArgs {
     /// Simulated seconds per object at most.
     #[arg(long, default_value_t = 25.0)]
     pub duration: f64,
+    /// Sweep a system parameter: `resolution` runs every object at 320×240, 160×120 and
+    /// 80×60 (the sensors' `resolution` and `mm_per_px` scaled together, the pad unchanged).
+    #[arg(long)]
+    pub sweep: Option<GraspSweep>,
+    /// With `--sweep`: also draw grasp quality against set rate (`.svg` or `.png`).
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
     /// Print one JSON array on stdout.
     #[arg(long)]
     pub json: bool,
+}
+
+/// What `bench grasp --sweep` varies.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum GraspSweep {
+    /// Sensor resolution: 320×240, 160×120, 80×60.
+    Resolution,
 }
 
 /// Time source.

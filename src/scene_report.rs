@@ -37,6 +37,8 @@ pub struct SceneReport {
     pub contact_as_expected: bool,
     /// A contact force exceeded the object's crush force.
     pub crushed: bool,
+    /// The force one pad may put on the object before it crushes, N (null: uncrushable).
+    pub crush_force_n: Option<f64>,
     /// The object left the hand.
     pub dropped: bool,
     /// How far the object slipped, mm.
@@ -69,6 +71,7 @@ impl SceneReport {
             expect_contact: expected_idx.iter().filter_map(|s| name(*s)).collect(),
             contact_as_expected: touched_idx == expected_idx,
             crushed: object.crushed,
+            crush_force_n: object.spec().crush_force_n,
             dropped: object.dropped,
             slip_mm: object.slip_mm,
             peak_force_n: log

@@ -1,18 +1,32 @@
-//! `gelgrip bench grasp [--scene FILE]… [--target-force N] [--json]`: the gentle grasp on
-//! every scene object, each in its own `gelgrip run --task gentle-grasp --clock virtual`
-//! process (the same code path users run, isolated per object), one row per object with
-//! the task fields of `run --json`.
+//! `gelgrip bench grasp [--scene FILE]… [--target-force N] [--sweep resolution] [--json]`:
+//! the gentle grasp on every scene object, each in its own `gelgrip run --task
+//! gentle-grasp --clock virtual` process (the same code path users run, isolated per
+//! object), one row per object with the task fields of `run --json`, the set rate, the
+//! true force's overshoot and the crush margin. `--sweep resolution` repeats every object
+//! at 320×240, 160×120 and 80×60: smaller frames cross the bus faster (a higher set rate)
+//! but carry less depth detail, and the rows measure what that does to the grasp.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use anyhow::Context;
 use serde_json::Value;
 
-use crate::cli::BenchGraspArgs;
+use crate::bench_config::{BenchDir, load, load_config, section};
+use crate::cli::{BenchGraspArgs, GraspSweep};
+
+/// The configuration a sweep starts from.
+const BASE_CONFIG: &str = "configs/gelgripper-sim.toml";
+/// The resolutions of `--sweep resolution`, columns × rows.
+const RESOLUTIONS: [(u32, u32); 3] = [(320, 240), (160, 120), (80, 60)];
+
+/// One configuration of a sweep: its resolution and config file (`None`: the default).
+type Variant = (Option<(u32, u32)>, Option<PathBuf>);
 
 /// Fields copied from each run's report into the row.
-const FIELDS: [&str; 16] = [
+const FIELDS: [&str; 18] = [
+    "set_rate_hz",
+    "final_force_n",
     "object",
     "grasped",
     "crushed",
@@ -51,7 +65,7 @@ fn scenes(args: &BenchGraspArgs) -> anyhow::Result<Vec<PathBuf>> {
     Ok(out)
 }
 
-fn row(scene: &std::path::Path, report: &Value) -> Value {
+fn row(scene: &Path, report: &Value, resolution: Option<(u32, u32)>) -> Value {
     let mut row = serde_json::Map::new();
     row.insert(
         "scene".into(),
@@ -72,63 +86,145 @@ fn row(scene: &std::path::Path, report: &Value) -> Value {
         "peak_true_pad_force_n".into(),
         truth.map_or(Value::Null, Value::from),
     );
+    // What the object felt against what was asked: the true peak finger force.
+    let target = report["target_force_n"].as_f64().filter(|t| *t > 0.0);
+    let overshoot = report["true_peak_force_n"]
+        .as_f64()
+        .zip(target)
+        .map(|(p, t)| 100.0 * (p - t) / t);
+    row.insert(
+        "overshoot_pct".into(),
+        overshoot.map_or(Value::Null, Value::from),
+    );
+    // How far the hardest-pressed pad stayed from the object's crush force.
+    let margin = report["scene"]["crush_force_n"]
+        .as_f64()
+        .zip(truth)
+        .map(|(c, p)| c - p);
+    row.insert(
+        "crush_margin_n".into(),
+        margin.map_or(Value::Null, Value::from),
+    );
+    if let Some((w, h)) = resolution {
+        row.insert("resolution".into(), Value::String(format!("{w}x{h}")));
+    }
     Value::Object(row)
+}
+
+/// The layout of `config` at `w`×`h`: `mm_per_px` scaled so the pad keeps its size.
+fn layout_at(config: &toml::Table, w: u32, h: u32) -> anyhow::Result<toml::Table> {
+    let path = config
+        .get("layout")
+        .and_then(toml::Value::as_str)
+        .context("the base configuration names no layout")?;
+    let mut layout = load(Path::new(path))?;
+    let defaults = section(&mut layout, "sensor_defaults")?;
+    let base_w = defaults
+        .get("resolution")
+        .and_then(|r| r.as_array()?.first()?.as_integer())
+        .unwrap_or(320) as f64;
+    let base_mm = defaults
+        .get("mm_per_px")
+        .and_then(toml::Value::as_float)
+        .unwrap_or(0.0625);
+    defaults.insert(
+        "resolution".into(),
+        toml::Value::Array(vec![i64::from(w).into(), i64::from(h).into()]),
+    );
+    defaults.insert("mm_per_px".into(), (base_mm * base_w / f64::from(w)).into());
+    if let Some(toml::Value::Array(sensors)) = layout.get_mut("sensors") {
+        for s in sensors.iter_mut().filter_map(toml::Value::as_table_mut) {
+            s.remove("resolution");
+            s.remove("mm_per_px");
+        }
+    }
+    Ok(layout)
+}
+
+/// One gentle grasp on `scene` (with `config`, else the default), its report.
+fn grasp(args: &BenchGraspArgs, scene: &Path, config: Option<&Path>) -> anyhow::Result<Value> {
+    let exe = std::env::current_exe().context("locating the gelgrip binary")?;
+    let mut cmd = Command::new(&exe);
+    cmd.args(["run", "--headless", "--json", "--clock", "virtual"])
+        .args(["--task", "gentle-grasp"])
+        .arg("--scene")
+        .arg(scene)
+        .args(["--duration", &args.duration.to_string()])
+        .args(["--target-force", &args.target_force.to_string()]);
+    if let Some(c) = config {
+        cmd.arg("--config").arg(c);
+    }
+    let out = cmd
+        .output()
+        .with_context(|| format!("running the grasp on {}", scene.display()))?;
+    serde_json::from_slice(&out.stdout).with_context(|| {
+        format!(
+            "{}: no report (exit {:?}): {}",
+            scene.display(),
+            out.status.code(),
+            String::from_utf8_lossy(&out.stderr)
+                .lines()
+                .last()
+                .unwrap_or("")
+        )
+    })
 }
 
 /// Run the bench; returns the exit code.
 pub fn run(args: BenchGraspArgs) -> anyhow::Result<u8> {
-    let exe = std::env::current_exe().context("locating the gelgrip binary")?;
-    let mut rows = Vec::new();
+    if let Some(plot) = &args.plot {
+        if args.sweep.is_none() {
+            return Err(crate::cli::UsageError("--plot needs --sweep".into()).into());
+        }
+        crate::plot::Format::of(plot)?;
+    }
     let scenes = scenes(&args)?;
-    for (i, scene) in scenes.iter().enumerate() {
-        eprintln!(
-            "[{}/{}] gentle grasp on {}",
-            i + 1,
-            scenes.len(),
-            scene.display()
-        );
-        let out = Command::new(&exe)
-            .args([
-                "run",
-                "--headless",
-                "--json",
-                "--clock",
-                "virtual",
-                "--task",
-                "gentle-grasp",
-            ])
-            .arg("--scene")
-            .arg(scene)
-            .arg("--duration")
-            .arg(args.duration.to_string())
-            .arg("--target-force")
-            .arg(args.target_force.to_string())
-            .output()
-            .with_context(|| format!("running the grasp on {}", scene.display()))?;
-        let report: Value = serde_json::from_slice(&out.stdout).with_context(|| {
-            format!(
-                "{}: no report (exit {:?}): {}",
+    let dir = BenchDir::new("bench-grasp")?;
+    let mut configs: Vec<Variant> = vec![(None, None)];
+    if args.sweep == Some(GraspSweep::Resolution) {
+        let base = load_config(Path::new(BASE_CONFIG))?;
+        configs.clear();
+        for (w, h) in RESOLUTIONS {
+            let layout = dir.write(&format!("layout-{w}x{h}.toml"), &layout_at(&base, w, h)?)?;
+            let mut config = base.clone();
+            config.insert("layout".into(), layout.display().to_string().into());
+            let path = dir.write(&format!("config-{w}x{h}.toml"), &config)?;
+            configs.push((Some((w, h)), Some(path)));
+        }
+    }
+    let total = scenes.len() * configs.len();
+    let mut rows = Vec::new();
+    for (resolution, config) in &configs {
+        for scene in &scenes {
+            eprintln!(
+                "[{}/{total}] gentle grasp on {}{}",
+                rows.len() + 1,
                 scene.display(),
-                out.status.code(),
-                String::from_utf8_lossy(&out.stderr)
-                    .lines()
-                    .last()
-                    .unwrap_or("")
-            )
-        })?;
-        rows.push(row(scene, &report));
+                resolution.map_or_else(String::new, |(w, h)| format!(" at {w}x{h}"))
+            );
+            let report = grasp(&args, scene, config.as_deref())?;
+            rows.push(row(scene, &report, *resolution));
+        }
+    }
+    if let Some(plot) = &args.plot {
+        crate::plot::save(&sweep_figure(&rows, args.target_force), plot)?;
+        eprintln!("plot: {}", plot.display());
     }
     if args.json {
         println!("{}", serde_json::to_string(&rows)?);
         return Ok(0);
     }
     println!(
-        "{:<12} {:>7} {:>7} {:>8} {:>8} {:>8} {:>8} {:>9} {:>9} {:>8}  reason",
+        "{:<12} {:>9} {:>7} {:>7} {:>7} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>9} {:>9} {:>8}  reason",
         "scene",
+        "res",
+        "rate Hz",
         "grasped",
         "crushed",
         "peak N",
         "true N",
+        "over %",
+        "crush m",
         "hold N",
         "stable s",
         "loop p99",
@@ -138,12 +234,16 @@ pub fn run(args: BenchGraspArgs) -> anyhow::Result<u8> {
     let num = |v: &Value, d: usize| v.as_f64().map_or("-".to_string(), |x| format!("{x:.d$}"));
     for r in &rows {
         println!(
-            "{:<12} {:>7} {:>7} {:>8} {:>8} {:>8} {:>8} {:>9} {:>9} {:>8}  {}",
+            "{:<12} {:>9} {:>7} {:>7} {:>7} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>9} {:>9} {:>8}  {}",
             r["scene"].as_str().unwrap_or(""),
-            r["grasped"],
-            r["crushed"],
+            r["resolution"].as_str().unwrap_or("config"),
+            num(&r["set_rate_hz"], 1),
+            r["grasped"].to_string(),
+            r["crushed"].to_string(),
             num(&r["peak_force_n"], 2),
             num(&r["true_peak_force_n"], 2),
+            num(&r["overshoot_pct"], 1),
+            num(&r["crush_margin_n"], 2),
             num(&r["hold_test_peak_force_n"], 2),
             num(&r["time_to_stable_s"], 1),
             num(&r["loop_latency_ms_p99"], 1),
@@ -153,4 +253,41 @@ pub fn run(args: BenchGraspArgs) -> anyhow::Result<u8> {
         );
     }
     Ok(0)
+}
+
+/// Overshoot against set rate, one line per object (its three resolutions).
+fn sweep_figure(rows: &[Value], target_n: f64) -> crate::plot::Figure {
+    let mut names: Vec<String> = rows
+        .iter()
+        .filter_map(|r| r["scene"].as_str().map(str::to_string))
+        .collect();
+    names.dedup();
+    names.sort();
+    names.dedup();
+    let series = names
+        .iter()
+        .map(|name| {
+            let mut points: Vec<(f64, Option<f64>)> = rows
+                .iter()
+                .filter(|r| r["scene"].as_str() == Some(name.as_str()))
+                .filter_map(|r| Some((r["set_rate_hz"].as_f64()?, r["overshoot_pct"].as_f64())))
+                .collect();
+            points.sort_by(|a, b| a.0.total_cmp(&b.0));
+            crate::plot::Series {
+                name: name.clone(),
+                points,
+            }
+        })
+        .collect();
+    crate::plot::Figure {
+        title: format!(
+            "Gentle grasp ({target_n} N) at 320x240, 160x120, 80x60: overshoot against set rate"
+        ),
+        x_label: "set rate (Hz)".into(),
+        y_label: "overshoot of the true peak force (%)".into(),
+        series,
+        bands: Vec::new(),
+        markers: true,
+        legend: Some(plotters::prelude::SeriesLabelPosition::UpperLeft),
+    }
 }

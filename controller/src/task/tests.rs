@@ -388,3 +388,83 @@ fn stop_interrupts_the_stage_and_holds() {
     let p: Vec<f64> = r.goals().iter().map(|g| g.position_deg).collect();
     assert_eq!(p, [12.0, 13.0, 14.0]);
 }
+
+const BRANCHES: &str = r#"
+version = 1
+name = "branches"
+[[stage]]
+name = "press"
+timeout_s = 5.0
+on_fail = "back-off"
+fingers.f1 = { position_deg = 40.0, current_ma = 300.0 }
+fingers.f2 = { current_ma = 250.0, speed_deg_s = 30.0 }
+[[stage.exit]]
+sensor = "f1.tip"
+depth_mm_min = 0.5
+area_change_pct = 50.0
+[[stage.fail_if]]
+sensor = "f1.tip"
+force_n_min = 20.0
+[[stage]]
+name = "back-off"
+timeout_s = 1.0
+next = "done"
+fingers.f1 = { open = true }
+[[stage.exit]]
+sensor = "f1.tip"
+force_n_max = 0.5
+"#;
+
+#[test]
+fn position_and_current_targets_become_goals_under_their_caps() {
+    let l = layout();
+    let mut r = runner(BRANCHES);
+    let goals = r.step(0.0, &fuse(&l, &readings(Some(10.0))), &servos());
+    assert_eq!(goals[0].position_deg, 40.0);
+    assert_eq!(goals[0].goal_current_ma, 300.0);
+    assert_eq!(
+        goals[1].position_deg, l.fingers[1].servo_range_deg,
+        "pushes toward closed"
+    );
+    assert_eq!(goals[1].goal_current_ma, 250.0);
+    assert!(
+        (goals[1].profile_velocity_rpm - 5.0).abs() < 1e-12,
+        "30 deg/s"
+    );
+    assert_eq!(goals[2].position_deg, 0.0, "unnamed: stays open");
+}
+
+#[test]
+fn a_failure_condition_takes_its_branch_before_the_exit_is_tested() {
+    let l = layout();
+    let mut r = runner(BRANCHES);
+    r.step(0.0, &fuse(&l, &readings(Some(10.0))), &servos());
+    // Area grows 10 → 40 mm² (+300%) and depth 0.1 → 0.4 mm: not yet deep enough.
+    r.step(0.03, &fuse(&l, &readings(Some(40.0))), &servos());
+    assert_eq!(r.stage_name(), Some("press"));
+    // 300 mm³ reads 24 N: the failure condition holds, although the exit does too.
+    r.step(0.06, &fuse(&l, &readings(Some(300.0))), &servos());
+    assert_eq!(r.stage_name(), Some("back-off"));
+    assert_eq!(r.records()[0].exit, Some(StageExit::Fail));
+    assert!(
+        r.records()[0].reason.contains("force_n ≥ 20"),
+        "{:?}",
+        r.records()
+    );
+    assert_eq!(r.goals()[0].position_deg, 0.0, "backs off");
+    r.step(0.09, &fuse(&l, &readings(Some(1.0))), &servos());
+    let end = r.end().expect("done");
+    assert!(!end.completed, "a failure branch ran");
+    assert_eq!(end.reason, "done after a failure branch");
+}
+
+#[test]
+fn depth_and_area_change_exit_together() {
+    let l = layout();
+    let mut r = runner(BRANCHES);
+    r.step(0.0, &fuse(&l, &readings(Some(20.0))), &servos());
+    // 60 mm²: +200% area and 0.6 mm deep, 4.8 N: below the failure force.
+    r.step(0.03, &fuse(&l, &readings(Some(60.0))), &servos());
+    assert_eq!(r.stage_name(), Some("back-off"));
+    assert_eq!(r.records()[0].exit, Some(StageExit::Exit));
+}
