@@ -6,23 +6,15 @@ mod common;
 
 #[test]
 fn the_resolution_sweep_reports_grasp_quality_against_set_rate() {
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_gelgrip"))
-        .args([
-            "bench",
-            "grasp",
-            "--sweep",
-            "resolution",
-            "--scene",
-            "configs/scenes/paper-cup.toml",
-            "--json",
-        ])
-        .env(
-            "GELGRIP_CACHE_DIR",
-            std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("gelgrip-cache"),
-        )
-        .env("RUST_LOG", "warn")
-        .output()
-        .expect("gelgrip runs");
+    let out = common::gelgrip_cached(&[
+        "bench",
+        "grasp",
+        "--sweep",
+        "resolution",
+        "--scene",
+        "configs/scenes/paper-cup.toml",
+        "--json",
+    ]);
     let rows = common::json(&out);
     let rows = rows.as_array().expect("an array of rows");
     let res: Vec<&str> = rows

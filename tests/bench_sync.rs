@@ -9,16 +9,16 @@ fn a_late_sensor_overshoots_without_the_gate_and_never_squeezes_with_it() {
     let dir = std::env::temp_dir().join(format!("gelgrip-bench-sync-t-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("dir");
     let plot = dir.join("sync.svg");
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_gelgrip"))
-        .args(["bench", "sync", "--delays-ms", "0,60", "--json", "--plot"])
-        .arg(&plot)
-        .env(
-            "GELGRIP_CACHE_DIR",
-            std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("gelgrip-cache"),
-        )
-        .env("RUST_LOG", "warn")
-        .output()
-        .expect("gelgrip runs");
+    let plot_arg = plot.display().to_string();
+    let out = common::gelgrip_cached(&[
+        "bench",
+        "sync",
+        "--delays-ms",
+        "0,60",
+        "--json",
+        "--plot",
+        &plot_arg,
+    ]);
     let rows = common::json(&out);
     let rows = rows.as_array().expect("an array of rows");
     assert_eq!(rows.len(), 4);

@@ -119,3 +119,16 @@ pub fn report(out: &Output, code: i32) -> serde_json::Value {
     );
     serde_json::from_slice(&out.stdout).expect("one JSON object")
 }
+
+/// Run `gelgrip` with `args` and the tests' shared calibration cache, logs at warn.
+pub fn gelgrip_cached(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_gelgrip"))
+        .args(args)
+        .env(
+            "GELGRIP_CACHE_DIR",
+            std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("gelgrip-cache"),
+        )
+        .env("RUST_LOG", "warn")
+        .output()
+        .expect("the gelgrip binary runs")
+}
