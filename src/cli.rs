@@ -401,6 +401,10 @@ pub struct RunArgs {
     /// No HTTP server and no dashboard.
     #[arg(long)]
     pub headless: bool,
+    /// Serve the dashboard on this address instead of `[http] bind` (port 0: any free
+    /// port; the URL is printed to stderr).
+    #[arg(long, value_name = "ADDR", conflicts_with = "headless")]
+    pub http: Option<std::net::SocketAddr>,
     /// Time source (default real).
     #[arg(long, value_enum)]
     pub clock: Option<ClockArg>,

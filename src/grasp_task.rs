@@ -172,12 +172,7 @@ impl GraspTask {
     pub fn on_set(&mut self, set: &FrameSet, now_us: u64) -> anyhow::Result<Option<&'static str>> {
         let t_s = now_us as f64 / 1e6;
         let start = *self.start_s.get_or_insert(t_s);
-        let sensed = self.io.sense(set, now_us)?;
-        self.gripper.apply_commands(&self.io.positions());
-        let goals = self
-            .gripper
-            .step(t_s, Some(&sensed.fused), self.io.states());
-        self.io.command(&sensed, goals.as_deref())?;
+        let sensed = self.io.drive(&mut self.gripper, set, now_us)?;
         let truth = self.io.true_forces_n();
         let regulated = self
             .gripper
@@ -209,6 +204,7 @@ impl GraspTask {
             phases: &phases,
             goals: &goals,
         })?;
+        self.io.remember(sensed.fused);
         match self.stage {
             Stage::Grasp => {
                 let ended = self.pending.as_mut().and_then(PendingGrasp::try_outcome);
@@ -292,6 +288,23 @@ impl GraspTask {
         if let Some(goals) = self.gripper.goals() {
             self.io.write_now(&goals);
         }
+    }
+
+    /// Each finger's phase, regulated force and target, N.
+    pub fn fingers(&self) -> Vec<(gelgrip_controller::grasp::Phase, f64, f64)> {
+        self.gripper.controller().map_or_else(Vec::new, |c| {
+            c.phases()
+                .into_iter()
+                .zip(c.forces_n())
+                .zip(c.targets_n())
+                .map(|((p, f), t)| (p, f, t))
+                .collect()
+        })
+    }
+
+    /// The stage now (`grasp`, `hold`, `hold_test`, `done`).
+    pub fn stage_label(&self) -> &'static str {
+        self.stage_name()
     }
 
     fn stage_name(&self) -> &'static str {

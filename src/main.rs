@@ -4,8 +4,10 @@
 mod bench_config;
 mod cli;
 mod commands;
+mod dashboard;
 mod embedded;
 mod grasp_task;
+mod gripper_loop;
 mod output;
 mod plot;
 mod scene_report;

@@ -77,6 +77,9 @@ pub struct RunReport {
     /// The servos' last states, in finger order.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub servos: Option<Vec<ServoReport>>,
+    /// The dashboard's URL (when it was served).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub dashboard_url: Option<String>,
     /// The task fields (a task run).
     #[serde(flatten, skip_serializing_if = "Option::is_none")]
     pub task: Option<crate::grasp_task::TaskReport>,

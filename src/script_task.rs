@@ -131,6 +131,7 @@ impl ScriptTask {
             phases: &self.runner.phases(),
             goals: &goals,
         })?;
+        self.io.remember(sensed.fused);
         Ok(self.runner.end().map(|e| {
             if e.completed {
                 tracing::info!("task {} done", self.runner.script().name);
@@ -180,6 +181,26 @@ impl ScriptTask {
             self.runner
                 .stop(&self.io.positions(), "the run ended first");
         }
+    }
+
+    /// Each finger's phase, regulated force and force target, N.
+    pub fn fingers(&self) -> Vec<(gelgrip_controller::grasp::Phase, f64, f64)> {
+        let targets = self.runner.force_targets_n();
+        self.runner
+            .phases()
+            .into_iter()
+            .zip(self.runner.forces_n())
+            .zip(targets)
+            .map(|((p, f), t)| (p, f, t))
+            .collect()
+    }
+
+    /// The script's name and its stage now.
+    pub fn stage(&self) -> (String, String) {
+        (
+            self.runner.script().name.clone(),
+            self.runner.stage_name().unwrap_or("done").to_string(),
+        )
     }
 
     /// The hardware side.

@@ -82,6 +82,18 @@ impl Tactile {
         })
     }
 
+    /// Sensor `i`'s last reconstructed depth window (mm, row-major), its width and height,
+    /// and the depth above which a pixel counts as contact, mm.
+    pub fn depth_window(&self, i: usize) -> Option<(Vec<f32>, usize, usize, f32)> {
+        let pipe = self.pipes.get(i)?;
+        let (depth, (_, _, w, h)) = pipe.last_depth_mm();
+        if w == 0 || h == 0 {
+            return None;
+        }
+        let threshold = pipe.noise().map_or(0.05, |n| n.depth_threshold_mm);
+        Some((depth.to_vec(), w, h, threshold))
+    }
+
     /// Process one gated set into per-sensor readings.
     pub fn process(&mut self, set: &FrameSet) -> Vec<Option<SensorReading>> {
         let frames: Vec<&[u8]> = set.frames.iter().map(|f| f.frame.jpeg.as_ref()).collect();

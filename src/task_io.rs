@@ -14,6 +14,7 @@ use gelgrip_controller::config::AppConfig;
 use gelgrip_controller::frame::FrameSet;
 use gelgrip_controller::fusion::{FusedSet, fuse};
 use gelgrip_controller::grasp::Phase;
+use gelgrip_controller::gripper::GripperService;
 use gelgrip_controller::layout::HandLayout;
 use gelgrip_sim::world::SharedWorld;
 
@@ -97,6 +98,7 @@ pub struct TaskIo {
     capture_ms: Vec<f64>,
     pipeline_ms: Vec<f64>,
     log: Option<std::io::BufWriter<std::fs::File>>,
+    last: Option<FusedSet>,
     /// Recovered servo faults, described.
     pub recovered: Vec<String>,
 }
@@ -134,6 +136,7 @@ impl TaskIo {
             capture_ms: Vec::new(),
             pipeline_ms: Vec::new(),
             log,
+            last: None,
             recovered: Vec::new(),
         })
     }
@@ -160,6 +163,21 @@ impl TaskIo {
         })
     }
 
+    /// Keep the last fused set (for the dashboard).
+    pub fn remember(&mut self, fused: FusedSet) {
+        self.last = Some(fused);
+    }
+
+    /// The last fused set remembered.
+    pub fn last_fused(&self) -> Option<&FusedSet> {
+        self.last.as_ref()
+    }
+
+    /// The pipelines.
+    pub fn tactile(&self) -> &Tactile {
+        &self.tactile
+    }
+
     /// The servos' last states.
     pub fn states(&self) -> &[ServoState] {
         &self.states
@@ -184,6 +202,21 @@ impl TaskIo {
         self.capture_ms.push(sensed.set_age_ms + loop_ms);
         self.states = self.read()?;
         Ok(())
+    }
+
+    /// One step of the grasp API on `set`: sense, apply the queued commands, step the
+    /// controller and write its goals.
+    pub fn drive(
+        &mut self,
+        gripper: &mut GripperService,
+        set: &FrameSet,
+        now_us: u64,
+    ) -> anyhow::Result<Sensed> {
+        let sensed = self.sense(set, now_us)?;
+        gripper.apply_commands(&self.positions());
+        let goals = gripper.step(now_us as f64 / 1e6, Some(&sensed.fused), self.states());
+        self.command(&sensed, goals.as_deref())?;
+        Ok(sensed)
     }
 
     /// Write hold goals at once (stop, e-stop, watchdog); a failure is logged, since the

@@ -1,10 +1,14 @@
-//! The task a run carries out: the built-in gentle grasp or a task script, behind one face
+//! What drives the gripper in a run: the built-in gentle grasp, a task script, or (no
+//! task, with the dashboard) the idle gripper that the grasp API commands; behind one face
 //! for the run loop.
 
 use gelgrip_controller::actuator::ServoState;
 use gelgrip_controller::frame::FrameSet;
 
+use gelgrip_controller::grasp::Phase;
+
 use crate::grasp_task::{GraspTask, TaskReport};
+use crate::gripper_loop::GripperLoop;
 use crate::script_task::ScriptTask;
 use crate::task_io::TaskIo;
 
@@ -14,6 +18,8 @@ pub enum Task {
     Grasp(GraspTask),
     /// `--task FILE|NAME`, a script.
     Script(ScriptTask),
+    /// No task: the dashboard's commands drive the gripper.
+    Idle(GripperLoop),
 }
 
 impl Task {
@@ -22,6 +28,7 @@ impl Task {
         match self {
             Self::Grasp(t) => t.on_set(set, now_us),
             Self::Script(t) => t.on_set(set, now_us),
+            Self::Idle(t) => t.on_set(set, now_us).map(|()| None),
         }
     }
 
@@ -30,6 +37,14 @@ impl Task {
         match self {
             Self::Grasp(t) => t.watchdog(now_us),
             Self::Script(t) => t.watchdog(now_us),
+            Self::Idle(t) => {
+                let silent_ms = t.io_mut().watchdog_silence_ms(now_us)?;
+                let _ = t.handle().stop();
+                t.apply_urgent();
+                Some(format!(
+                    "watchdog: no synchronized set for {silent_ms} ms; fingers hold"
+                ))
+            }
         }
     }
 
@@ -38,6 +53,7 @@ impl Task {
         match self {
             Self::Grasp(t) => t.estop(),
             Self::Script(t) => t.estop(),
+            Self::Idle(t) => t.estop(),
         }
     }
 
@@ -59,10 +75,12 @@ impl Task {
         self.io().states()
     }
 
-    fn io(&self) -> &TaskIo {
+    /// The hardware side.
+    pub fn io(&self) -> &TaskIo {
         match self {
             Self::Grasp(t) => t.io(),
             Self::Script(t) => t.io(),
+            Self::Idle(t) => t.io(),
         }
     }
 
@@ -70,14 +88,34 @@ impl Task {
         match self {
             Self::Grasp(t) => t.io_mut(),
             Self::Script(t) => t.io_mut(),
+            Self::Idle(t) => t.io_mut(),
         }
     }
 
-    /// The task fields of the run report.
-    pub fn report(&self) -> TaskReport {
+    /// The task fields of the run report (none for the idle gripper).
+    pub fn report(&self) -> Option<TaskReport> {
         match self {
-            Self::Grasp(t) => t.report(),
-            Self::Script(t) => t.report(),
+            Self::Grasp(t) => Some(t.report()),
+            Self::Script(t) => Some(t.report()),
+            Self::Idle(_) => None,
+        }
+    }
+
+    /// Each finger's phase, regulated force and target, N.
+    pub fn fingers(&self) -> Vec<(Phase, f64, f64)> {
+        match self {
+            Self::Grasp(t) => t.fingers(),
+            Self::Script(t) => t.fingers(),
+            Self::Idle(t) => t.fingers(),
+        }
+    }
+
+    /// The task's name and stage (none for the idle gripper).
+    pub fn stage(&self) -> Option<(String, String)> {
+        match self {
+            Self::Grasp(t) => Some(("gentle-grasp".into(), t.stage_label().into())),
+            Self::Script(t) => Some(t.stage()),
+            Self::Idle(_) => None,
         }
     }
 }

@@ -7,7 +7,9 @@ use gelgrip_controller::acquire::Acquisition;
 use gelgrip_controller::clock::{Clock, ClockKind};
 
 use crate::cli::{ClockArg, RunArgs};
+use crate::dashboard::Dashboard;
 use crate::grasp_task::{GraspOptions, GraspTask};
+use crate::gripper_loop::GripperLoop;
 use crate::output::{RunReport, ServoReport, latency_ms};
 use crate::scene_report::SceneReport;
 use crate::script_task::{ScriptTask, load_script};
@@ -103,12 +105,6 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
         .as_ref()
         .and_then(|w| w.lock().ok().map(|w| w.scene().is_some()))
         .unwrap_or(false);
-    if !args.headless {
-        tracing::info!(
-            "the dashboard ({}) arrives with the web dashboard issue; running without it",
-            config.http.bind
-        );
-    }
     let mut acq = wiring::open_acquisition(&config, &registry, clock.clone()).await?;
     let description = acq.hub().describe().clone();
     tracing::info!(
@@ -170,6 +166,9 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
                 config.layout.name
             )));
         }
+        (None, Some(bus)) if !args.headless => {
+            task = Some(Task::Idle(GripperLoop::start(&config, bus, world.clone())?));
+        }
         (None, Some(bus)) => {
             servos = Some(
                 ServoLoop::start(bus, &config.layout, on_scene, args.close_current_ma, start)
@@ -178,6 +177,16 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
         }
         (None, None) => {}
     }
+    let mut dashboard = if args.headless {
+        None
+    } else {
+        let gripper = match &task {
+            Some(Task::Idle(t)) => Some(t.handle()),
+            _ => None,
+        };
+        let bind = args.http.unwrap_or(config.http.bind);
+        Some(Dashboard::start(&config, bind, gripper, description.transport.clone()).await?)
+    };
     let shutdown = shutdown_signal();
     let estop = estop_signal();
     let timer = real_deadline(clock.clone(), deadline);
@@ -211,12 +220,20 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
                                 }
                             }
                         }
+                        if let Some(d) = dashboard.as_mut() {
+                            let now = clock.now_us();
+                            let t_s = (now - start) as f64 / 1e6;
+                            d.publish(&set, task.as_ref(), acq.gate().stats(), t_s, now);
+                        }
                     }
                     Ok(None) => {}
                 }
             }
         }
         let now = clock.now_us();
+        if let Some(Task::Idle(t)) = task.as_mut() {
+            t.apply_urgent();
+        }
         if let Some(fault) = task.as_mut().and_then(|t| t.watchdog(now)) {
             tracing::error!("{fault}");
             faults.push(fault);
@@ -285,7 +302,8 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
             .map(|s| s.last.as_slice())
             .or(task.as_ref().map(|t| t.states()))
             .map(|s| s.iter().map(ServoReport::from).collect()),
-        task: task.as_ref().map(Task::report),
+        dashboard_url: dashboard.as_ref().map(|d| format!("http://{}/", d.addr)),
+        task: task.as_ref().and_then(Task::report),
     };
     if args.json {
         println!("{}", serde_json::to_string(&report)?);

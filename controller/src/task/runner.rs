@@ -182,6 +182,18 @@ impl TaskRunner {
             .collect()
     }
 
+    /// Each finger's force target now, N (0 where no force target drives it).
+    pub fn force_targets_n(&self) -> Vec<f64> {
+        self.drives
+            .iter()
+            .enumerate()
+            .map(|(f, d)| match d {
+                Drive::Force(c) => c.targets_n().get(f).copied().unwrap_or(0.0),
+                Drive::Fixed(_) => 0.0,
+            })
+            .collect()
+    }
+
     /// The largest force target of any stage, N (0 when none sets one).
     pub fn max_target_force_n(&self) -> f64 {
         self.script

@@ -1,0 +1,145 @@
+// gelgrip dashboard: follows /api/events (SSE), shows each sensor's MJPEG, depth and
+// contact images, plots the deformation signals, and sends commands to the grasp API.
+"use strict";
+
+const $ = (id) => document.getElementById(id);
+const WINDOW_S = 30;
+const history = []; // [t_s, [deformation per sensor]]
+let built = false;
+let state = null;
+
+function token() { return localStorage.getItem("gelgrip-token") || ""; }
+$("token").value = token();
+$("token").addEventListener("change", (e) => localStorage.setItem("gelgrip-token", e.target.value));
+
+async function command(path, body) {
+  const headers = { "Content-Type": "application/json" };
+  if (token()) headers["Authorization"] = "Bearer " + token();
+  $("result").textContent = path + " …";
+  try {
+    const r = await fetch(path, { method: "POST", headers, body: JSON.stringify(body || {}) });
+    const text = await r.text();
+    $("result").textContent = path + " → " + r.status + " " + text;
+    $("result").dataset.status = String(r.status);
+  } catch (e) {
+    $("result").textContent = path + " failed: " + e;
+  }
+}
+
+$("grasp").onclick = () => command("/api/grasp", { target_force_n: parseFloat($("force").value) });
+$("release").onclick = () => command("/api/release");
+$("stop").onclick = () => command("/api/stop");
+$("estop").onclick = () => command("/api/estop");
+$("task").onclick = () => command("/api/task", { name: $("task-name").value });
+
+function build(s) {
+  const hand = $("hand");
+  hand.innerHTML = "";
+  for (const sensor of s.sensors) {
+    const id = sensor.id;
+    const div = document.createElement("div");
+    div.className = "sensor";
+    div.id = "sensor-" + id;
+    div.innerHTML =
+      `<h3>${id}</h3><div class="views">` +
+      `<img alt="${id} camera" src="/api/sensors/${encodeURIComponent(id)}/stream.mjpg">` +
+      `<img alt="${id} depth" class="depth">` +
+      `<img alt="${id} contact" class="contact"></div>` +
+      `<div class="values"></div>`;
+    hand.appendChild(div);
+  }
+  built = true;
+}
+
+function refreshImages() {
+  if (!state) return;
+  const stamp = Date.now();
+  for (const sensor of state.sensors) {
+    const div = $("sensor-" + sensor.id);
+    if (!div) continue;
+    const id = encodeURIComponent(sensor.id);
+    div.querySelector(".depth").src = `/api/sensors/${id}/depth.png?t=${stamp}`;
+    div.querySelector(".contact").src = `/api/sensors/${id}/contact.png?t=${stamp}`;
+  }
+}
+setInterval(refreshImages, 500);
+
+const fmt = (v, d = 2) => (v === null || v === undefined ? "-" : Number(v).toFixed(d));
+
+function render(s) {
+  state = s;
+  if (!built || $("hand").children.length !== s.sensors.length) build(s);
+  $("run").textContent = `${s.transport} · t ${fmt(s.t_s, 1)} s · ${s.sensors.length} sensors`;
+  $("sync").textContent =
+    `sets ${s.sync.sets} · ${fmt(s.sync.set_rate_hz, 1)} Hz · spread p99 ${s.sync.spread_us_p99 ?? "-"} µs · loop p99 ${fmt(s.sync.loop_latency_ms_p99)} ms`;
+  $("calibration").textContent = s.calibration;
+  for (const sensor of s.sensors) {
+    const div = $("sensor-" + sensor.id);
+    if (!div) continue;
+    div.classList.toggle("touch", sensor.in_contact);
+    div.classList.toggle("missing", !sensor.ok);
+    div.querySelector(".values").textContent =
+      `${fmt(sensor.force_n)} N · ${fmt(sensor.area_mm2, 1)} mm² · ${fmt(sensor.max_depth_mm, 3)} mm · ${fmt(sensor.deformation_mm3, 1)} mm³`;
+  }
+  const maxForce = Math.max(1, ...s.fingers.map((f) => Math.max(f.force_n, f.target_force_n)));
+  $("fingers").innerHTML =
+    "<tr><th>finger</th><th>phase</th><th>force N</th><th>target N</th><th></th></tr>" +
+    s.fingers.map((f) =>
+      `<tr id="finger-${f.id}"><td>${f.id}</td><td class="phase">${f.phase}</td><td>${fmt(f.force_n)}</td><td>${fmt(f.target_force_n)}</td>` +
+      `<td><span class="bar" style="width:${(100 * f.force_n) / maxForce}px"></span>` +
+      `<span class="bar target" style="width:${(100 * Math.max(0, f.target_force_n - f.force_n)) / maxForce}px"></span></td></tr>`
+    ).join("");
+  $("servos").innerHTML =
+    "<tr><th>finger</th><th>position °</th><th>current mA</th><th>temp °C</th><th>errors</th></tr>" +
+    s.servos.map((v) =>
+      `<tr><td>${v.finger}</td><td>${fmt(v.position_deg, 1)}</td><td>${fmt(v.current_ma, 0)}</td><td>${fmt(v.temperature_c, 1)}</td><td>${v.errors.join(", ") || "none"}</td></tr>`
+    ).join("");
+  const total = Math.max(1, ...s.sync.spread_histogram_us.map((b) => b[1]));
+  $("histogram").innerHTML = s.sync.spread_histogram_us
+    .map((b) => `<div>≤ ${b[0]} µs <span class="bar" style="width:${(150 * b[1]) / total}px"></span> ${b[1]}</div>`)
+    .join("") || "no sets yet";
+  $("drops").innerHTML =
+    "<tr><th>reason</th><th>frames</th><th>sets refused</th></tr>" +
+    Object.keys(s.sync.drops).map((k) => `<tr><td>${k}</td><td>${s.sync.drops[k]}</td><td>${s.sync.sets_rejected[k]}</td></tr>`).join("");
+  $("taskstate").textContent = s.task ? `${s.task.name}: ${s.task.stage}` : "none";
+  history.push([s.t_s, s.sensors.map((x) => x.deformation_mm3)]);
+  while (history.length && s.t_s - history[0][0] > WINDOW_S) history.shift();
+  plot(s.sensors.map((x) => x.id));
+}
+
+const COLORS = ["#d62728", "#2ca02c", "#e6b800", "#1f77b4", "#ff7f0e", "#9467bd", "#17becf", "#8c564b"];
+
+function plot(ids) {
+  const c = $("plot");
+  const g = c.getContext("2d");
+  g.clearRect(0, 0, c.width, c.height);
+  if (history.length < 2) return;
+  const t1 = history[history.length - 1][0];
+  const t0 = t1 - WINDOW_S;
+  const ymax = Math.max(1, ...history.flatMap((h) => h[1])) * 1.1;
+  const x = (t) => 40 + ((t - t0) / WINDOW_S) * (c.width - 50);
+  const y = (v) => c.height - 20 - (v / ymax) * (c.height - 30);
+  g.strokeStyle = "#ccc";
+  g.fillStyle = "#555";
+  g.font = "11px sans-serif";
+  for (let k = 0; k <= 4; k++) {
+    const v = (ymax * k) / 4;
+    g.beginPath(); g.moveTo(40, y(v)); g.lineTo(c.width - 10, y(v)); g.stroke();
+    g.fillText(v.toFixed(0), 2, y(v) + 4);
+  }
+  ids.forEach((id, i) => {
+    g.strokeStyle = COLORS[i % COLORS.length];
+    g.beginPath();
+    history.forEach((h, k) => (k ? g.lineTo(x(h[0]), y(h[1][i])) : g.moveTo(x(h[0]), y(h[1][i]))));
+    g.stroke();
+    g.fillStyle = COLORS[i % COLORS.length];
+    g.fillText(id, 45 + (i % 8) * 90, 12);
+  });
+}
+
+function connect() {
+  const events = new EventSource("/api/events");
+  events.addEventListener("state", (e) => render(JSON.parse(e.data)));
+  events.onerror = () => { $("run").textContent = "disconnected; retrying…"; };
+}
+connect();

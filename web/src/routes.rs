@@ -1,0 +1,459 @@
+//! The routes: the page and its assets, `GET /api/state`, `GET /api/events` (SSE, 20 Hz),
+//! per-sensor MJPEG, depth and contact PNG, and the command endpoints.
+
+use std::convert::Infallible;
+use std::sync::Arc;
+use std::time::Duration;
+
+use axum::Router;
+use axum::body::{Body, Bytes};
+use axum::extract::{Path, State};
+use axum::http::{HeaderMap, StatusCode, header};
+use axum::response::sse::{Event, KeepAlive, Sse};
+use axum::response::{IntoResponse, Response};
+use axum::routing::{get, post};
+use futures_util::stream::{self, Stream};
+use serde::Deserialize;
+use serde_json::json;
+use tokio::sync::{mpsc, oneshot};
+
+use gelgrip_controller::grasp::GraspRequest;
+use gelgrip_controller::gripper::{GripperError, GripperHandle};
+
+use crate::limits::{Auth, RateLimiter};
+use crate::live::{DepthImage, Live};
+
+/// Period of the SSE stream (20 Hz).
+pub const EVENTS_PERIOD: Duration = Duration::from_millis(50);
+/// Longest a grasp request may ask to wait, s.
+pub const MAX_TIMEOUT_S: f64 = 120.0;
+
+/// A request to run a task by name; the reply says whether it started.
+pub type TaskCommand = (String, oneshot::Sender<Result<(), String>>);
+
+/// Everything the routes need.
+#[derive(Debug, Clone)]
+pub struct AppState {
+    /// What the run loop publishes.
+    pub live: Arc<Live>,
+    /// The grasp API (`None` when the run has no servos).
+    pub gripper: Option<GripperHandle>,
+    /// Finger ids, in servo order.
+    pub fingers: Vec<String>,
+    /// Where task requests go (`None`: tasks cannot be started from here).
+    pub tasks: Option<mpsc::Sender<TaskCommand>>,
+    /// The configured current limit, mA (the default of a grasp request).
+    pub current_limit_ma: f64,
+    /// Command authorization.
+    pub auth: Auth,
+    /// Command rate limit.
+    pub limiter: Arc<RateLimiter>,
+}
+
+impl AppState {
+    /// A state for `live`, with no token required (loopback) and the default rate limit.
+    pub fn new(live: Arc<Live>, gripper: Option<GripperHandle>, fingers: Vec<String>) -> Self {
+        Self {
+            live,
+            gripper,
+            fingers,
+            tasks: None,
+            current_limit_ma: 1000.0,
+            auth: Auth::default(),
+            limiter: Arc::new(RateLimiter::default()),
+        }
+    }
+
+    /// Require `token` on command endpoints (a non-loopback bind).
+    pub fn with_token(mut self, token: String) -> Self {
+        self.auth.required = Some(token);
+        self
+    }
+}
+
+/// The dashboard's router.
+pub fn app(state: AppState) -> Router {
+    Router::new()
+        .route("/", get(index))
+        .route("/app.js", get(script))
+        .route("/style.css", get(style))
+        .route("/api/state", get(api_state))
+        .route("/api/events", get(events))
+        .route("/api/sensors/{id}/stream.mjpg", get(mjpeg))
+        .route("/api/sensors/{id}/depth.png", get(depth_png))
+        .route("/api/sensors/{id}/contact.png", get(contact_png))
+        .route("/api/grasp", post(grasp))
+        .route("/api/release", post(release))
+        .route("/api/stop", post(stop))
+        .route("/api/estop", post(estop))
+        .route("/api/task", post(task))
+        .fallback(not_found)
+        .with_state(state)
+}
+
+/// An API error: a status and a message, sent as `{"error": message}`.
+#[derive(Debug)]
+pub struct ApiError {
+    status: StatusCode,
+    message: String,
+}
+
+impl ApiError {
+    fn new(status: StatusCode, message: impl Into<String>) -> Self {
+        Self {
+            status,
+            message: message.into(),
+        }
+    }
+}
+
+impl IntoResponse for ApiError {
+    fn into_response(self) -> Response {
+        let mut r = (self.status, axum::Json(json!({ "error": self.message }))).into_response();
+        if self.status == StatusCode::UNAUTHORIZED {
+            r.headers_mut().insert(
+                header::WWW_AUTHENTICATE,
+                axum::http::HeaderValue::from_static("Bearer"),
+            );
+        }
+        r
+    }
+}
+
+fn error(status: StatusCode, message: impl Into<String>) -> Response {
+    ApiError::new(status, message).into_response()
+}
+
+async fn not_found() -> Response {
+    error(
+        StatusCode::NOT_FOUND,
+        "no such route; the API is in docs/api.md",
+    )
+}
+
+async fn index() -> impl IntoResponse {
+    (
+        [(header::CONTENT_TYPE, "text/html; charset=utf-8")],
+        include_str!("../assets/index.html"),
+    )
+}
+
+async fn script() -> impl IntoResponse {
+    (
+        [(header::CONTENT_TYPE, "text/javascript; charset=utf-8")],
+        include_str!("../assets/app.js"),
+    )
+}
+
+async fn style() -> impl IntoResponse {
+    (
+        [(header::CONTENT_TYPE, "text/css; charset=utf-8")],
+        include_str!("../assets/style.css"),
+    )
+}
+
+async fn api_state(State(s): State<AppState>) -> Response {
+    axum::Json(s.live.snapshot().as_ref().clone()).into_response()
+}
+
+async fn events(State(s): State<AppState>) -> Sse<impl Stream<Item = Result<Event, Infallible>>> {
+    let mut interval = tokio::time::interval(EVENTS_PERIOD);
+    interval.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+    let stream = stream::unfold((interval, s.live), |(mut interval, live)| async move {
+        interval.tick().await;
+        let event = Event::default()
+            .event("state")
+            .json_data(live.snapshot().as_ref())
+            .unwrap_or_else(|_| Event::default().event("error").data("unserializable state"));
+        Some((Ok(event), (interval, live)))
+    });
+    Sse::new(stream).keep_alive(KeepAlive::default())
+}
+
+fn sensor(s: &AppState, id: &str) -> Result<usize, ApiError> {
+    s.live.index_of(id).ok_or_else(|| {
+        ApiError::new(
+            StatusCode::NOT_FOUND,
+            format!("no sensor `{id}`; sensors: {}", s.live.ids().join(", ")),
+        )
+    })
+}
+
+const BOUNDARY: &str = "gelgripframe";
+
+async fn mjpeg(State(s): State<AppState>, Path(id): Path<String>) -> Response {
+    let index = match sensor(&s, &id) {
+        Ok(i) => i,
+        Err(e) => return e.into_response(),
+    };
+    let Some(mut rx) = s.live.frames(index) else {
+        return error(StatusCode::NOT_FOUND, format!("no frames for `{id}`"));
+    };
+    rx.mark_changed();
+    let parts = stream::unfold(rx, |mut rx| async move {
+        rx.changed().await.ok()?;
+        let jpeg = rx.borrow_and_update().clone();
+        let head = format!(
+            "--{BOUNDARY}\r\nContent-Type: image/jpeg\r\nContent-Length: {}\r\n\r\n",
+            jpeg.len()
+        );
+        let mut part = Vec::with_capacity(head.len() + jpeg.len() + 2);
+        part.extend_from_slice(head.as_bytes());
+        part.extend_from_slice(&jpeg);
+        part.extend_from_slice(b"\r\n");
+        Some((Ok::<_, Infallible>(Bytes::from(part)), rx))
+    });
+    (
+        [
+            (
+                header::CONTENT_TYPE,
+                format!("multipart/x-mixed-replace; boundary={BOUNDARY}"),
+            ),
+            (header::CACHE_CONTROL, "no-cache".to_string()),
+        ],
+        Body::from_stream(parts),
+    )
+        .into_response()
+}
+
+/// 8-bit grey PNG of `pixels` (`width` × `height`).
+fn png_grey(width: usize, height: usize, pixels: &[u8]) -> Result<Vec<u8>, png::EncodingError> {
+    let mut out = Vec::new();
+    let mut enc = png::Encoder::new(&mut out, width as u32, height as u32);
+    enc.set_color(png::ColorType::Grayscale);
+    enc.set_depth(png::BitDepth::Eight);
+    enc.write_header()?.write_image_data(pixels)?;
+    Ok(out)
+}
+
+/// Depth as grey levels: 0 at no indentation, 255 at the deepest point (or 1 mm when the
+/// map is flatter); non-finite depth is black.
+fn depth_levels(d: &DepthImage) -> Vec<u8> {
+    let max = d
+        .depth_mm
+        .iter()
+        .copied()
+        .filter(|v| v.is_finite())
+        .fold(0.0f32, f32::max)
+        .max(1e-3);
+    d.depth_mm
+        .iter()
+        .map(|v| {
+            if v.is_finite() {
+                (v.max(0.0) / max * 255.0).round() as u8
+            } else {
+                0
+            }
+        })
+        .collect()
+}
+
+fn image(s: &AppState, id: &str, contact: bool) -> Response {
+    let index = match sensor(s, id) {
+        Ok(i) => i,
+        Err(e) => return e.into_response(),
+    };
+    let Some(d) = s.live.depth(index) else {
+        return error(
+            StatusCode::SERVICE_UNAVAILABLE,
+            format!("no depth map for `{id}` yet (the pipelines publish one per set)"),
+        );
+    };
+    if d.width * d.height != d.depth_mm.len() || d.width == 0 {
+        return error(StatusCode::INTERNAL_SERVER_ERROR, "malformed depth map");
+    }
+    let pixels: Vec<u8> = if contact {
+        d.depth_mm
+            .iter()
+            .map(|v| {
+                if v.is_finite() && *v > d.contact_mm {
+                    255
+                } else {
+                    0
+                }
+            })
+            .collect()
+    } else {
+        depth_levels(&d)
+    };
+    match png_grey(d.width, d.height, &pixels) {
+        Ok(bytes) => ([(header::CONTENT_TYPE, "image/png")], bytes).into_response(),
+        Err(e) => error(StatusCode::INTERNAL_SERVER_ERROR, format!("PNG: {e}")),
+    }
+}
+
+async fn depth_png(State(s): State<AppState>, Path(id): Path<String>) -> Response {
+    image(&s, &id, false)
+}
+
+async fn contact_png(State(s): State<AppState>, Path(id): Path<String>) -> Response {
+    image(&s, &id, true)
+}
+
+/// Authorization, then the rate limit (unless `exempt`), then the gripper.
+fn admit(s: &AppState, headers: &HeaderMap, exempt: bool) -> Result<GripperHandle, ApiError> {
+    if !s.auth.allows(headers) {
+        return Err(ApiError::new(
+            StatusCode::UNAUTHORIZED,
+            "this server is bound off loopback: commands need `Authorization: Bearer <token>`",
+        ));
+    }
+    if !exempt && !s.limiter.try_take() {
+        return Err(ApiError::new(
+            StatusCode::TOO_MANY_REQUESTS,
+            format!(
+                "too many commands: at most {} at once and {} per second (e-stop is never limited)",
+                crate::limits::BURST,
+                crate::limits::PER_S
+            ),
+        ));
+    }
+    s.gripper.clone().ok_or_else(|| {
+        ApiError::new(
+            StatusCode::SERVICE_UNAVAILABLE,
+            "this run carries out a task from the command line (or has no finger servos): \
+             the dashboard only watches it",
+        )
+    })
+}
+
+fn gripper_error(e: &GripperError) -> Response {
+    match e {
+        GripperError::Stopped => error(StatusCode::SERVICE_UNAVAILABLE, e.to_string()),
+        GripperError::InvalidRequest { .. } => error(StatusCode::BAD_REQUEST, e.to_string()),
+    }
+}
+
+fn parse<T: serde::de::DeserializeOwned>(body: &Bytes) -> Result<T, ApiError> {
+    serde_json::from_slice(body)
+        .map_err(|e| ApiError::new(StatusCode::BAD_REQUEST, format!("bad JSON body: {e}")))
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct GraspBody {
+    target_force_n: f64,
+    speed_deg_s: Option<f64>,
+    current_limit_ma: Option<f64>,
+    fingers: Option<Vec<String>>,
+    timeout_s: Option<f64>,
+}
+
+async fn grasp(State(s): State<AppState>, headers: HeaderMap, body: Bytes) -> Response {
+    let handle = match admit(&s, &headers, false) {
+        Ok(h) => h,
+        Err(e) => return e.into_response(),
+    };
+    let b: GraspBody = match parse(&body) {
+        Ok(b) => b,
+        Err(e) => return e.into_response(),
+    };
+    let fingers = match &b.fingers {
+        None => (0..s.fingers.len()).collect(),
+        Some(ids) => {
+            let mut out = Vec::new();
+            for id in ids {
+                match s.fingers.iter().position(|f| f == id) {
+                    Some(i) => out.push(i),
+                    None => {
+                        return error(
+                            StatusCode::BAD_REQUEST,
+                            format!("no finger `{id}`; fingers: {}", s.fingers.join(", ")),
+                        );
+                    }
+                }
+            }
+            out
+        }
+    };
+    let timeout_s = b.timeout_s.unwrap_or(20.0);
+    if !(timeout_s.is_finite() && timeout_s > 0.0 && timeout_s <= MAX_TIMEOUT_S) {
+        return error(
+            StatusCode::BAD_REQUEST,
+            format!("timeout_s = {timeout_s}: expected (0, {MAX_TIMEOUT_S}] s"),
+        );
+    }
+    let request = GraspRequest {
+        target_force_n: b.target_force_n,
+        speed_deg_s: b.speed_deg_s.unwrap_or(15.0),
+        current_limit_ma: b.current_limit_ma.unwrap_or(s.current_limit_ma),
+        fingers,
+        timeout_s,
+    };
+    let pending = match handle.start_grasp(request) {
+        Ok(p) => p,
+        Err(e) => return gripper_error(&e),
+    };
+    // The grasp resolves by its own timeout; the margin covers a loop that stalls.
+    match tokio::time::timeout(Duration::from_secs_f64(timeout_s + 5.0), pending.outcome()).await {
+        Ok(Ok(outcome)) => axum::Json(outcome).into_response(),
+        Ok(Err(e)) => gripper_error(&e),
+        Err(_) => error(
+            StatusCode::GATEWAY_TIMEOUT,
+            "the grasp did not resolve in time: is the run loop receiving sets?",
+        ),
+    }
+}
+
+async fn simple(
+    s: AppState,
+    headers: HeaderMap,
+    exempt: bool,
+    what: &str,
+    f: fn(&GripperHandle) -> Result<(), GripperError>,
+) -> Response {
+    let handle = match admit(&s, &headers, exempt) {
+        Ok(h) => h,
+        Err(e) => return e.into_response(),
+    };
+    match f(&handle) {
+        Ok(()) => axum::Json(json!({ "ok": true, "command": what })).into_response(),
+        Err(e) => gripper_error(&e),
+    }
+}
+
+async fn release(State(s): State<AppState>, headers: HeaderMap) -> Response {
+    simple(s, headers, false, "release", GripperHandle::release).await
+}
+
+async fn stop(State(s): State<AppState>, headers: HeaderMap) -> Response {
+    simple(s, headers, false, "stop", GripperHandle::stop).await
+}
+
+async fn estop(State(s): State<AppState>, headers: HeaderMap) -> Response {
+    simple(s, headers, true, "estop", GripperHandle::estop).await
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TaskBody {
+    name: String,
+}
+
+async fn task(State(s): State<AppState>, headers: HeaderMap, body: Bytes) -> Response {
+    if let Err(e) = admit(&s, &headers, false) {
+        return e.into_response();
+    }
+    let b: TaskBody = match parse(&body) {
+        Ok(b) => b,
+        Err(e) => return e.into_response(),
+    };
+    let Some(tasks) = &s.tasks else {
+        return error(
+            StatusCode::SERVICE_UNAVAILABLE,
+            "this run cannot start tasks from the dashboard",
+        );
+    };
+    let (reply, rx) = oneshot::channel();
+    if tasks.send((b.name.clone(), reply)).await.is_err() {
+        return error(StatusCode::SERVICE_UNAVAILABLE, "the run loop has stopped");
+    }
+    match rx.await {
+        Ok(Ok(())) => axum::Json(json!({ "ok": true, "task": b.name })).into_response(),
+        Ok(Err(message)) => error(StatusCode::BAD_REQUEST, message),
+        Err(_) => error(StatusCode::SERVICE_UNAVAILABLE, "the run loop has stopped"),
+    }
+}
+
+#[cfg(test)]
+mod tests;

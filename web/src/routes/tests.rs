@@ -1,0 +1,352 @@
+//! Every route, in process (`tower::ServiceExt::oneshot`).
+
+use axum::body::{Body, to_bytes};
+use axum::http::{Request, StatusCode};
+use tower::ServiceExt;
+
+use gelgrip_controller::grasp::Tuning;
+use gelgrip_controller::gripper::GripperService;
+
+use super::*;
+use crate::live::{DepthImage, Snapshot};
+
+fn ids() -> Vec<String> {
+    ["f1.middle", "f1.tip", "palm"]
+        .iter()
+        .map(|s| s.to_string())
+        .collect()
+}
+
+fn fingers() -> Vec<String> {
+    ["f1", "f2", "f3"].iter().map(|s| s.to_string()).collect()
+}
+
+/// A state with a gripper service (returned, so the test decides whether anything steps it).
+fn state() -> (AppState, GripperService) {
+    let live = Live::new(ids());
+    let (service, handle) =
+        GripperService::new(Tuning::default(), vec![100.0; 3], vec![0.0; 3], 800.0);
+    (AppState::new(live, Some(handle), fingers()), service)
+}
+
+async fn send(app: Router, req: Request<Body>) -> (StatusCode, Vec<u8>, Option<String>) {
+    let r = app.oneshot(req).await.expect("response");
+    let status = r.status();
+    let ctype = r
+        .headers()
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .map(str::to_string);
+    let body = to_bytes(r.into_body(), 1 << 20).await.expect("body");
+    (status, body.to_vec(), ctype)
+}
+
+fn get(path: &str) -> Request<Body> {
+    Request::get(path).body(Body::empty()).expect("request")
+}
+
+fn post(path: &str, body: &str) -> Request<Body> {
+    Request::post(path)
+        .header(header::CONTENT_TYPE, "application/json")
+        .body(Body::from(body.to_string()))
+        .expect("request")
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+#[tokio::test]
+async fn the_page_and_its_assets_are_served() {
+    let (s, _service) = state();
+    for (path, kind, needle) in [
+        ("/", "text/html", "/app.js"),
+        ("/app.js", "text/javascript", "EventSource"),
+        ("/style.css", "text/css", ".sensor"),
+    ] {
+        let (status, body, ctype) = send(app(s.clone()), get(path)).await;
+        assert_eq!(status, StatusCode::OK, "{path}");
+        assert!(ctype.is_some_and(|c| c.starts_with(kind)), "{path}");
+        assert!(text(&body).contains(needle), "{path}");
+    }
+    let (status, body, _) = send(app(s), get("/nope")).await;
+    assert_eq!(status, StatusCode::NOT_FOUND);
+    assert!(text(&body).contains("docs/api.md"));
+}
+
+#[tokio::test]
+async fn state_is_the_latest_snapshot_with_sensor_ids() {
+    let (s, _service) = state();
+    s.live.publish(Snapshot {
+        t_s: 1.5,
+        transport: "sim".into(),
+        sensors: ids()
+            .into_iter()
+            .map(|id| crate::live::SensorView {
+                id,
+                ok: true,
+                ..Default::default()
+            })
+            .collect(),
+        ..Snapshot::default()
+    });
+    let (status, body, ctype) = send(app(s), get("/api/state")).await;
+    assert_eq!(status, StatusCode::OK);
+    assert!(ctype.is_some_and(|c| c.starts_with("application/json")));
+    let v: serde_json::Value = serde_json::from_slice(&body).expect("json");
+    assert_eq!(v["t_s"], 1.5);
+    assert_eq!(v["sensors"][1]["id"], "f1.tip");
+    assert!(
+        v["sync"]["drops"]["out_of_window"].is_u64(),
+        "every drop reason present"
+    );
+}
+
+#[tokio::test]
+async fn events_stream_the_state_at_20_hz() {
+    let (s, _service) = state();
+    let r = app(s).oneshot(get("/api/events")).await.expect("response");
+    assert_eq!(r.status(), StatusCode::OK);
+    assert!(
+        r.headers()[header::CONTENT_TYPE]
+            .to_str()
+            .is_ok_and(|c| c.starts_with("text/event-stream"))
+    );
+    let mut body = r.into_body().into_data_stream();
+    use futures_util::StreamExt;
+    let start = std::time::Instant::now();
+    let mut events = 0;
+    while events < 5 {
+        let chunk = body.next().await.expect("an event").expect("bytes");
+        events += text(&chunk).matches("event: state").count();
+    }
+    let elapsed = start.elapsed().as_secs_f64();
+    // Five events at 20 Hz: the first at once, then four periods (0.2 s).
+    assert!(elapsed < 0.5, "{elapsed} s for 5 events");
+}
+
+#[tokio::test]
+async fn mjpeg_forwards_the_hub_jpeg_bytes_and_unknown_sensors_are_404() {
+    let (s, _service) = state();
+    let jpeg = Bytes::from_static(b"\xff\xd8not really a jpeg\xff\xd9");
+    s.live.publish_frame(1, jpeg.clone());
+    let r = app(s.clone())
+        .oneshot(get("/api/sensors/f1.tip/stream.mjpg"))
+        .await
+        .expect("response");
+    assert_eq!(r.status(), StatusCode::OK);
+    assert!(
+        r.headers()[header::CONTENT_TYPE]
+            .to_str()
+            .is_ok_and(|c| c.starts_with("multipart/x-mixed-replace; boundary="))
+    );
+    let mut body = r.into_body().into_data_stream();
+    use futures_util::StreamExt;
+    let part = body.next().await.expect("a part").expect("bytes");
+    let needle: &[u8] = &jpeg;
+    assert!(
+        part.windows(needle.len()).any(|w| w == needle),
+        "the bytes as the hub sent them"
+    );
+    assert!(text(&part).contains(&format!("Content-Length: {}", jpeg.len())));
+    let (status, body, _) = send(app(s), get("/api/sensors/f9.tip/stream.mjpg")).await;
+    assert_eq!(status, StatusCode::NOT_FOUND);
+    assert!(text(&body).contains("f1.middle, f1.tip, palm"));
+}
+
+#[tokio::test]
+async fn depth_and_contact_are_png_and_wait_for_a_depth_map() {
+    let (s, _service) = state();
+    let (status, _, _) = send(app(s.clone()), get("/api/sensors/palm/depth.png")).await;
+    assert_eq!(status, StatusCode::SERVICE_UNAVAILABLE);
+    s.live.publish_depth(
+        2,
+        DepthImage {
+            width: 4,
+            height: 2,
+            depth_mm: vec![0.0, 0.1, 0.5, f32::NAN, 0.0, 0.0, 1.0, f32::INFINITY],
+            contact_mm: 0.05,
+        },
+    );
+    for kind in ["depth", "contact"] {
+        let (status, body, ctype) = send(
+            app(s.clone()),
+            get(&format!("/api/sensors/palm/{kind}.png")),
+        )
+        .await;
+        assert_eq!(status, StatusCode::OK, "{kind}");
+        assert_eq!(ctype.as_deref(), Some("image/png"));
+        let decoder = png::Decoder::new(std::io::Cursor::new(body));
+        let mut reader = decoder.read_info().expect("a PNG");
+        let mut px = vec![0; reader.output_buffer_size().expect("size")];
+        reader.next_frame(&mut px).expect("pixels");
+        if kind == "contact" {
+            assert_eq!(
+                &px[..8],
+                &[0, 255, 255, 0, 0, 0, 255, 0],
+                "non-finite is no contact"
+            );
+        } else {
+            assert_eq!(px[6], 255, "the deepest point is white");
+            assert_eq!(px[3], 0, "non-finite depth is black");
+        }
+    }
+    let (status, _, _) = send(app(s), get("/api/sensors/f4.tip/contact.png")).await;
+    assert_eq!(status, StatusCode::NOT_FOUND);
+}
+
+#[tokio::test]
+async fn grasp_reaches_the_service_and_resolves_with_its_outcome() {
+    let (s, mut service) = state();
+    let handle = s.gripper.clone().expect("gripper");
+    // The run loop's side: apply commands; once the grasp is in, stop it.
+    let stepper = tokio::spawn(async move {
+        loop {
+            service.apply_commands(&[0.0; 3]);
+            if service
+                .controller()
+                .is_some_and(|c| c.targets_n()[0] == 2.5)
+            {
+                let _ = handle.stop();
+                service.apply_commands(&[0.0; 3]);
+                return service;
+            }
+            tokio::time::sleep(Duration::from_millis(5)).await;
+        }
+    });
+    let (status, body, _) = send(
+        app(s),
+        post(
+            "/api/grasp",
+            r#"{"target_force_n": 2.5, "fingers": ["f1", "f3"], "timeout_s": 5}"#,
+        ),
+    )
+    .await;
+    assert_eq!(status, StatusCode::OK, "{}", text(&body));
+    let v: serde_json::Value = serde_json::from_slice(&body).expect("json");
+    assert_eq!(v["grasped"], false);
+    assert_eq!(v["reason"], "stopped");
+    assert_eq!(v["status"].as_array().map(Vec::len), Some(3));
+    assert!(v["final_force_n"].is_number());
+    stepper.await.expect("stepper");
+}
+
+#[tokio::test]
+async fn bad_grasp_requests_are_400_with_a_message() {
+    let (s, _service) = state();
+    for (body, want) in [
+        ("{not json", "bad JSON body"),
+        (r#"{"speed_deg_s": 10}"#, "missing field `target_force_n`"),
+        (
+            r#"{"target_force_n": 1, "fingers": ["f7"]}"#,
+            "no finger `f7`",
+        ),
+        (r#"{"target_force_n": -1}"#, "target_force_n"),
+        (r#"{"target_force_n": 1, "timeout_s": 1e9}"#, "timeout_s"),
+        (r#"{"target_force_n": 1, "bogus": 1}"#, "unknown field"),
+    ] {
+        let (status, reply, _) = send(app(s.clone()), post("/api/grasp", body)).await;
+        assert_eq!(status, StatusCode::BAD_REQUEST, "{body}");
+        assert!(text(&reply).contains(want), "{body}: {}", text(&reply));
+    }
+}
+
+#[tokio::test]
+async fn release_stop_and_estop_reach_the_service_and_a_stopped_loop_is_503() {
+    let (s, service) = state();
+    for path in ["/api/release", "/api/stop", "/api/estop"] {
+        let (status, body, _) = send(app(s.clone()), post(path, "")).await;
+        assert_eq!(status, StatusCode::OK, "{path}");
+        assert!(text(&body).contains("\"ok\":true"));
+    }
+    drop(service);
+    let (status, body, _) = send(app(s.clone()), post("/api/stop", "")).await;
+    assert_eq!(status, StatusCode::SERVICE_UNAVAILABLE);
+    assert!(text(&body).contains("run loop has stopped"));
+    let (status, _, _) = send(app(s), post("/api/grasp", r#"{"target_force_n": 1}"#)).await;
+    assert_eq!(status, StatusCode::SERVICE_UNAVAILABLE);
+}
+
+#[tokio::test]
+async fn commands_are_rate_limited_except_estop() {
+    let (mut s, _service) = state();
+    s.limiter = Arc::new(RateLimiter::new(2.0, 0.001));
+    let codes = [
+        send(app(s.clone()), post("/api/release", "")).await.0,
+        send(app(s.clone()), post("/api/release", "")).await.0,
+        send(app(s.clone()), post("/api/release", "")).await.0,
+    ];
+    assert_eq!(
+        codes,
+        [
+            StatusCode::OK,
+            StatusCode::OK,
+            StatusCode::TOO_MANY_REQUESTS
+        ]
+    );
+    for _ in 0..5 {
+        assert_eq!(
+            send(app(s.clone()), post("/api/estop", "")).await.0,
+            StatusCode::OK
+        );
+    }
+}
+
+#[tokio::test]
+async fn off_loopback_commands_need_the_token_even_estop() {
+    let (s, _service) = state();
+    let s = s.with_token("s3cret".into());
+    for path in ["/api/release", "/api/estop", "/api/task"] {
+        let (status, body, _) = send(app(s.clone()), post(path, "{}")).await;
+        assert_eq!(status, StatusCode::UNAUTHORIZED, "{path}");
+        assert!(!text(&body).contains("s3cret"), "the token is never echoed");
+    }
+    let wrong = Request::post("/api/estop")
+        .header(header::AUTHORIZATION, "Bearer guess")
+        .body(Body::empty())
+        .expect("request");
+    assert_eq!(
+        send(app(s.clone()), wrong).await.0,
+        StatusCode::UNAUTHORIZED
+    );
+    let right = Request::post("/api/estop")
+        .header(header::AUTHORIZATION, "Bearer s3cret")
+        .body(Body::empty())
+        .expect("request");
+    assert_eq!(send(app(s.clone()), right).await.0, StatusCode::OK);
+    // Reading needs no token.
+    assert_eq!(send(app(s), get("/api/state")).await.0, StatusCode::OK);
+}
+
+#[tokio::test]
+async fn tasks_start_through_the_run_loop_which_may_refuse_them() {
+    let (mut s, _service) = state();
+    let (status, _, _) = send(
+        app(s.clone()),
+        post("/api/task", r#"{"name": "screwdriver"}"#),
+    )
+    .await;
+    assert_eq!(status, StatusCode::SERVICE_UNAVAILABLE, "no task runner");
+    let (tx, mut rx) = mpsc::channel::<TaskCommand>(4);
+    s.tasks = Some(tx);
+    tokio::spawn(async move {
+        while let Some((name, reply)) = rx.recv().await {
+            let _ = reply.send(if name == "screwdriver" {
+                Ok(())
+            } else {
+                Err(format!("no task `{name}`"))
+            });
+        }
+    });
+    let (status, body, _) = send(
+        app(s.clone()),
+        post("/api/task", r#"{"name": "screwdriver"}"#),
+    )
+    .await;
+    assert_eq!(status, StatusCode::OK, "{}", text(&body));
+    let (status, body, _) = send(app(s.clone()), post("/api/task", r#"{"name": "juggle"}"#)).await;
+    assert_eq!(status, StatusCode::BAD_REQUEST);
+    assert!(text(&body).contains("no task `juggle`"));
+    let (status, _, _) = send(app(s), post("/api/task", r#"{"nom": 1}"#)).await;
+    assert_eq!(status, StatusCode::BAD_REQUEST);
+}
