@@ -80,6 +80,7 @@ pub fn app(state: AppState) -> Router {
         .route("/api/state", get(api_state))
         .route("/api/events", get(events))
         .route("/api/sensors/{id}/stream.mjpg", get(mjpeg))
+        .route("/api/sensors/{id}/frame.jpg", get(frame_jpg))
         .route("/api/sensors/{id}/depth.png", get(depth_png))
         .route("/api/sensors/{id}/contact.png", get(contact_png))
         .route("/api/grasp", post(grasp))
@@ -216,6 +217,35 @@ async fn mjpeg(State(s): State<AppState>, Path(id): Path<String>) -> Response {
         .into_response()
 }
 
+/// The newest frame, as the hub sent it. The page polls this rather than holding one MJPEG
+/// stream per sensor open: browsers allow six HTTP/1.1 connections per host, fewer than the
+/// seven (or sixteen) sensors plus the event stream.
+async fn frame_jpg(State(s): State<AppState>, Path(id): Path<String>) -> Response {
+    let index = match sensor(&s, &id) {
+        Ok(i) => i,
+        Err(e) => return e.into_response(),
+    };
+    let jpeg = s
+        .live
+        .frames(index)
+        .map(|rx| rx.borrow().clone())
+        .unwrap_or_default();
+    if jpeg.is_empty() {
+        return error(
+            StatusCode::SERVICE_UNAVAILABLE,
+            format!("no frame from `{id}` yet"),
+        );
+    }
+    (
+        [
+            (header::CONTENT_TYPE, "image/jpeg"),
+            (header::CACHE_CONTROL, "no-store"),
+        ],
+        jpeg,
+    )
+        .into_response()
+}
+
 /// 8-bit grey PNG of `pixels` (`width` × `height`).
 fn png_grey(width: usize, height: usize, pixels: &[u8]) -> Result<Vec<u8>, png::EncodingError> {
     let mut out = Vec::new();
@@ -226,8 +256,11 @@ fn png_grey(width: usize, height: usize, pixels: &[u8]) -> Result<Vec<u8>, png::
     Ok(out)
 }
 
-/// Depth as grey levels: 0 at no indentation, 255 at the deepest point (or 1 mm when the
-/// map is flatter); non-finite depth is black.
+/// White in a depth image is at least this deep, mm: a free pad's noise stays dark.
+const DEPTH_FLOOR_MM: f32 = 0.25;
+
+/// Depth as grey levels: 0 at no indentation, 255 at the deepest point (or
+/// [`DEPTH_FLOOR_MM`] when the map is flatter); non-finite depth is black.
 fn depth_levels(d: &DepthImage) -> Vec<u8> {
     let max = d
         .depth_mm
@@ -235,7 +268,7 @@ fn depth_levels(d: &DepthImage) -> Vec<u8> {
         .copied()
         .filter(|v| v.is_finite())
         .fold(0.0f32, f32::max)
-        .max(1e-3);
+        .max(DEPTH_FLOOR_MM);
     d.depth_mm
         .iter()
         .map(|v| {

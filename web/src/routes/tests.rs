@@ -149,6 +149,12 @@ async fn mjpeg_forwards_the_hub_jpeg_bytes_and_unknown_sensors_are_404() {
         "the bytes as the hub sent them"
     );
     assert!(text(&part).contains(&format!("Content-Length: {}", jpeg.len())));
+    let (status, body, ctype) = send(app(s.clone()), get("/api/sensors/f1.tip/frame.jpg")).await;
+    assert_eq!(status, StatusCode::OK);
+    assert_eq!(ctype.as_deref(), Some("image/jpeg"));
+    assert_eq!(body, jpeg.to_vec(), "the newest frame, byte for byte");
+    let (status, _, _) = send(app(s.clone()), get("/api/sensors/palm/frame.jpg")).await;
+    assert_eq!(status, StatusCode::SERVICE_UNAVAILABLE, "no frame yet");
     let (status, body, _) = send(app(s), get("/api/sensors/f9.tip/stream.mjpg")).await;
     assert_eq!(status, StatusCode::NOT_FOUND);
     assert!(text(&body).contains("f1.middle, f1.tip, palm"));

@@ -1,0 +1,213 @@
+//! The dashboard in a real headless Chromium (through chromedriver and the `fantoccini`
+//! WebDriver client): `gelgrip run` on the simulated tennis ball serves the page; the live
+//! views update; clicking Grasp leads to a grasped state; a screenshot is saved
+//! (`$GELGRIP_SCREENSHOT`, else `dashboard.png` under the build's tmp dir).
+
+use std::io::{BufRead, BufReader};
+use std::net::TcpListener;
+use std::process::{Child, Command, Stdio};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+use fantoccini::{ClientBuilder, Locator};
+
+/// Kills the child when dropped (SIGTERM first for gelgrip, which then ends cleanly).
+struct Running(Child);
+
+impl Drop for Running {
+    fn drop(&mut self) {
+        let _ = Command::new("kill")
+            .args(["-TERM", &self.0.id().to_string()])
+            .status();
+        let deadline = Instant::now() + Duration::from_secs(5);
+        while Instant::now() < deadline {
+            if let Ok(Some(_)) = self.0.try_wait() {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn free_port() -> u16 {
+    TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .map(|a| a.port())
+        .expect("a free port")
+}
+
+/// Start `gelgrip run` with the dashboard on a free port; its URL.
+fn start_gelgrip() -> (Running, String) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_gelgrip"))
+        .args([
+            "run",
+            "--http",
+            "127.0.0.1:0",
+            "--scene",
+            "configs/scenes/tennis-ball.toml",
+            "--duration",
+            "300",
+        ])
+        .env(
+            "GELGRIP_CACHE_DIR",
+            std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("gelgrip-cache"),
+        )
+        .env("RUST_LOG", "warn")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("gelgrip starts");
+    let stderr = child.stderr.take().expect("stderr");
+    let (tx, rx) = mpsc::channel();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+            if let Some(url) = line.strip_prefix("dashboard: ") {
+                let _ = tx.send(url.trim().to_string());
+            }
+        }
+    });
+    let url = rx
+        .recv_timeout(Duration::from_secs(300))
+        .expect("gelgrip prints the dashboard URL (the first run calibrates its sensors)");
+    (Running(child), url)
+}
+
+fn start_chromedriver() -> (Running, String) {
+    let port = free_port();
+    let child = Command::new("chromedriver")
+        .arg(format!("--port={port}"))
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("chromedriver starts (Debian chromium-driver)");
+    let deadline = Instant::now() + Duration::from_secs(20);
+    while std::net::TcpStream::connect(("127.0.0.1", port)).is_err() {
+        assert!(Instant::now() < deadline, "chromedriver is not listening");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    (Running(child), format!("http://127.0.0.1:{port}"))
+}
+
+async fn text(client: &fantoccini::Client, css: &str) -> String {
+    match client.find(Locator::Css(css)).await {
+        Ok(e) => e.text().await.unwrap_or_default(),
+        Err(_) => String::new(),
+    }
+}
+
+/// Poll `check` until it returns `Some`, or fail with `what` after `timeout`.
+async fn wait_for<T, F, Fut>(timeout: Duration, what: &str, mut check: F) -> T
+where
+    F: FnMut() -> Fut,
+    Fut: std::future::Future<Output = Option<T>>,
+{
+    let deadline = Instant::now() + timeout;
+    loop {
+        if let Some(v) = check().await {
+            return v;
+        }
+        assert!(Instant::now() < deadline, "timed out waiting for {what}");
+        tokio::time::sleep(Duration::from_millis(200)).await;
+    }
+}
+
+#[tokio::test]
+#[ignore = "needs chromium: run scripts/test"]
+async fn the_dashboard_shows_live_views_and_grasps_on_a_click() {
+    let (_gelgrip, url) = start_gelgrip();
+    let (_driver, webdriver) = start_chromedriver();
+    let mut caps = serde_json::Map::new();
+    caps.insert(
+        "goog:chromeOptions".into(),
+        serde_json::json!({
+            "binary": "/usr/bin/chromium",
+            "args": ["--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--window-size=1400,1100"]
+        }),
+    );
+    let client = ClientBuilder::new(hyper_util::client::legacy::connect::HttpConnector::new())
+        .capabilities(caps)
+        .connect(&webdriver)
+        .await
+        .expect("a Chromium session");
+    client.goto(&url).await.expect("the page loads");
+
+    // The hand layout: one tile per sensor, each with its camera stream.
+    wait_for(Duration::from_secs(20), "the sensor tiles", || async {
+        let tiles = client.find_all(Locator::Css(".sensor")).await.ok()?;
+        (tiles.len() == 7).then_some(())
+    })
+    .await;
+    // Live: the run clock in the header moves, and the camera images have pixels.
+    let first = wait_for(Duration::from_secs(20), "the state", || async {
+        let t = text(&client, "#run").await;
+        t.contains(" s ·").then_some(t)
+    })
+    .await;
+    wait_for(Duration::from_secs(10), "a newer state", || async {
+        let t = text(&client, "#run").await;
+        (t != first && !t.is_empty()).then_some(())
+    })
+    .await;
+    wait_for(Duration::from_secs(20), "camera frames", || async {
+        let v = client
+            .execute(
+                "return Array.from(document.querySelectorAll('.views img.camera')).filter(i => i.naturalWidth > 0).length",
+                vec![],
+            )
+            .await
+            .ok()?;
+        (v.as_u64()? == 7).then_some(())
+    })
+    .await;
+
+    let src = || async {
+        client
+            .execute(
+                "return document.querySelector('.views img.camera').src",
+                vec![],
+            )
+            .await
+            .ok()
+            .and_then(|v| v.as_str().map(str::to_string))
+    };
+    let before = src().await;
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    assert_ne!(src().await, before, "the camera views follow new frames");
+
+    // Grasp: the request resolves grasped, and the fingers hold.
+    client
+        .find(Locator::Id("grasp"))
+        .await
+        .expect("the Grasp button")
+        .click()
+        .await
+        .expect("click");
+    let result = wait_for(Duration::from_secs(60), "the grasp's outcome", || async {
+        let t = text(&client, "#result").await;
+        t.contains("\"reason\"").then_some(t)
+    })
+    .await;
+    assert!(result.contains("\"grasped\":true"), "{result}");
+    wait_for(Duration::from_secs(10), "fingers holding", || async {
+        let t = text(&client, "#fingers").await;
+        (t.matches("hold").count() == 3).then_some(())
+    })
+    .await;
+    let touched = client
+        .find_all(Locator::Css(".sensor.touch"))
+        .await
+        .expect("tiles")
+        .len();
+    assert!(touched >= 3, "the contact shows on the tiles: {touched}");
+    // Let the depth and contact images refresh once more, then keep a screenshot.
+    tokio::time::sleep(Duration::from_millis(1200)).await;
+    let png = client.screenshot().await.expect("a screenshot");
+    assert_eq!(&png[1..4], b"PNG");
+    let out = std::env::var_os("GELGRIP_SCREENSHOT")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("dashboard.png"));
+    std::fs::write(&out, png).expect("screenshot written");
+    client.close().await.expect("session closed");
+}
