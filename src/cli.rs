@@ -303,6 +303,23 @@ pub enum BenchCommand {
     /// The paper's synchronization experiment: a gentle grasp with one sensor capturing
     /// late, gating on and off.
     Sync(BenchSyncArgs),
+    /// What serving the dashboard costs: MJPEG and SSE rates at the clients and the
+    /// process's CPU with and without them (wall clock, Linux).
+    Dashboard(BenchDashboardArgs),
+}
+
+/// `gelgrip bench dashboard`.
+#[derive(Debug, Args)]
+pub struct BenchDashboardArgs {
+    /// MJPEG clients, one per sensor (at most one per sensor).
+    #[arg(long, default_value_t = 7)]
+    pub clients: usize,
+    /// Seconds per measuring window (one without clients, one with).
+    #[arg(long, default_value_t = 10.0)]
+    pub seconds: f64,
+    /// Print one JSON object on stdout.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// `gelgrip bench sync`.

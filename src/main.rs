@@ -60,6 +60,9 @@ fn main() -> ExitCode {
             Command::Bench(BenchCommand::Pipeline(args)) => commands::bench_pipeline::run(args),
             Command::Bench(BenchCommand::Grasp(args)) => commands::bench_grasp::run(args),
             Command::Bench(BenchCommand::Sync(args)) => commands::bench_sync::run(args),
+            Command::Bench(BenchCommand::Dashboard(args)) => {
+                commands::bench_dashboard::run(args).await
+            }
             Command::Calibrate(cmd) => commands::calibrate::run(cmd),
             Command::Depth(args) => commands::depth::run(args),
             Command::Emulate(EmulateCommand::Servos(args)) => commands::emulate::run(args).await,

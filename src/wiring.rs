@@ -94,16 +94,6 @@ pub fn open_servos(
             let Some(world) = world.filter(|_| !config.layout.fingers.is_empty()) else {
                 return Ok(None);
             };
-            if s.ids.len() != config.layout.fingers.len() {
-                return Err(crate::cli::UsageError(format!(
-                    "{}: servos.ids lists {} servos for the {} fingers of layout {}",
-                    config.file,
-                    s.ids.len(),
-                    config.layout.fingers.len(),
-                    config.layout.name
-                ))
-                .into());
-            }
             let faults = servo_faults(config)?;
             let bus = SimServoBus::new(world.clone(), clock, &s.ids, s.current_limit_ma)?
                 .with_faults(faults);
@@ -124,7 +114,25 @@ pub fn load_config(path: Option<&Path>, registry: &TransportRegistry) -> anyhow:
     };
     gelgrip_plugins::config::PipelineConfig::from_section(&config.pipeline, &config.layout)?;
     servo_faults(&config)?;
+    check_servo_count(&config)?;
     Ok(config)
+}
+
+/// One servo per finger: a layout with fingers needs as many `servos.ids` (so
+/// `check-config` catches a mismatch, not the first run).
+fn check_servo_count(config: &AppConfig) -> anyhow::Result<()> {
+    let fingers = config.layout.fingers.len();
+    if fingers == 0 || config.servos.ids.len() == fingers {
+        return Ok(());
+    }
+    Err(crate::cli::UsageError(format!(
+        "{}: servos.ids lists {} servos for the {} fingers of layout {}",
+        config.file,
+        config.servos.ids.len(),
+        fingers,
+        config.layout.name
+    ))
+    .into())
 }
 
 /// The simulated servo bus's scheduled faults (`[[servos.sim.faults]]`), validated.

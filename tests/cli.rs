@@ -149,6 +149,34 @@ fn check_config_names_file_field_and_range() {
 }
 
 #[test]
+fn check_config_wants_one_servo_per_finger() {
+    assert!(
+        gelgrip(&["check-config", &fixture("five-finger.toml")])
+            .status
+            .success()
+    );
+    let dir = std::env::temp_dir().join(format!("gelgrip-servos-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("dir");
+    let path = dir.join("three-servos.toml");
+    let text = std::fs::read_to_string(fixture("five-finger.toml"))
+        .expect("fixture")
+        .replace("ids = [1, 2, 3, 4, 5]", "ids = [1, 2, 3]")
+        .replace(
+            "../../configs/layouts/five-finger.toml",
+            &repo_file("configs/layouts/five-finger.toml"),
+        );
+    std::fs::write(&path, text).expect("write");
+    let out = gelgrip(&["check-config", &path.display().to_string()]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("servos.ids lists 3 servos for the 5 fingers of layout five-finger"),
+        "{err}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
 fn unbuilt_backends_get_a_clear_error_listing_what_exists() {
     let out = gelgrip(&["check-config", &repo_file("configs/gelgripper.toml")]);
     assert_eq!(out.status.code(), Some(2));

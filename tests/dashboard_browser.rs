@@ -38,18 +38,11 @@ fn free_port() -> u16 {
         .expect("a free port")
 }
 
-/// Start `gelgrip run` with the dashboard on a free port; its URL.
-fn start_gelgrip() -> (Running, String) {
+/// Start `gelgrip run` with the dashboard on a free port and `extra` arguments; its URL.
+fn start_gelgrip(extra: &[&str]) -> (Running, String) {
     let mut child = Command::new(env!("CARGO_BIN_EXE_gelgrip"))
-        .args([
-            "run",
-            "--http",
-            "127.0.0.1:0",
-            "--scene",
-            "configs/scenes/tennis-ball.toml",
-            "--duration",
-            "300",
-        ])
+        .args(["run", "--http", "127.0.0.1:0", "--duration", "300"])
+        .args(extra)
         .env(
             "GELGRIP_CACHE_DIR",
             std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("gelgrip-cache"),
@@ -113,11 +106,8 @@ where
     }
 }
 
-#[tokio::test]
-#[ignore = "needs chromium: run scripts/test"]
-async fn the_dashboard_shows_live_views_and_grasps_on_a_click() {
-    let (_gelgrip, url) = start_gelgrip();
-    let (_driver, webdriver) = start_chromedriver();
+/// A headless Chromium session on the page at `url`, once its `sensors` tiles are there.
+async fn open_page(webdriver: &str, url: &str, sensors: usize) -> fantoccini::Client {
     let mut caps = serde_json::Map::new();
     caps.insert(
         "goog:chromeOptions".into(),
@@ -128,17 +118,52 @@ async fn the_dashboard_shows_live_views_and_grasps_on_a_click() {
     );
     let client = ClientBuilder::new(hyper_util::client::legacy::connect::HttpConnector::new())
         .capabilities(caps)
-        .connect(&webdriver)
+        .connect(webdriver)
         .await
         .expect("a Chromium session");
-    client.goto(&url).await.expect("the page loads");
-
-    // The hand layout: one tile per sensor, each with its camera stream.
+    client.goto(url).await.expect("the page loads");
+    // The hand layout: one tile per sensor, each with its camera view.
     wait_for(Duration::from_secs(20), "the sensor tiles", || async {
         let tiles = client.find_all(Locator::Css(".sensor")).await.ok()?;
-        (tiles.len() == 7).then_some(())
+        (tiles.len() == sensors).then_some(())
     })
     .await;
+    client
+}
+
+/// Every camera view of the page shows a frame.
+async fn cameras_show(client: &fantoccini::Client, sensors: u64) {
+    wait_for(Duration::from_secs(30), "camera frames", || async {
+        let v = client
+            .execute(
+                "return Array.from(document.querySelectorAll('.views img.camera')).filter(i => i.naturalWidth > 0).length",
+                vec![],
+            )
+            .await
+            .ok()?;
+        (v.as_u64()? == sensors).then_some(())
+    })
+    .await;
+}
+
+#[tokio::test]
+#[ignore = "needs chromium: run scripts/test"]
+async fn sixteen_sensors_show_up_live() {
+    let (_gelgrip, url) = start_gelgrip(&["--config", "tests/configs/five-finger.toml"]);
+    let (_driver, webdriver) = start_chromedriver();
+    let client = open_page(&webdriver, &url, 16).await;
+    cameras_show(&client, 16).await;
+    let ids = text(&client, "#hand").await;
+    assert!(ids.contains("f5.proximal") && ids.contains("palm"), "{ids}");
+    client.close().await.expect("session closed");
+}
+
+#[tokio::test]
+#[ignore = "needs chromium: run scripts/test"]
+async fn the_dashboard_shows_live_views_and_grasps_on_a_click() {
+    let (_gelgrip, url) = start_gelgrip(&["--scene", "configs/scenes/tennis-ball.toml"]);
+    let (_driver, webdriver) = start_chromedriver();
+    let client = open_page(&webdriver, &url, 7).await;
     // Live: the run clock in the header moves, and the camera images have pixels.
     let first = wait_for(Duration::from_secs(20), "the state", || async {
         let t = text(&client, "#run").await;

@@ -1,6 +1,7 @@
 //! One module per subcommand.
 
 pub mod bench_bus;
+pub mod bench_dashboard;
 pub mod bench_grasp;
 pub mod bench_pipeline;
 pub mod bench_sync;
