@@ -175,17 +175,7 @@ async fn the_dashboard_shows_live_views_and_grasps_on_a_click() {
         (t != first && !t.is_empty()).then_some(())
     })
     .await;
-    wait_for(Duration::from_secs(20), "camera frames", || async {
-        let v = client
-            .execute(
-                "return Array.from(document.querySelectorAll('.views img.camera')).filter(i => i.naturalWidth > 0).length",
-                vec![],
-            )
-            .await
-            .ok()?;
-        (v.as_u64()? == 7).then_some(())
-    })
-    .await;
+    cameras_show(&client, 7).await;
 
     let src = || async {
         client
