@@ -5,19 +5,22 @@
 
 use std::io::{BufRead, BufReader};
 use std::net::TcpListener;
+use std::os::unix::process::CommandExt;
 use std::process::{Child, Command, Stdio};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use fantoccini::{ClientBuilder, Locator};
 
-/// Kills the child when dropped (SIGTERM first for gelgrip, which then ends cleanly).
+/// Kills the child and everything it started when dropped, even when the test panics: the
+/// child leads its own process group, and the whole group gets SIGTERM (gelgrip then ends
+/// cleanly; chromedriver's Chromium must not outlive the test and eat the CPU of the next).
 struct Running(Child);
 
 impl Drop for Running {
     fn drop(&mut self) {
         let _ = Command::new("kill")
-            .args(["-TERM", &self.0.id().to_string()])
+            .args(["-TERM", "--", &format!("-{}", self.0.id())])
             .status();
         let deadline = Instant::now() + Duration::from_secs(5);
         while Instant::now() < deadline {
@@ -26,7 +29,9 @@ impl Drop for Running {
             }
             std::thread::sleep(Duration::from_millis(50));
         }
-        let _ = self.0.kill();
+        let _ = Command::new("kill")
+            .args(["-KILL", "--", &format!("-{}", self.0.id())])
+            .status();
         let _ = self.0.wait();
     }
 }
@@ -41,6 +46,7 @@ fn free_port() -> u16 {
 /// Start `gelgrip run` with the dashboard on a free port and `extra` arguments; its URL.
 fn start_gelgrip(extra: &[&str]) -> (Running, String) {
     let mut child = Command::new(env!("CARGO_BIN_EXE_gelgrip"))
+        .process_group(0)
         .args(["run", "--http", "127.0.0.1:0", "--duration", "300"])
         .args(extra)
         .env(
@@ -70,6 +76,7 @@ fn start_gelgrip(extra: &[&str]) -> (Running, String) {
 fn start_chromedriver() -> (Running, String) {
     let port = free_port();
     let child = Command::new("chromedriver")
+        .process_group(0)
         .arg(format!("--port={port}"))
         .stdout(Stdio::null())
         .stderr(Stdio::null())
