@@ -198,10 +198,20 @@ impl Dashboard {
     }
 }
 
+/// How the sensors are calibrated, as the pipelines decide it (`tactile::sensor_model`): a
+/// sensor with a `model` file uses it; the others self-calibrate on simulated presses.
 fn calibration_text(config: &AppConfig) -> String {
-    if config.hub.transport == "sim" {
-        "self-calibrated LUT per sensor (simulated presses, cached)".into()
-    } else {
-        "from the configured model files".into()
+    let sensors = config.layout.sensors.len();
+    let from_files =
+        gelgrip_plugins::config::PipelineConfig::from_section(&config.pipeline, &config.layout)
+            .map_or(0, |p| {
+                p.sensors.iter().filter(|s| s.model.is_some()).count()
+            });
+    match from_files {
+        0 => "self-calibrated LUT per sensor (simulated presses, cached)".into(),
+        n if n == sensors => "model files per sensor ([pipeline] model)".into(),
+        n => format!(
+            "{n} of {sensors} sensors from model files, the others self-calibrated on simulated presses"
+        ),
     }
 }

@@ -292,14 +292,9 @@ impl GraspTask {
 
     /// Each finger's phase, regulated force and target, N.
     pub fn fingers(&self) -> Vec<(gelgrip_controller::grasp::Phase, f64, f64)> {
-        self.gripper.controller().map_or_else(Vec::new, |c| {
-            c.phases()
-                .into_iter()
-                .zip(c.forces_n())
-                .zip(c.targets_n())
-                .map(|((p, f), t)| (p, f, t))
-                .collect()
-        })
+        self.gripper
+            .controller()
+            .map_or_else(Vec::new, |c| c.finger_states())
     }
 
     /// The stage now (`grasp`, `hold`, `hold_test`, `done`).

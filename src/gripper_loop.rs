@@ -77,16 +77,9 @@ impl GripperLoop {
     /// Each finger's phase, force and target (before any command: open, 0, 0).
     pub fn fingers(&self) -> Vec<(Phase, f64, f64)> {
         let n = self.io.layout.fingers.len();
-        match self.gripper.controller() {
-            None => vec![(Phase::Open, 0.0, 0.0); n],
-            Some(c) => c
-                .phases()
-                .into_iter()
-                .zip(c.forces_n())
-                .zip(c.targets_n())
-                .map(|((p, f), t)| (p, f, t))
-                .collect(),
-        }
+        self.gripper
+            .controller()
+            .map_or_else(|| vec![(Phase::Open, 0.0, 0.0); n], |c| c.finger_states())
     }
 
     /// The hardware side.

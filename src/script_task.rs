@@ -155,7 +155,7 @@ impl ScriptTask {
     pub fn estop(&mut self) {
         self.io.flush();
         self.io.refresh_states();
-        self.hold_now("estop");
+        self.runner.stop(&self.io.positions(), "estop");
         let min = Tuning::default().min_current_ma;
         let goals: Vec<_> = self
             .runner

@@ -290,6 +290,14 @@ impl GraspController {
         self.fingers.iter().map(|f| f.target_n).collect()
     }
 
+    /// Each finger's phase, regulated force (N) and force target (N), for displays.
+    pub fn finger_states(&self) -> Vec<(Phase, f64, f64)> {
+        self.fingers
+            .iter()
+            .map(|f| (f.phase, f.force_n, f.target_n))
+            .collect()
+    }
+
     /// The outcome, once the grasp has ended.
     pub fn outcome(&self) -> Option<&GraspOutcome> {
         self.done.as_ref()

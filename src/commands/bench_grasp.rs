@@ -141,16 +141,23 @@ fn layout_at(config: &toml::Table, w: u32, h: u32) -> anyhow::Result<toml::Table
     Ok(layout)
 }
 
-/// One gentle grasp on `scene` (with `config`, else the default), its report.
-fn grasp(args: &BenchGraspArgs, scene: &Path, config: Option<&Path>) -> anyhow::Result<Value> {
+/// One gentle grasp on `scene` (with `config`, else the default), run as `gelgrip run
+/// --task gentle-grasp --clock virtual` in its own process: its report. Shared by the
+/// benches that grasp (`bench grasp`, `bench sync`).
+pub fn gentle_grasp(
+    scene: &Path,
+    config: Option<&Path>,
+    duration_s: f64,
+    target_force_n: f64,
+) -> anyhow::Result<Value> {
     let exe = std::env::current_exe().context("locating the gelgrip binary")?;
     let mut cmd = Command::new(&exe);
     cmd.args(["run", "--headless", "--json", "--clock", "virtual"])
         .args(["--task", "gentle-grasp"])
         .arg("--scene")
         .arg(scene)
-        .args(["--duration", &args.duration.to_string()])
-        .args(["--target-force", &args.target_force.to_string()]);
+        .args(["--duration", &duration_s.to_string()])
+        .args(["--target-force", &target_force_n.to_string()]);
     if let Some(c) = config {
         cmd.arg("--config").arg(c);
     }
@@ -202,7 +209,7 @@ pub fn run(args: BenchGraspArgs) -> anyhow::Result<u8> {
                 scene.display(),
                 resolution.map_or_else(String::new, |(w, h)| format!(" at {w}x{h}"))
             );
-            let report = grasp(&args, scene, config.as_deref())?;
+            let report = gentle_grasp(scene, config.as_deref(), args.duration, args.target_force)?;
             rows.push(row(scene, &report, *resolution));
         }
     }

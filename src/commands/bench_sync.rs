@@ -9,7 +9,6 @@
 //! squeezes, and its row says so (`grasped: false` and the reason).
 
 use std::path::Path;
-use std::process::Command;
 
 use anyhow::Context;
 use serde::Serialize;
@@ -17,6 +16,7 @@ use serde_json::Value;
 
 use crate::bench_config::{BenchDir, load_config, section};
 use crate::cli::{BenchSyncArgs, UsageError};
+use crate::commands::bench_grasp::gentle_grasp;
 
 /// The configuration every run starts from.
 const BASE_CONFIG: &str = "configs/gelgripper-sim.toml";
@@ -117,7 +117,6 @@ pub fn run(args: BenchSyncArgs) -> anyhow::Result<u8> {
         ))
         .into());
     }
-    let exe = std::env::current_exe().context("locating the gelgrip binary")?;
     let dir = BenchDir::new("bench-sync")?;
     let base = load_config(Path::new(BASE_CONFIG))?;
     let total = 2 * args.delays_ms.len();
@@ -134,28 +133,8 @@ pub fn run(args: BenchSyncArgs) -> anyhow::Result<u8> {
                 &format!("d{delay_ms}-{gating}.toml"),
                 &run_config(&base, &args.sensor, delay_ms, gating)?,
             )?;
-            let out = Command::new(&exe)
-                .args(["run", "--headless", "--json", "--clock", "virtual"])
-                .args(["--task", "gentle-grasp"])
-                .arg("--config")
-                .arg(&config)
-                .arg("--scene")
-                .arg(&args.scene)
-                .args(["--duration", &args.duration.to_string()])
-                .args(["--target-force", &args.target_force.to_string()])
-                .env("RUST_LOG", "error")
-                .output()
-                .context("running the grasp")?;
-            let report: Value = serde_json::from_slice(&out.stdout).with_context(|| {
-                format!(
-                    "delay {delay_ms} ms: no report (exit {:?}): {}",
-                    out.status.code(),
-                    String::from_utf8_lossy(&out.stderr)
-                        .lines()
-                        .last()
-                        .unwrap_or("")
-                )
-            })?;
+            let report = gentle_grasp(&args.scene, Some(&config), args.duration, args.target_force)
+                .with_context(|| format!("delay {delay_ms} ms, gating {gating}"))?;
             rows.push(row(delay_ms, gating, args.target_force, &report));
         }
     }

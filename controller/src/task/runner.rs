@@ -76,6 +76,8 @@ pub struct TaskRunner {
     stage: Option<usize>,
     start_s: Option<f64>,
     stage_start_s: f64,
+    /// Time of the last step, s (host time; a stage interrupted by `stop` ends here).
+    last_s: f64,
     /// Distinct sources the stage tests, with their values at the stage's start.
     tracked: Vec<Source>,
     at_start: Vec<Option<SourceSignals>>,
@@ -91,16 +93,19 @@ fn degrees_to_rpm(speed_deg_s: f64) -> f64 {
 }
 
 impl TaskRunner {
-    /// A runner of `script` on `layout`'s fingers, which close toward `close_deg` and open
-    /// to `open_deg`, with `current_limit_ma` as the cap where a stage sets none.
+    /// A runner of `script` on `layout`'s fingers, which close toward their servo range and
+    /// open to `open_deg` (fitted to the fingers: missing entries open at 0°), with
+    /// `current_limit_ma` as the cap where a stage sets none. Every per-finger vector then
+    /// has one entry per finger, so indexing by finger is sound.
     pub fn new(
         script: TaskScript,
         layout: &HandLayout,
         tuning: Tuning,
-        open_deg: Vec<f64>,
+        mut open_deg: Vec<f64>,
         current_limit_ma: f64,
     ) -> Self {
         let close_deg: Vec<f64> = layout.fingers.iter().map(|f| f.servo_range_deg).collect();
+        open_deg.resize(close_deg.len(), 0.0);
         let drives = open_deg
             .iter()
             .map(|p| {
@@ -122,6 +127,7 @@ impl TaskRunner {
             stage: None,
             start_s: None,
             stage_start_s: 0.0,
+            last_s: 0.0,
             tracked: Vec::new(),
             at_start: Vec::new(),
             history: History::default(),
@@ -223,7 +229,8 @@ impl TaskRunner {
     /// the stage running is recorded as interrupted with `reason`.
     pub fn stop(&mut self, positions: &[f64], reason: &str) {
         self.hold_at(positions);
-        self.close_record(self.stage_start_s, StageExit::Interrupted, reason);
+        let since_start = self.last_s - self.start_s.unwrap_or(self.last_s);
+        self.close_record(since_start, StageExit::Interrupted, reason);
         if self.end.is_none() {
             self.end = Some(TaskEnd {
                 completed: false,
@@ -383,6 +390,7 @@ impl TaskRunner {
             return self.goals();
         }
         let start = *self.start_s.get_or_insert(t_s);
+        self.last_s = t_s;
         if self.stage.is_none() {
             self.enter(0, t_s, set);
         }

@@ -381,9 +381,15 @@ fn an_abort_holds_every_finger_where_it_is_and_nan_readings_are_harmless() {
 fn stop_interrupts_the_stage_and_holds() {
     let l = layout();
     let mut r = runner(TWO_STAGES);
-    r.step(0.0, &fuse(&l, &readings(Some(0.0))), &servos());
+    r.step(100.0, &fuse(&l, &readings(Some(0.0))), &servos());
+    r.step(100.5, &fuse(&l, &readings(Some(0.0))), &servos());
     r.stop(&[12.0, 13.0, 14.0], "watchdog");
     assert_eq!(r.records()[0].exit, Some(StageExit::Interrupted));
+    assert_eq!(
+        r.records()[0].end_s,
+        Some(0.5),
+        "ends at the last step, task time"
+    );
     assert_eq!(r.end().map(|e| e.reason.as_str()), Some("watchdog"));
     let p: Vec<f64> = r.goals().iter().map(|g| g.position_deg).collect();
     assert_eq!(p, [12.0, 13.0, 14.0]);
