@@ -11,14 +11,18 @@ use gelgrip_controller::config::AppConfig;
 use gelgrip_controller::frame::FrameSet;
 use gelgrip_controller::gate::GateStats;
 use gelgrip_controller::gripper::GripperHandle;
-use gelgrip_web::live::{DepthImage, FingerView, SensorView, ServoView, SyncView, TaskView};
+use gelgrip_web::control::LoopCommand;
+use gelgrip_web::live::{DepthImage, FingerView, SensorView, ServoView, SimView, SyncView};
 use gelgrip_web::{AppState, Live, Snapshot};
+use tokio::sync::mpsc;
 
 use crate::task_io::phase_name;
 use crate::tasks::Task;
 
 /// Depth maps are copied for the images at most this often, µs.
 const DEPTH_PERIOD_US: u64 = 200_000;
+/// Without sets, the state is still published this often, µs.
+const QUIET_PERIOD_US: u64 = 100_000;
 
 /// A served dashboard.
 pub struct Dashboard {
@@ -28,6 +32,10 @@ pub struct Dashboard {
     transport: String,
     calibration: String,
     last_depth_us: Option<u64>,
+    last_state_us: Option<u64>,
+    tasks_available: Vec<String>,
+    /// The simulator's controls as the page shows them (`None` off the simulator).
+    pub sim: Option<SimView>,
 }
 
 /// `bind` must be loopback unless a token is configured (config or `GELGRIP_HTTP_TOKEN`).
@@ -44,13 +52,15 @@ pub fn check_bind(bind: SocketAddr, token: Option<&str>) -> anyhow::Result<()> {
 
 impl Dashboard {
     /// Bind `bind` and serve; `gripper` is the grasp API the page commands (`None`: the
-    /// page only watches).
+    /// page only watches), `control` where its task and simulator requests go.
     pub async fn start(
         config: &AppConfig,
         bind: SocketAddr,
         gripper: Option<GripperHandle>,
+        control: Option<mpsc::Sender<LoopCommand>>,
         transport: String,
     ) -> anyhow::Result<Self> {
+        let has_control = control.is_some() && gripper.is_some();
         check_bind(bind, config.http.token.as_deref())?;
         let ids: Vec<String> = config
             .layout
@@ -61,6 +71,7 @@ impl Dashboard {
         let live = Live::new(ids);
         let fingers: Vec<String> = config.layout.fingers.iter().map(|f| f.id.clone()).collect();
         let mut state = AppState::new(live.clone(), gripper, fingers);
+        state.control = control;
         state.current_limit_ma = config.servos.current_limit_ma;
         if !bind.ip().is_loopback()
             && let Some(token) = config.http.token.clone()
@@ -84,6 +95,13 @@ impl Dashboard {
             transport,
             calibration: calibration_text(config),
             last_depth_us: None,
+            last_state_us: None,
+            tasks_available: if has_control {
+                crate::catalog::names(crate::catalog::Kind::Task)
+            } else {
+                Vec::new()
+            },
+            sim: None,
         })
     }
 
@@ -100,6 +118,28 @@ impl Dashboard {
         for (i, f) in set.frames.iter().enumerate() {
             self.live.publish_frame(i, f.frame.jpeg.clone());
         }
+        self.publish_state(task, stats, t_s, now_us);
+    }
+
+    /// Publish the state when no set has been published for 100 ms (the gate refuses sets,
+    /// or the hub is silent): the page still sees the counters move and the fingers hold.
+    pub fn publish_if_quiet(
+        &mut self,
+        task: Option<&Task>,
+        stats: &GateStats,
+        t_s: f64,
+        now_us: u64,
+    ) {
+        if self
+            .last_state_us
+            .is_none_or(|last| now_us.saturating_sub(last) >= QUIET_PERIOD_US)
+        {
+            self.publish_state(task, stats, t_s, now_us);
+        }
+    }
+
+    fn publish_state(&mut self, task: Option<&Task>, stats: &GateStats, t_s: f64, now_us: u64) {
+        self.last_state_us = Some(now_us);
         let ids = self.live.ids().to_vec();
         let io = task.map(Task::io);
         let fused = io.and_then(|io| io.last_fused());
@@ -172,9 +212,9 @@ impl Dashboard {
                 loop_latency_ms_p99: io.and_then(|io| io.latencies().loop_p99),
             },
             calibration: self.calibration.clone(),
-            task: task
-                .and_then(Task::stage)
-                .map(|(name, stage)| TaskView { name, stage }),
+            task: task.and_then(Task::view),
+            tasks_available: self.tasks_available.clone(),
+            sim: self.sim.clone(),
         });
         let due = self
             .last_depth_us

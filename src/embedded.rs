@@ -27,7 +27,45 @@ pub const FILES: EmbeddedFiles = EmbeddedFiles(&[
         "tasks/screwdriver.toml",
         include_str!("../configs/tasks/screwdriver.toml"),
     ),
+    (
+        "tasks/pick-and-release.toml",
+        include_str!("../configs/tasks/pick-and-release.toml"),
+    ),
+    (
+        "scenes/egg.toml",
+        include_str!("../configs/scenes/egg.toml"),
+    ),
+    (
+        "scenes/paper-cup.toml",
+        include_str!("../configs/scenes/paper-cup.toml"),
+    ),
+    (
+        "scenes/rubber-duck.toml",
+        include_str!("../configs/scenes/rubber-duck.toml"),
+    ),
+    (
+        "scenes/screwdriver.toml",
+        include_str!("../configs/scenes/screwdriver.toml"),
+    ),
+    (
+        "scenes/tennis-ball.toml",
+        include_str!("../configs/scenes/tennis-ball.toml"),
+    ),
+    (
+        "scenes/toy-corn.toml",
+        include_str!("../configs/scenes/toy-corn.toml"),
+    ),
 ]);
 
 /// Names of the embedded task scripts (`tasks/NAME.toml`).
-pub const TASKS: &[&str] = &["screwdriver"];
+pub const TASKS: &[&str] = &["pick-and-release", "screwdriver"];
+
+/// Names of the embedded scenes (`scenes/NAME.toml`).
+pub const SCENES: &[&str] = &[
+    "egg",
+    "paper-cup",
+    "rubber-duck",
+    "screwdriver",
+    "tennis-ball",
+    "toy-corn",
+];

@@ -20,7 +20,7 @@ use gelgrip_controller::actuator::ServoBus;
 use gelgrip_controller::config::AppConfig;
 use gelgrip_controller::frame::FrameSet;
 use gelgrip_controller::grasp::{FingerStatus, GraspOutcome, GraspRequest, Tuning};
-use gelgrip_controller::gripper::{GripperHandle, GripperService, PendingGrasp};
+use gelgrip_controller::gripper::{CommandKind, GripperHandle, GripperService, PendingGrasp};
 use gelgrip_sim::world::SharedWorld;
 
 use crate::task_io::{LogRow, TaskIo};
@@ -115,6 +115,8 @@ pub struct GraspTask {
     hold_s: f64,
     time_to_stable_s: Option<f64>,
     hold_slip_mm: Option<f64>,
+    /// Set when another client's command ended the task.
+    interrupt_reason: Option<&'static str>,
 }
 
 impl GraspTask {
@@ -145,6 +147,8 @@ impl GraspTask {
         let pending = handle
             .start_grasp(request)
             .map_err(|e| crate::cli::UsageError(e.to_string()))?;
+        // Other clients (the dashboard) may stop or e-stop this grasp, never start another.
+        handle.set_busy(Some("gentle-grasp"));
         Ok(Self {
             gripper,
             handle,
@@ -160,6 +164,7 @@ impl GraspTask {
             hold_s: options.hold_s,
             time_to_stable_s: None,
             hold_slip_mm: None,
+            interrupt_reason: None,
         })
     }
 
@@ -173,6 +178,10 @@ impl GraspTask {
         let t_s = now_us as f64 / 1e6;
         let start = *self.start_s.get_or_insert(t_s);
         let sensed = self.io.drive(&mut self.gripper, set, now_us)?;
+        if let Some(end) = self.interrupted() {
+            self.io.remember(sensed.fused);
+            return Ok(Some(end));
+        }
         let truth = self.io.true_forces_n();
         let regulated = self
             .gripper
@@ -240,6 +249,35 @@ impl GraspTask {
             Stage::Done => return Ok(Some("done")),
         }
         Ok(None)
+    }
+
+    /// A release, stop or e-stop from another client (its own grasp is the first command)
+    /// ends the task: `estop` for an e-stop, else `done`, with the command as the reason.
+    fn interrupted(&mut self) -> Option<&'static str> {
+        if self.gripper.commands_applied() <= 1 || matches!(self.stage, Stage::Done) {
+            return None;
+        }
+        let command = self.gripper.last_command()?;
+        let (reason, end) = match command {
+            CommandKind::Estop => ("estop", "estop"),
+            CommandKind::Stop => ("stopped", "done"),
+            CommandKind::Release => ("released", "done"),
+            CommandKind::Grasp => return None,
+        };
+        tracing::warn!(reason, "gentle grasp interrupted through the grasp API");
+        if let Some(outcome) = self.outcome.as_mut() {
+            outcome.reason = reason.to_string();
+            outcome.grasped = false;
+        }
+        self.interrupt_reason = Some(reason);
+        self.pending = None;
+        self.stage = Stage::Done;
+        Some(end)
+    }
+
+    /// The grasp API's handle (the dashboard's commands reach this task through it).
+    pub fn handle(&self) -> GripperHandle {
+        self.handle.clone()
     }
 
     /// After a stable grasp, on the simulator: let the object go and pull it (the hold
@@ -339,9 +377,11 @@ impl GraspTask {
             capture_to_command_ms_p99: lat.capture_p99,
             pipeline_ms_p99: lat.pipeline_p99,
             final_force_n: outcome.as_ref().map(|o| o.final_force_n),
-            reason: outcome
-                .as_ref()
-                .map_or_else(|| "not finished".into(), |o| o.reason.clone()),
+            reason: match (&outcome, self.interrupt_reason) {
+                (Some(o), _) => o.reason.clone(),
+                (None, Some(r)) => r.to_string(),
+                (None, None) => "not finished".into(),
+            },
             finger_status: outcome.map(|o| o.status).unwrap_or_default(),
             hold_slip_mm: self.hold_slip_mm,
             stages: None,

@@ -2,12 +2,14 @@
 //! a command; all wiring of concrete adapters lives in [`wiring`].
 
 mod bench_config;
+mod catalog;
 mod cli;
 mod commands;
 mod dashboard;
 mod embedded;
 mod grasp_task;
 mod gripper_loop;
+mod loop_control;
 mod output;
 mod plot;
 mod scene_report;

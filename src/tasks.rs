@@ -1,6 +1,6 @@
-//! What drives the gripper in a run: the built-in gentle grasp, a task script, or (no
-//! task, with the dashboard) the idle gripper that the grasp API commands; behind one face
-//! for the run loop.
+//! What drives the gripper in a run: the built-in gentle grasp, or the
+//! [`GripperLoop`] (the grasp API, and the task scripts that `--task` or the dashboard
+//! start); behind one face for the run loop.
 
 use gelgrip_controller::actuator::ServoState;
 use gelgrip_controller::frame::FrameSet;
@@ -8,18 +8,30 @@ use gelgrip_controller::frame::FrameSet;
 use gelgrip_controller::grasp::Phase;
 
 use crate::grasp_task::{GraspTask, TaskReport};
-use crate::gripper_loop::GripperLoop;
-use crate::script_task::ScriptTask;
+use crate::gripper_loop::{GripperLoop, ScriptEnd};
 use crate::task_io::TaskIo;
+use gelgrip_web::live::TaskView;
 
 /// A running task.
 pub enum Task {
     /// `--task gentle-grasp`.
-    Grasp(GraspTask),
-    /// `--task FILE|NAME`, a script.
-    Script(ScriptTask),
-    /// No task: the dashboard's commands drive the gripper.
-    Idle(GripperLoop),
+    Grasp(Box<GraspTask>),
+    /// The grasp API and task scripts.
+    Gripper {
+        /// The gripper (boxed: it carries the running and the last script).
+        gripper: Box<GripperLoop>,
+        /// `--task FILE|NAME`: the run ends with the script (else it goes on, and the
+        /// dashboard drives the gripper).
+        script_ends_run: bool,
+    },
+}
+
+/// The run's end reason when a script ended, if it ends the run.
+fn script_end_reason(end: Option<ScriptEnd>, ends_run: bool) -> Option<&'static str> {
+    match end? {
+        ScriptEnd::Estop => Some("estop").filter(|_| ends_run),
+        ScriptEnd::Finished | ScriptEnd::Interrupted => Some("done").filter(|_| ends_run),
+    }
 }
 
 impl Task {
@@ -27,23 +39,47 @@ impl Task {
     pub fn on_set(&mut self, set: &FrameSet, now_us: u64) -> anyhow::Result<Option<&'static str>> {
         match self {
             Self::Grasp(t) => t.on_set(set, now_us),
-            Self::Script(t) => t.on_set(set, now_us),
-            Self::Idle(t) => t.on_set(set, now_us).map(|()| None),
+            Self::Gripper {
+                gripper,
+                script_ends_run,
+            } => Ok(script_end_reason(
+                gripper.on_set(set, now_us)?,
+                *script_ends_run,
+            )),
         }
     }
 
-    /// Check the watchdog; a fault description when it fires (the fingers hold).
-    pub fn watchdog(&mut self, now_us: u64) -> Option<String> {
+    /// Commands queued between sets are applied now; returns an end reason when they
+    /// ended the run's script.
+    pub fn apply_urgent(&mut self) -> Option<&'static str> {
         match self {
-            Self::Grasp(t) => t.watchdog(now_us),
-            Self::Script(t) => t.watchdog(now_us),
-            Self::Idle(t) => {
-                let silent_ms = t.io_mut().watchdog_silence_ms(now_us)?;
-                let _ = t.handle().stop();
-                t.apply_urgent();
-                Some(format!(
-                    "watchdog: no synchronized set for {silent_ms} ms; fingers hold"
-                ))
+            Self::Grasp(_) => None,
+            Self::Gripper {
+                gripper,
+                script_ends_run,
+            } => script_end_reason(gripper.apply_urgent(), *script_ends_run),
+        }
+    }
+
+    /// Check the watchdog; when it fires, every finger holds, and the fault's description
+    /// comes back with whether it ends the run. A `--task` run ends; the dashboard's gripper
+    /// holds until sets come back and carries on (it fires once per silence).
+    pub fn watchdog(&mut self, now_us: u64) -> Option<(String, bool)> {
+        match self {
+            Self::Grasp(t) => t.watchdog(now_us).map(|f| (f, true)),
+            Self::Gripper {
+                gripper,
+                script_ends_run,
+            } => {
+                let silent_ms = gripper.io_mut().watchdog_silence_ms(now_us)?;
+                if !*script_ends_run && gripper.watchdog_holding {
+                    return None;
+                }
+                let reason =
+                    format!("watchdog: no synchronized set for {silent_ms} ms; fingers hold");
+                gripper.hold(&reason);
+                gripper.watchdog_holding = true;
+                Some((reason, *script_ends_run))
             }
         }
     }
@@ -52,15 +88,14 @@ impl Task {
     pub fn estop(&mut self) {
         match self {
             Self::Grasp(t) => t.estop(),
-            Self::Script(t) => t.estop(),
-            Self::Idle(t) => t.estop(),
+            Self::Gripper { gripper, .. } => gripper.estop(),
         }
     }
 
     /// The safe state at the end of the run: torque off (the springs open the fingers).
     pub fn finish(&mut self) {
-        if let Self::Script(t) = self {
-            t.interrupt();
+        if let Self::Gripper { gripper, .. } = self {
+            gripper.interrupt();
         }
         self.io_mut().finish();
     }
@@ -79,25 +114,26 @@ impl Task {
     pub fn io(&self) -> &TaskIo {
         match self {
             Self::Grasp(t) => t.io(),
-            Self::Script(t) => t.io(),
-            Self::Idle(t) => t.io(),
+            Self::Gripper { gripper, .. } => gripper.io(),
         }
     }
 
     fn io_mut(&mut self) -> &mut TaskIo {
         match self {
             Self::Grasp(t) => t.io_mut(),
-            Self::Script(t) => t.io_mut(),
-            Self::Idle(t) => t.io_mut(),
+            Self::Gripper { gripper, .. } => gripper.io_mut(),
         }
     }
 
-    /// The task fields of the run report (none for the idle gripper).
+    /// The task fields of the run report (none without `--task`).
     pub fn report(&self) -> Option<TaskReport> {
         match self {
             Self::Grasp(t) => Some(t.report()),
-            Self::Script(t) => Some(t.report()),
-            Self::Idle(_) => None,
+            Self::Gripper {
+                gripper,
+                script_ends_run: true,
+            } => gripper.script_report(),
+            Self::Gripper { .. } => None,
         }
     }
 
@@ -105,17 +141,38 @@ impl Task {
     pub fn fingers(&self) -> Vec<(Phase, f64, f64)> {
         match self {
             Self::Grasp(t) => t.fingers(),
-            Self::Script(t) => t.fingers(),
-            Self::Idle(t) => t.fingers(),
+            Self::Gripper { gripper, .. } => gripper.fingers(),
         }
     }
 
-    /// The task's name and stage (none for the idle gripper).
-    pub fn stage(&self) -> Option<(String, String)> {
+    /// The task for the page (the running or last script's; none before any).
+    pub fn view(&self) -> Option<TaskView> {
         match self {
-            Self::Grasp(t) => Some(("gentle-grasp".into(), t.stage_label().into())),
-            Self::Script(t) => Some(t.stage()),
-            Self::Idle(_) => None,
+            Self::Grasp(t) => {
+                let stage = t.stage_label();
+                Some(TaskView {
+                    name: "gentle-grasp".into(),
+                    stage: stage.into(),
+                    running: stage != "done",
+                    outcome: (stage == "done").then(|| t.report().reason),
+                })
+            }
+            Self::Gripper { gripper, .. } => {
+                gripper.stage().map(|(name, stage, outcome)| TaskView {
+                    name,
+                    stage,
+                    running: gripper.running_script().is_some(),
+                    outcome,
+                })
+            }
+        }
+    }
+
+    /// The grasp API's handle.
+    pub fn handle(&self) -> gelgrip_controller::gripper::GripperHandle {
+        match self {
+            Self::Grasp(t) => t.handle(),
+            Self::Gripper { gripper, .. } => gripper.handle(),
         }
     }
 }

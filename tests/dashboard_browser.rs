@@ -3,75 +3,14 @@
 //! views update; clicking Grasp leads to a grasped state; a screenshot is saved
 //! (`$GELGRIP_SCREENSHOT`, else `dashboard.png` under the build's tmp dir).
 
-use std::io::{BufRead, BufReader};
-use std::net::TcpListener;
 use std::os::unix::process::CommandExt;
-use std::process::{Child, Command, Stdio};
-use std::sync::mpsc;
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use fantoccini::{ClientBuilder, Locator};
 
-/// Kills the child and everything it started when dropped, even when the test panics: the
-/// child leads its own process group, and the whole group gets SIGTERM (gelgrip then ends
-/// cleanly; chromedriver's Chromium must not outlive the test and eat the CPU of the next).
-struct Running(Child);
-
-impl Drop for Running {
-    fn drop(&mut self) {
-        let _ = Command::new("kill")
-            .args(["-TERM", "--", &format!("-{}", self.0.id())])
-            .status();
-        let deadline = Instant::now() + Duration::from_secs(5);
-        while Instant::now() < deadline {
-            if let Ok(Some(_)) = self.0.try_wait() {
-                return;
-            }
-            std::thread::sleep(Duration::from_millis(50));
-        }
-        let _ = Command::new("kill")
-            .args(["-KILL", "--", &format!("-{}", self.0.id())])
-            .status();
-        let _ = self.0.wait();
-    }
-}
-
-fn free_port() -> u16 {
-    TcpListener::bind("127.0.0.1:0")
-        .and_then(|l| l.local_addr())
-        .map(|a| a.port())
-        .expect("a free port")
-}
-
-/// Start `gelgrip run` with the dashboard on a free port and `extra` arguments; its URL.
-fn start_gelgrip(extra: &[&str]) -> (Running, String) {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_gelgrip"))
-        .process_group(0)
-        .args(["run", "--http", "127.0.0.1:0", "--duration", "300"])
-        .args(extra)
-        .env(
-            "GELGRIP_CACHE_DIR",
-            std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("gelgrip-cache"),
-        )
-        .env("RUST_LOG", "warn")
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("gelgrip starts");
-    let stderr = child.stderr.take().expect("stderr");
-    let (tx, rx) = mpsc::channel();
-    std::thread::spawn(move || {
-        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
-            if let Some(url) = line.strip_prefix("dashboard: ") {
-                let _ = tx.send(url.trim().to_string());
-            }
-        }
-    });
-    let url = rx
-        .recv_timeout(Duration::from_secs(300))
-        .expect("gelgrip prints the dashboard URL (the first run calibrates its sensors)");
-    (Running(child), url)
-}
+mod common;
+use common::server::{Running, free_port, start_gelgrip};
 
 fn start_chromedriver() -> (Running, String) {
     let port = free_port();
@@ -231,5 +170,27 @@ async fn the_dashboard_shows_live_views_and_grasps_on_a_click() {
         .map(std::path::PathBuf::from)
         .unwrap_or_else(|| std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("dashboard.png"));
     std::fs::write(&out, png).expect("screenshot written");
+
+    // The simulator's panel shows, and a task from the list runs to completion.
+    let sim = text(&client, "#faults").await;
+    assert!(sim.contains("scene tennis-ball"), "{sim}");
+    let task = client
+        .execute("return document.getElementById('task-name').value", vec![])
+        .await
+        .expect("the task list");
+    assert_eq!(task.as_str(), Some("pick-and-release"));
+    client
+        .find(Locator::Id("task"))
+        .await
+        .expect("the Run task button")
+        .click()
+        .await
+        .expect("click");
+    let ended = wait_for(Duration::from_secs(40), "the task's end", || async {
+        let t = text(&client, "#taskstate").await;
+        t.contains("ended").then_some(t)
+    })
+    .await;
+    assert!(ended.contains("(completed)"), "{ended}");
     client.close().await.expect("session closed");
 }

@@ -170,7 +170,11 @@ fn a_malformed_script_is_a_usage_error_naming_the_file_and_stage() {
         .output()
         .expect("gelgrip runs");
     assert_eq!(out.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("built in: gentle-grasp, screwdriver"));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("tasks: gentle-grasp, pick-and-release, screwdriver"),
+        "{err}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -10,6 +10,8 @@
 //! replaced by another, released, stopped or e-stopped resolves at once with that reason,
 //! and when the run loop ends every waiting call gets [`GripperError::Stopped`].
 
+use std::sync::{Arc, Mutex};
+
 use thiserror::Error;
 use tokio::sync::{mpsc, oneshot};
 
@@ -23,6 +25,13 @@ pub enum GripperError {
     /// The run loop that drives the gripper has ended (or never started).
     #[error("the gripper's run loop has stopped: no command can be carried out")]
     Stopped,
+    /// A task owns the gripper; a grasp would fight it. Stop the task first (release, stop
+    /// and e-stop are always accepted, and interrupt it).
+    #[error("task `{task}` is driving the gripper: stop it before a new grasp")]
+    Busy {
+        /// The task's name.
+        task: String,
+    },
     /// The request cannot be carried out as given.
     #[error("invalid grasp request: {field} = {value} ({expected})")]
     InvalidRequest {
@@ -33,6 +42,19 @@ pub enum GripperError {
         /// What is allowed.
         expected: String,
     },
+}
+
+/// The kinds of grasp-API command.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CommandKind {
+    /// `grasp`.
+    Grasp,
+    /// `release`.
+    Release,
+    /// `stop`.
+    Stop,
+    /// `estop`.
+    Estop,
 }
 
 enum Command {
@@ -69,6 +91,8 @@ impl PendingGrasp {
 pub struct GripperHandle {
     tx: mpsc::UnboundedSender<Command>,
     fingers: usize,
+    /// The task that owns the gripper, if any (grasps are refused meanwhile).
+    busy: Arc<Mutex<Option<String>>>,
 }
 
 impl std::fmt::Debug for Command {
@@ -132,8 +156,26 @@ impl GripperHandle {
         Ok(())
     }
 
+    /// The task that owns the gripper now, if any.
+    pub fn busy(&self) -> Option<String> {
+        self.busy.lock().map_or(None, |b| b.clone())
+    }
+
+    /// Mark the gripper as owned by `task` (`None`: free). While it is owned,
+    /// [`start_grasp`](Self::start_grasp) is refused with [`GripperError::Busy`]; release,
+    /// stop and e-stop still go through, and the owner treats them as an interruption.
+    pub fn set_busy(&self, task: Option<&str>) {
+        if let Ok(mut b) = self.busy.lock() {
+            *b = task.map(str::to_string);
+        }
+    }
+
     /// Start a grasp; a grasp already running is replaced (its caller gets `preempted`).
+    /// Refused while a task owns the gripper.
     pub fn start_grasp(&self, request: GraspRequest) -> Result<PendingGrasp, GripperError> {
+        if let Some(task) = self.busy() {
+            return Err(GripperError::Busy { task });
+        }
         self.validate(&request)?;
         let (reply, rx) = oneshot::channel();
         self.send(Command::Grasp(request, reply))?;
@@ -176,6 +218,8 @@ pub struct GripperService {
     current_limit_ma: f64,
     ctl: Option<GraspController>,
     waiting: Option<oneshot::Sender<GraspOutcome>>,
+    commands_applied: u64,
+    last_command: Option<CommandKind>,
 }
 
 impl GripperService {
@@ -191,6 +235,7 @@ impl GripperService {
         let handle = GripperHandle {
             tx,
             fingers: close_deg.len(),
+            busy: Arc::new(Mutex::new(None)),
         };
         let service = Self {
             rx,
@@ -200,6 +245,8 @@ impl GripperService {
             current_limit_ma,
             ctl: None,
             waiting: None,
+            commands_applied: 0,
+            last_command: None,
         };
         (service, handle)
     }
@@ -256,6 +303,13 @@ impl GripperService {
     pub fn apply_commands(&mut self, positions: &[f64]) -> bool {
         let mut urgent = false;
         while let Ok(command) = self.rx.try_recv() {
+            self.commands_applied += 1;
+            self.last_command = Some(match &command {
+                Command::Grasp(..) => CommandKind::Grasp,
+                Command::Release => CommandKind::Release,
+                Command::Stop => CommandKind::Stop,
+                Command::Estop => CommandKind::Estop,
+            });
             match command {
                 Command::Grasp(request, reply) => {
                     self.end_waiting("preempted");
@@ -287,6 +341,24 @@ impl GripperService {
             }
         }
         urgent
+    }
+
+    /// Commands applied so far (a task that owns the gripper watches it: any command
+    /// interrupts the task, and this service takes over).
+    pub fn commands_applied(&self) -> u64 {
+        self.commands_applied
+    }
+
+    /// The kind of the last command applied.
+    pub fn last_command(&self) -> Option<CommandKind> {
+        self.last_command
+    }
+
+    /// Forget the controller: no goals until the next command (the servos keep what they
+    /// were last told, e.g. by a task that just ended).
+    pub fn forget(&mut self) {
+        self.end_waiting("preempted");
+        self.ctl = None;
     }
 
     /// One control step with the newest gated set; returns the goals to write (`None`

@@ -10,9 +10,10 @@ use crate::cli::{ClockArg, RunArgs};
 use crate::dashboard::Dashboard;
 use crate::grasp_task::{GraspOptions, GraspTask};
 use crate::gripper_loop::GripperLoop;
+use crate::loop_control::LoopControl;
 use crate::output::{RunReport, ServoReport, latency_ms};
 use crate::scene_report::SceneReport;
-use crate::script_task::{ScriptTask, load_script};
+use crate::script_task::load_script;
 use crate::servo_loop::ServoLoop;
 use crate::tasks::Task;
 
@@ -61,6 +62,14 @@ async fn real_deadline(clock: Arc<dyn Clock>, deadline_us: Option<u64>) {
     match deadline_us {
         Some(d) if clock.kind() == ClockKind::Real => clock.sleep_until(d).await,
         _ => std::future::pending().await,
+    }
+}
+
+/// The dashboard's next request to the run loop; never without a dashboard.
+async fn next_request(control: Option<&mut LoopControl>) -> gelgrip_web::control::LoopCommand {
+    match control {
+        Some(c) => c.recv().await,
+        None => std::future::pending().await,
     }
 }
 
@@ -133,13 +142,13 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
                 timeout_s: args.task_timeout,
                 hold_s: args.hold,
             };
-            task = Some(Task::Grasp(GraspTask::start(
+            task = Some(Task::Grasp(Box::new(GraspTask::start(
                 &config,
                 bus,
                 world.clone(),
                 &options,
                 args.log.as_deref(),
-            )?));
+            )?)));
             tracing::info!(task = "gentle-grasp", "task running");
         }
         (Some(name), Some(bus)) => {
@@ -147,15 +156,16 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
             tracing::info!(
                 task = script.name,
                 stages = script.stages.len(),
-                "task script running"
+                "task script"
             );
-            task = Some(Task::Script(ScriptTask::start(
-                &config,
-                script,
-                bus,
-                world.clone(),
-                args.log.as_deref(),
-            )?));
+            let mut gripper = GripperLoop::start(&config, bus, world.clone(), args.log.as_deref())?;
+            gripper
+                .start_script(script)
+                .map_err(|running| anyhow::anyhow!("task {running} already running"))?;
+            task = Some(Task::Gripper {
+                gripper: Box::new(gripper),
+                script_ends_run: true,
+            });
         }
         (Some(name), None) => {
             if name != "gentle-grasp" {
@@ -167,7 +177,15 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
             )));
         }
         (None, Some(bus)) if !args.headless => {
-            task = Some(Task::Idle(GripperLoop::start(&config, bus, world.clone())?));
+            task = Some(Task::Gripper {
+                gripper: Box::new(GripperLoop::start(
+                    &config,
+                    bus,
+                    world.clone(),
+                    args.log.as_deref(),
+                )?),
+                script_ends_run: false,
+            });
         }
         (None, Some(bus)) => {
             servos = Some(
@@ -177,20 +195,32 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
         }
         (None, None) => {}
     }
+    let mut control = None;
     let mut dashboard = if args.headless {
         None
     } else {
-        let gripper = match &task {
-            Some(Task::Idle(t)) => Some(t.handle()),
-            _ => None,
-        };
+        let gripper = task.as_ref().map(Task::handle);
+        let (c, requests) = LoopControl::new(&config, world.clone());
         let bind = args.http.unwrap_or(config.http.bind);
-        Some(Dashboard::start(&config, bind, gripper, description.transport.clone()).await?)
+        let mut d = Dashboard::start(
+            &config,
+            bind,
+            gripper,
+            Some(requests),
+            description.transport.clone(),
+        )
+        .await?;
+        d.sim = c.sim_view();
+        control = Some(c);
+        Some(d)
     };
     let shutdown = shutdown_signal();
     let estop = estop_signal();
     let timer = real_deadline(clock.clone(), deadline);
     tokio::pin!(shutdown, estop, timer);
+    // Wakes the loop when the hub is silent, so the watchdog and the dashboard still run.
+    let mut tick = tokio::time::interval(std::time::Duration::from_millis(100));
+    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     let end_reason = loop {
         tokio::select! {
             biased;
@@ -201,6 +231,15 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
             }
             _ = &mut shutdown => break "signal",
             _ = &mut timer => break "duration",
+            _ = tick.tick() => {}
+            request = next_request(control.as_mut()) => {
+                if let Some(c) = control.as_mut() {
+                    c.handle(request, task.as_mut());
+                    if let Some(d) = dashboard.as_mut() {
+                        d.sim = c.sim_view();
+                    }
+                }
+            }
             step = acq.step() => {
                 match step {
                     Err(e) => {
@@ -231,13 +270,15 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
             }
         }
         let now = clock.now_us();
-        if let Some(Task::Idle(t)) = task.as_mut() {
-            t.apply_urgent();
+        if let Some(reason) = task.as_mut().and_then(Task::apply_urgent) {
+            break reason;
         }
-        if let Some(fault) = task.as_mut().and_then(|t| t.watchdog(now)) {
+        if let Some((fault, ends_run)) = task.as_mut().and_then(|t| t.watchdog(now)) {
             tracing::error!("{fault}");
             faults.push(fault);
-            break "fault";
+            if ends_run {
+                break "fault";
+            }
         }
         if let Some(s) = servos.as_mut()
             && let Err(e) = s.tick(now)
@@ -245,6 +286,10 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
             tracing::error!("servo fault: {e}");
             faults.push(format!("servo fault: {e}"));
             break "fault";
+        }
+        if let Some(d) = dashboard.as_mut() {
+            let t_s = (now - start) as f64 / 1e6;
+            d.publish_if_quiet(task.as_ref(), acq.gate().stats(), t_s, now);
         }
         if deadline.is_some_and(|d| now >= d) {
             break "duration";

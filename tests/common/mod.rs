@@ -4,6 +4,8 @@
 
 use std::process::{Command, Output};
 
+pub mod server;
+
 /// Run `gelgrip` with `args`, logs at warn.
 pub fn gelgrip(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_gelgrip"))

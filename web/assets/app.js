@@ -31,6 +31,22 @@ $("release").onclick = () => command("/api/release");
 $("stop").onclick = () => command("/api/stop");
 $("estop").onclick = () => command("/api/estop");
 $("task").onclick = () => command("/api/task", { name: $("task-name").value });
+$("scene").onclick = () => command("/api/sim/scene", { name: $("scene-name").value });
+$("fault").onclick = () => command("/api/sim/fault", {
+  sensor: $("fault-sensor").value, capture_delay_us: parseInt($("fault-delay").value, 10) || 0,
+});
+$("fault-clear").onclick = () => command("/api/sim/fault", { sensor: $("fault-sensor").value });
+
+// Fill a <select> with `names` once (keeping the user's choice when it is still there).
+function options(id, names, selected) {
+  const el = $(id);
+  const key = names.join("\n");
+  if (el.dataset.key === key) return;
+  const keep = el.value || selected;
+  el.innerHTML = names.map((n) => `<option>${n}</option>`).join("");
+  if (names.includes(keep)) el.value = keep;
+  el.dataset.key = key;
+}
 
 function build(s) {
   const hand = $("hand");
@@ -117,7 +133,19 @@ function render(s) {
   $("drops").innerHTML =
     "<tr><th>reason</th><th>frames</th><th>sets refused</th></tr>" +
     Object.keys(s.sync.drops).map((k) => `<tr><td>${k}</td><td>${s.sync.drops[k]}</td><td>${s.sync.sets_rejected[k]}</td></tr>`).join("");
-  $("taskstate").textContent = s.task ? `${s.task.name}: ${s.task.stage}` : "none";
+  $("taskstate").textContent = !s.task ? "none"
+    : s.task.running ? `${s.task.name}: ${s.task.stage}`
+    : `${s.task.name}: ended in ${s.task.stage} (${s.task.outcome})`;
+  options("task-name", s.tasks_available, "pick-and-release");
+  $("task").disabled = !s.tasks_available.length || Boolean(s.task && s.task.running);
+  $("sim").hidden = !s.sim;
+  if (s.sim) {
+    options("scene-name", s.sim.scenes, s.sim.scene);
+    options("fault-sensor", s.sensors.map((x) => x.id), s.sensors.length ? s.sensors[0].id : "");
+    $("faults").textContent = `scene ${s.sim.scene}; ` + (s.sim.faults.length
+      ? "faults: " + s.sim.faults.map((f) => `${f.sensor} +${f.faults.capture_delay_us} µs`).join(", ")
+      : "no faults injected");
+  }
   history.push([s.t_s, s.sensors.map((x) => x.deformation_mm3)]);
   while (history.length && s.t_s - history[0][0] > WINDOW_S) history.shift();
   plot(s.sensors.map((x) => x.id));

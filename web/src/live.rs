@@ -85,6 +85,30 @@ pub struct TaskView {
     pub name: String,
     /// Its stage now (or `done`).
     pub stage: String,
+    /// It is running (false: it ended; `stage` is where).
+    pub running: bool,
+    /// Once it ended: `completed`, or why not (an abort, a timeout, an interruption).
+    pub outcome: Option<String>,
+}
+
+/// One sensor's injected simulator faults.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct SensorFaultView {
+    /// Sensor id.
+    pub sensor: String,
+    /// The faults.
+    pub faults: crate::control::SimFaults,
+}
+
+/// The simulator's controls, on a simulated run.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct SimView {
+    /// The scene now (`none`: empty space or the built-in presses).
+    pub scene: String,
+    /// Scenes it can switch to.
+    pub scenes: Vec<String>,
+    /// Sensors with injected faults.
+    pub faults: Vec<SensorFaultView>,
 }
 
 /// The state of the run after one set.
@@ -104,8 +128,12 @@ pub struct Snapshot {
     pub sync: SyncView,
     /// How each sensor is calibrated (e.g. `self-calibrated LUT (cached)`).
     pub calibration: String,
-    /// The task, if one runs.
+    /// The task running (or the last one), if any.
     pub task: Option<TaskView>,
+    /// Task scripts the page can start.
+    pub tasks_available: Vec<String>,
+    /// The simulator's controls (`None` on hardware).
+    pub sim: Option<SimView>,
 }
 
 /// A depth map for the images.

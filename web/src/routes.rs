@@ -20,6 +20,7 @@ use tokio::sync::{mpsc, oneshot};
 use gelgrip_controller::grasp::GraspRequest;
 use gelgrip_controller::gripper::{GripperError, GripperHandle};
 
+use crate::control::{LoopCommand, LoopRequest, Refusal, SimFaults, valid_name};
 use crate::limits::{Auth, RateLimiter};
 use crate::live::{DepthImage, Live};
 
@@ -27,9 +28,6 @@ use crate::live::{DepthImage, Live};
 pub const EVENTS_PERIOD: Duration = Duration::from_millis(50);
 /// Longest a grasp request may ask to wait, s.
 pub const MAX_TIMEOUT_S: f64 = 120.0;
-
-/// A request to run a task by name; the reply says whether it started.
-pub type TaskCommand = (String, oneshot::Sender<Result<(), String>>);
 
 /// Everything the routes need.
 #[derive(Debug, Clone)]
@@ -40,8 +38,8 @@ pub struct AppState {
     pub gripper: Option<GripperHandle>,
     /// Finger ids, in servo order.
     pub fingers: Vec<String>,
-    /// Where task requests go (`None`: tasks cannot be started from here).
-    pub tasks: Option<mpsc::Sender<TaskCommand>>,
+    /// Where task and simulator requests go (`None`: this run takes none).
+    pub control: Option<mpsc::Sender<LoopCommand>>,
     /// The configured current limit, mA (the default of a grasp request).
     pub current_limit_ma: f64,
     /// Command authorization.
@@ -57,7 +55,7 @@ impl AppState {
             live,
             gripper,
             fingers,
-            tasks: None,
+            control: None,
             current_limit_ma: 1000.0,
             auth: Auth::default(),
             limiter: Arc::new(RateLimiter::default()),
@@ -88,6 +86,8 @@ pub fn app(state: AppState) -> Router {
         .route("/api/stop", post(stop))
         .route("/api/estop", post(estop))
         .route("/api/task", post(task))
+        .route("/api/sim/fault", post(sim_fault))
+        .route("/api/sim/scene", post(sim_scene))
         .fallback(not_found)
         .with_state(state)
 }
@@ -323,8 +323,8 @@ async fn contact_png(State(s): State<AppState>, Path(id): Path<String>) -> Respo
     image(&s, &id, true)
 }
 
-/// Authorization, then the rate limit (unless `exempt`), then the gripper.
-fn admit(s: &AppState, headers: &HeaderMap, exempt: bool) -> Result<GripperHandle, ApiError> {
+/// Authorization, then the rate limit (unless `exempt`).
+fn authorize(s: &AppState, headers: &HeaderMap, exempt: bool) -> Result<(), ApiError> {
     if !s.auth.allows(headers) {
         return Err(ApiError::new(
             StatusCode::UNAUTHORIZED,
@@ -341,11 +341,16 @@ fn admit(s: &AppState, headers: &HeaderMap, exempt: bool) -> Result<GripperHandl
             ),
         ));
     }
+    Ok(())
+}
+
+/// Authorization, then the rate limit (unless `exempt`), then the gripper.
+fn admit(s: &AppState, headers: &HeaderMap, exempt: bool) -> Result<GripperHandle, ApiError> {
+    authorize(s, headers, exempt)?;
     s.gripper.clone().ok_or_else(|| {
         ApiError::new(
             StatusCode::SERVICE_UNAVAILABLE,
-            "this run carries out a task from the command line (or has no finger servos): \
-             the dashboard only watches it",
+            "this run has no finger servos: the dashboard only watches it",
         )
     })
 }
@@ -353,6 +358,7 @@ fn admit(s: &AppState, headers: &HeaderMap, exempt: bool) -> Result<GripperHandl
 fn gripper_error(e: &GripperError) -> Response {
     match e {
         GripperError::Stopped => error(StatusCode::SERVICE_UNAVAILABLE, e.to_string()),
+        GripperError::Busy { .. } => error(StatusCode::CONFLICT, e.to_string()),
         GripperError::InvalidRequest { .. } => error(StatusCode::BAD_REQUEST, e.to_string()),
     }
 }
@@ -457,35 +463,117 @@ async fn estop(State(s): State<AppState>, headers: HeaderMap) -> Response {
     simple(s, headers, true, "estop", GripperHandle::estop).await
 }
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct TaskBody {
-    name: String,
-}
-
-async fn task(State(s): State<AppState>, headers: HeaderMap, body: Bytes) -> Response {
-    if let Err(e) = admit(&s, &headers, false) {
-        return e.into_response();
-    }
-    let b: TaskBody = match parse(&body) {
-        Ok(b) => b,
-        Err(e) => return e.into_response(),
-    };
-    let Some(tasks) = &s.tasks else {
+/// Send `request` to the run loop and turn its answer into a response (`ok` on success).
+async fn ask_loop(s: &AppState, request: LoopRequest, ok: serde_json::Value) -> Response {
+    let Some(control) = &s.control else {
         return error(
             StatusCode::SERVICE_UNAVAILABLE,
-            "this run cannot start tasks from the dashboard",
+            "this run takes no task or simulator requests from the dashboard",
         );
     };
     let (reply, rx) = oneshot::channel();
-    if tasks.send((b.name.clone(), reply)).await.is_err() {
+    if control.send((request, reply)).await.is_err() {
         return error(StatusCode::SERVICE_UNAVAILABLE, "the run loop has stopped");
     }
     match rx.await {
-        Ok(Ok(())) => axum::Json(json!({ "ok": true, "task": b.name })).into_response(),
-        Ok(Err(message)) => error(StatusCode::BAD_REQUEST, message),
+        Ok(Ok(())) => axum::Json(ok).into_response(),
+        Ok(Err(Refusal::Invalid(m))) => error(StatusCode::BAD_REQUEST, m),
+        Ok(Err(Refusal::Busy(m))) => error(StatusCode::CONFLICT, m),
+        Ok(Err(Refusal::Unavailable(m))) => error(StatusCode::SERVICE_UNAVAILABLE, m),
         Err(_) => error(StatusCode::SERVICE_UNAVAILABLE, "the run loop has stopped"),
     }
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct NameBody {
+    name: String,
+}
+
+/// Parse `{name}` and check it is a bare file stem.
+fn name_body(body: &Bytes, what: &str, dir: &str) -> Result<String, ApiError> {
+    let b: NameBody = parse(body)?;
+    if !valid_name(&b.name) {
+        return Err(ApiError::new(
+            StatusCode::BAD_REQUEST,
+            format!(
+                "{what} name {:?}: expected the stem of a file in {dir} (letters, digits, - and _)",
+                b.name
+            ),
+        ));
+    }
+    Ok(b.name)
+}
+
+async fn task(State(s): State<AppState>, headers: HeaderMap, body: Bytes) -> Response {
+    if let Err(e) = authorize(&s, &headers, false) {
+        return e.into_response();
+    }
+    let name = match name_body(&body, "task", "configs/tasks") {
+        Ok(n) => n,
+        Err(e) => return e.into_response(),
+    };
+    let ok = json!({ "ok": true, "task": name });
+    ask_loop(&s, LoopRequest::Task { name }, ok).await
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FaultBody {
+    sensor: String,
+    #[serde(default)]
+    capture_delay_us: u32,
+    #[serde(default)]
+    delivery_delay_us: u32,
+    #[serde(default)]
+    drop_rate: f64,
+    #[serde(default)]
+    corrupt_rate: f64,
+}
+
+async fn sim_fault(State(s): State<AppState>, headers: HeaderMap, body: Bytes) -> Response {
+    if let Err(e) = authorize(&s, &headers, false) {
+        return e.into_response();
+    }
+    let b: FaultBody = match parse(&body) {
+        Ok(b) => b,
+        Err(e) => return e.into_response(),
+    };
+    let index = match sensor(&s, &b.sensor) {
+        Ok(i) => i,
+        Err(e) => return e.into_response(),
+    };
+    let faults = SimFaults {
+        capture_delay_us: b.capture_delay_us,
+        delivery_delay_us: b.delivery_delay_us,
+        drop_rate: b.drop_rate,
+        corrupt_rate: b.corrupt_rate,
+    };
+    if let Err(m) = faults.validate() {
+        return error(StatusCode::BAD_REQUEST, m);
+    }
+    let ok = json!({ "ok": true, "sensor": b.sensor, "faults": faults });
+    ask_loop(
+        &s,
+        LoopRequest::SimFault {
+            sensor: index,
+            faults,
+        },
+        ok,
+    )
+    .await
+}
+
+async fn sim_scene(State(s): State<AppState>, headers: HeaderMap, body: Bytes) -> Response {
+    if let Err(e) = authorize(&s, &headers, false) {
+        return e.into_response();
+    }
+    let name = match name_body(&body, "scene", "configs/scenes") {
+        Ok(n) => n,
+        Err(e) => return e.into_response(),
+    };
+    let ok = json!({ "ok": true, "scene": name });
+    ask_loop(&s, LoopRequest::SimScene { name }, ok).await
 }
 
 #[cfg(test)]

@@ -185,9 +185,16 @@ impl SimHub {
         let n = self.description.sensors;
         let nth = self.triggers_fired;
         self.triggers_fired += 1;
+        let injected = self
+            .scene
+            .as_ref()
+            .map_or_else(|| vec![None; n], |s| s.injected_faults(n));
         (0..n)
             .map(|b| {
-                let faults = self.cfg.faults.get(b).cloned().unwrap_or_default();
+                let faults = injected[b]
+                    .clone()
+                    .or_else(|| self.cfg.faults.get(b).cloned())
+                    .unwrap_or_default();
                 let jitter_ns = if self.cfg.capture_jitter_us > 0 {
                     self.rng
                         .random_range(0..=u64::from(self.cfg.capture_jitter_us) * 1000)

@@ -41,6 +41,16 @@ fn fingerprint(map: &HeightMap) -> u64 {
 }
 
 impl SceneFrames {
+    /// The faults injected at run time, per sensor (`None`: the configured ones).
+    pub fn injected_faults(&self, sensors: usize) -> Vec<Option<crate::config::SensorFaults>> {
+        match self.world.lock() {
+            Ok(w) => (0..sensors)
+                .map(|i| w.injected_faults(i).cloned())
+                .collect(),
+            Err(_) => vec![None; sensors],
+        }
+    }
+
     /// Frames of `world` for `layout`'s cameras.
     pub fn new(
         world: SharedWorld,

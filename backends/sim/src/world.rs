@@ -15,6 +15,7 @@ use glam::DVec3;
 use gelgrip_controller::actuator::{MotorCommand, MotorModel, MotorReading};
 use gelgrip_controller::layout::{HandLayout, Placement};
 
+use crate::config::SensorFaults;
 use crate::contact::{PadContact, PadGrid, height_map, pad_contact};
 use crate::finger::{FingerMechanics, PadFrame, PadLoad};
 use crate::motor::Xm430Motor;
@@ -72,6 +73,12 @@ pub struct World {
     /// Set by [`World::load_test`]: the object is let go and pulled by this many times its
     /// weight.
     weight_factor: Option<f64>,
+    /// Faults injected at run time per sensor (the dashboard's sim controls); they replace
+    /// the configured ones.
+    injected_faults: Vec<Option<SensorFaults>>,
+    /// When the scene was set (its fixture's release time counts from here), µs of
+    /// simulated time.
+    scene_since_us: u64,
 }
 
 fn palm_frame(xyz_mm: [f64; 3], rpy_deg: [f64; 3]) -> PadFrame {
@@ -150,7 +157,40 @@ impl World {
             t_us: None,
             elapsed_us: 0,
             weight_factor: None,
+            injected_faults: Vec::new(),
+            scene_since_us: 0,
         }
+    }
+
+    /// Replace the scene with `scene` (`None`: empty space): the new object starts at its
+    /// place, at rest, its fixture's release time counts from now, the event log starts
+    /// afresh, and every pad is untouched until the next step. The fingers and motors stay
+    /// where they are, so switch with the fingers open.
+    pub fn set_scene(&mut self, scene: Option<SceneSpec>) {
+        self.scene_since_us = self.elapsed_us;
+        self.log = WorldLog::new(self.mounts.len());
+        self.object = scene
+            .as_ref()
+            .map(|s| ObjectState::new(s.object.clone(), s.slip_dir));
+        self.scene = scene;
+        self.weight_factor = None;
+        for c in &mut self.contacts {
+            *c = PadContact::default();
+        }
+    }
+
+    /// Inject `faults` into sensor `sensor` from now on (replacing the configured ones);
+    /// `None` goes back to the configuration.
+    pub fn inject_faults(&mut self, sensor: usize, faults: Option<SensorFaults>) {
+        if self.injected_faults.len() <= sensor {
+            self.injected_faults.resize(sensor + 1, None);
+        }
+        self.injected_faults[sensor] = faults;
+    }
+
+    /// The faults injected into sensor `sensor`, if any.
+    pub fn injected_faults(&self, sensor: usize) -> Option<&SensorFaults> {
+        self.injected_faults.get(sensor)?.as_ref()
     }
 
     /// Share it between the hub and the servo bus.
@@ -370,8 +410,9 @@ impl World {
             self.log
                 .push(WorldEvent::at(t_s, EventKind::BoltTight).value(o.bolt_torque_nm));
         }
-        let released =
-            self.weight_factor.is_some() || scene.release_after_s.is_some_and(|r| t_s >= r);
+        let since_scene_s = t_s - self.scene_since_us as f64 / 1e6;
+        let released = self.weight_factor.is_some()
+            || scene.release_after_s.is_some_and(|r| since_scene_s >= r);
         if released && !self.log.has(EventKind::Released) {
             self.log.push(WorldEvent::at(t_s, EventKind::Released));
         }

@@ -187,3 +187,43 @@ fn a_five_finger_layout_closes_on_the_ball_with_no_code_change() {
         assert!(c.load.force_n.is_finite() && c.max_depth_mm.is_finite());
     }
 }
+
+#[test]
+fn a_scene_switched_mid_run_starts_afresh_and_its_fixture_counts_from_the_switch() {
+    let layout = layout();
+    let ball = include_str!("../../../configs/scenes/tennis-ball.toml");
+    let spec = || SceneSpec::from_toml("tennis-ball.toml", ball, &layout).expect("scene");
+    let release_after_s = spec().release_after_s.expect("the ball's fixture lets go");
+    let mut world = World::new(&layout, Some(spec()));
+    world.advance_to(0);
+    // Empty hand: the ball falls once the fixture lets go.
+    world.advance_to(((release_after_s + 2.0) * 1e6) as u64);
+    assert!(world.log().has(EventKind::Released));
+    let fallen_mm = world.object().expect("ball").slip_mm;
+    assert!(fallen_mm.abs() > 1.0, "it fell: {fallen_mm} mm");
+
+    // Switch to a fresh ball: back in place, a fresh log, and the fixture holds it again
+    // until `release_after_s` after the switch.
+    let switched_s = world.elapsed_s();
+    world.set_scene(Some(spec()));
+    assert_eq!(world.object().expect("ball").slip_mm, 0.0);
+    assert!(world.log().events().is_empty());
+    let half = switched_s + release_after_s / 2.0;
+    world.advance_to((half * 1e6) as u64);
+    assert!(
+        !world.log().has(EventKind::Released),
+        "{:?}",
+        world.log().events()
+    );
+    assert_eq!(world.object().expect("ball").slip_mm, 0.0);
+    world.advance_to(((switched_s + release_after_s + 0.5) * 1e6) as u64);
+    assert!(world.log().has(EventKind::Released));
+
+    // And to empty space.
+    world.set_scene(None);
+    assert!(world.object().is_none() && world.scene().is_none());
+    world.advance_to(((switched_s + release_after_s + 1.0) * 1e6) as u64);
+    assert!(
+        (0..layout.sensors.len()).all(|s| world.contact(s).is_none_or(|c| c.load.force_n == 0.0))
+    );
+}

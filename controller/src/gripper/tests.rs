@@ -135,6 +135,32 @@ fn stop_estop_and_release_take_effect_and_resolve_a_waiting_grasp() {
 }
 
 #[test]
+fn a_task_that_owns_the_gripper_refuses_grasps_but_not_stops() {
+    let (mut svc, handle) = service();
+    let other = handle.clone();
+    handle.set_busy(Some("screwdriver"));
+    assert_eq!(
+        other.busy().as_deref(),
+        Some("screwdriver"),
+        "clones share it"
+    );
+    match other.start_grasp(request(2.0)) {
+        Err(GripperError::Busy { task }) => assert_eq!(task, "screwdriver"),
+        r => panic!("expected Busy, got {r:?}"),
+    }
+    assert_eq!(svc.commands_applied(), 0);
+    other.stop().expect("a stop always goes through");
+    other.estop().expect("an e-stop always goes through");
+    assert!(svc.apply_commands(&[1.0, 2.0, 3.0]));
+    assert_eq!(svc.commands_applied(), 2, "the owner sees the interruption");
+    assert_eq!(svc.last_command(), Some(CommandKind::Estop));
+    svc.forget();
+    assert!(svc.goals().is_none(), "forgotten: nothing is written");
+    handle.set_busy(None);
+    assert!(other.start_grasp(request(2.0)).is_ok(), "free again");
+}
+
+#[test]
 fn a_bad_request_is_a_typed_error_naming_the_field() {
     let (_svc, handle) = service();
     let bad = [

@@ -302,7 +302,13 @@ async fn commands_are_rate_limited_except_estop() {
 async fn off_loopback_commands_need_the_token_even_estop() {
     let (s, _service) = state();
     let s = s.with_token("s3cret".into());
-    for path in ["/api/release", "/api/estop", "/api/task"] {
+    for path in [
+        "/api/release",
+        "/api/estop",
+        "/api/task",
+        "/api/sim/fault",
+        "/api/sim/scene",
+    ] {
         let (status, body, _) = send(app(s.clone()), post(path, "{}")).await;
         assert_eq!(status, StatusCode::UNAUTHORIZED, "{path}");
         assert!(!text(&body).contains("s3cret"), "the token is never echoed");
@@ -324,6 +330,36 @@ async fn off_loopback_commands_need_the_token_even_estop() {
     assert_eq!(send(app(s), get("/api/state")).await.0, StatusCode::OK);
 }
 
+/// A stand-in run loop: knows the task `screwdriver` (busy while `busy` is set), the
+/// scene `egg`, and accepts faults; records what it carried out.
+fn fake_loop(s: &mut AppState, busy: bool) -> std::sync::Arc<std::sync::Mutex<Vec<LoopRequest>>> {
+    let (tx, mut rx) = mpsc::channel::<LoopCommand>(4);
+    s.control = Some(tx);
+    let done = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+    let log = done.clone();
+    tokio::spawn(async move {
+        while let Some((request, reply)) = rx.recv().await {
+            let answer = match &request {
+                LoopRequest::Task { .. } if busy => Err(Refusal::Busy(
+                    "task `screwdriver` is driving the gripper".into(),
+                )),
+                LoopRequest::Task { name } if name != "screwdriver" => {
+                    Err(Refusal::Invalid(format!("no task `{name}`")))
+                }
+                LoopRequest::SimScene { name } if name != "egg" => {
+                    Err(Refusal::Invalid(format!("no scene `{name}`")))
+                }
+                _ => Ok(()),
+            };
+            if answer.is_ok() {
+                log.lock().expect("log").push(request);
+            }
+            let _ = reply.send(answer);
+        }
+    });
+    done
+}
+
 #[tokio::test]
 async fn tasks_start_through_the_run_loop_which_may_refuse_them() {
     let (mut s, _service) = state();
@@ -332,18 +368,8 @@ async fn tasks_start_through_the_run_loop_which_may_refuse_them() {
         post("/api/task", r#"{"name": "screwdriver"}"#),
     )
     .await;
-    assert_eq!(status, StatusCode::SERVICE_UNAVAILABLE, "no task runner");
-    let (tx, mut rx) = mpsc::channel::<TaskCommand>(4);
-    s.tasks = Some(tx);
-    tokio::spawn(async move {
-        while let Some((name, reply)) = rx.recv().await {
-            let _ = reply.send(if name == "screwdriver" {
-                Ok(())
-            } else {
-                Err(format!("no task `{name}`"))
-            });
-        }
-    });
+    assert_eq!(status, StatusCode::SERVICE_UNAVAILABLE, "no run loop");
+    let done = fake_loop(&mut s, false);
     let (status, body, _) = send(
         app(s.clone()),
         post("/api/task", r#"{"name": "screwdriver"}"#),
@@ -353,6 +379,132 @@ async fn tasks_start_through_the_run_loop_which_may_refuse_them() {
     let (status, body, _) = send(app(s.clone()), post("/api/task", r#"{"name": "juggle"}"#)).await;
     assert_eq!(status, StatusCode::BAD_REQUEST);
     assert!(text(&body).contains("no task `juggle`"));
-    let (status, _, _) = send(app(s), post("/api/task", r#"{"nom": 1}"#)).await;
+    let (status, _, _) = send(app(s.clone()), post("/api/task", r#"{"nom": 1}"#)).await;
     assert_eq!(status, StatusCode::BAD_REQUEST);
+    // A path is never a task name: the page cannot make the loop read arbitrary files.
+    for name in ["../../etc/passwd", "tasks/x.toml", "", "a b"] {
+        let body = json!({ "name": name }).to_string();
+        let (status, reply, _) = send(app(s.clone()), post("/api/task", &body)).await;
+        assert_eq!(status, StatusCode::BAD_REQUEST, "{name:?}");
+        assert!(text(&reply).contains("configs/tasks"), "{}", text(&reply));
+    }
+    assert_eq!(
+        *done.lock().expect("log"),
+        vec![LoopRequest::Task {
+            name: "screwdriver".into()
+        }]
+    );
+    let (mut s, _service) = state();
+    fake_loop(&mut s, true);
+    let (status, body, _) = send(app(s), post("/api/task", r#"{"name": "screwdriver"}"#)).await;
+    assert_eq!(
+        status,
+        StatusCode::CONFLICT,
+        "a running task: {}",
+        text(&body)
+    );
+}
+
+#[tokio::test]
+async fn a_grasp_while_a_task_owns_the_gripper_is_a_conflict() {
+    let (s, _service) = state();
+    s.gripper
+        .as_ref()
+        .expect("gripper")
+        .set_busy(Some("screwdriver"));
+    let (status, body, _) = send(
+        app(s.clone()),
+        post("/api/grasp", r#"{"target_force_n": 2}"#),
+    )
+    .await;
+    assert_eq!(status, StatusCode::CONFLICT);
+    assert!(text(&body).contains("screwdriver"), "{}", text(&body));
+    let (status, _, _) = send(app(s), post("/api/stop", "")).await;
+    assert_eq!(status, StatusCode::OK, "a stop always goes through");
+}
+
+#[tokio::test]
+async fn sim_faults_are_checked_then_go_to_the_run_loop() {
+    let (mut s, _service) = state();
+    let body = r#"{"sensor": "f1.tip", "capture_delay_us": 20000}"#;
+    let (status, _, _) = send(app(s.clone()), post("/api/sim/fault", body)).await;
+    assert_eq!(status, StatusCode::SERVICE_UNAVAILABLE, "no run loop");
+    let done = fake_loop(&mut s, false);
+    let (status, reply, _) = send(app(s.clone()), post("/api/sim/fault", body)).await;
+    assert_eq!(status, StatusCode::OK, "{}", text(&reply));
+    assert!(
+        text(&reply).contains("\"capture_delay_us\":20000"),
+        "{}",
+        text(&reply)
+    );
+    let (status, _, _) = send(
+        app(s.clone()),
+        post(
+            "/api/sim/fault",
+            r#"{"sensor": "f9.tip", "capture_delay_us": 1}"#,
+        ),
+    )
+    .await;
+    assert_eq!(status, StatusCode::NOT_FOUND, "unknown sensor");
+    for bad in [
+        r#"{"sensor": "palm", "drop_rate": 1.5}"#,
+        r#"{"sensor": "palm", "capture_delay_us": 5000000}"#,
+        r#"{"sensor": "palm", "capture_delay_us": -1}"#,
+        r#"{"sensor": "palm", "delay": 1}"#,
+        r#"{"capture_delay_us": 1}"#,
+        "not json",
+    ] {
+        let (status, reply, _) = send(app(s.clone()), post("/api/sim/fault", bad)).await;
+        assert_eq!(status, StatusCode::BAD_REQUEST, "{bad}: {}", text(&reply));
+        assert!(text(&reply).contains("error"), "{bad}");
+    }
+    // All zero clears the sensor's faults.
+    let (status, _, _) = send(app(s), post("/api/sim/fault", r#"{"sensor": "palm"}"#)).await;
+    assert_eq!(status, StatusCode::OK);
+    let done = done.lock().expect("log");
+    assert_eq!(done.len(), 2);
+    assert_eq!(
+        done[0],
+        LoopRequest::SimFault {
+            sensor: 1,
+            faults: SimFaults {
+                capture_delay_us: 20_000,
+                ..SimFaults::default()
+            }
+        }
+    );
+    assert!(matches!(done[1], LoopRequest::SimFault { sensor: 2, faults } if !faults.any()));
+}
+
+#[tokio::test]
+async fn sim_scenes_switch_by_name_through_the_run_loop() {
+    let (mut s, _service) = state();
+    let done = fake_loop(&mut s, false);
+    let (status, reply, _) =
+        send(app(s.clone()), post("/api/sim/scene", r#"{"name": "egg"}"#)).await;
+    assert_eq!(status, StatusCode::OK, "{}", text(&reply));
+    let (status, reply, _) = send(
+        app(s.clone()),
+        post("/api/sim/scene", r#"{"name": "moon"}"#),
+    )
+    .await;
+    assert_eq!(status, StatusCode::BAD_REQUEST);
+    assert!(text(&reply).contains("no scene `moon`"));
+    let (status, _, _) = send(
+        app(s.clone()),
+        post("/api/sim/scene", r#"{"name": "/tmp/evil"}"#),
+    )
+    .await;
+    assert_eq!(status, StatusCode::BAD_REQUEST);
+    let s = s.with_token("t0ken".into());
+    let (status, _, _) = send(app(s), post("/api/sim/scene", r#"{"name": "egg"}"#)).await;
+    assert_eq!(
+        status,
+        StatusCode::UNAUTHORIZED,
+        "off loopback it needs the token"
+    );
+    assert_eq!(
+        *done.lock().expect("log"),
+        vec![LoopRequest::SimScene { name: "egg".into() }]
+    );
 }

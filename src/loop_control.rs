@@ -1,0 +1,212 @@
+//! The run loop's side of the dashboard's requests beyond the grasp API: start a task
+//! script by name, and on the simulator inject sync faults or switch scenes. Each request
+//! is answered at once: started, or a refusal that says why (unknown name, the gripper is
+//! busy, not a simulated run).
+
+use gelgrip_controller::config::AppConfig;
+use gelgrip_sim::config::SensorFaults;
+use gelgrip_sim::scene_spec::SceneSpec;
+use gelgrip_sim::world::SharedWorld;
+use gelgrip_web::control::{LoopCommand, LoopRequest, Refusal, SimFaults};
+use gelgrip_web::live::{SensorFaultView, SimView};
+use tokio::sync::mpsc;
+
+use crate::catalog::{self, Kind};
+use crate::script_task::load_script;
+use crate::tasks::Task;
+
+/// Requests queued by the page before the loop answers them.
+const QUEUE: usize = 8;
+/// A finger within this of its open position counts as open, degrees.
+const OPEN_DEG: f64 = 5.0;
+
+/// The run loop's request handler.
+pub struct LoopControl {
+    rx: mpsc::Receiver<LoopCommand>,
+    config: AppConfig,
+    world: Option<SharedWorld>,
+    scene: String,
+    faults: Vec<SimFaults>,
+}
+
+impl LoopControl {
+    /// A handler for a run on `config`, whose simulator (if any) is `world`; and the sender
+    /// the dashboard uses.
+    pub fn new(
+        config: &AppConfig,
+        world: Option<SharedWorld>,
+    ) -> (Self, mpsc::Sender<LoopCommand>) {
+        let (tx, rx) = mpsc::channel(QUEUE);
+        let scene = world
+            .as_ref()
+            .and_then(|w| w.lock().ok()?.scene().map(|s| s.name.clone()))
+            .unwrap_or_else(|| "none".into());
+        let control = Self {
+            rx,
+            faults: vec![SimFaults::default(); config.layout.sensors.len()],
+            config: config.clone(),
+            world,
+            scene,
+        };
+        (control, tx)
+    }
+
+    /// The next request (pending forever once every sender is gone).
+    pub async fn recv(&mut self) -> LoopCommand {
+        match self.rx.recv().await {
+            Some(command) => command,
+            None => std::future::pending().await,
+        }
+    }
+
+    /// Carry out `request` for the run's `task`, and answer it.
+    pub fn handle(&mut self, (request, reply): LoopCommand, task: Option<&mut Task>) {
+        let answer = match request {
+            LoopRequest::Task { name } => self.start_task(&name, task),
+            LoopRequest::SimFault { sensor, faults } => self.inject(sensor, faults),
+            LoopRequest::SimScene { name } => self.switch_scene(&name, task),
+        };
+        if let Err(refusal) = &answer {
+            tracing::warn!(?refusal, "dashboard request refused");
+        }
+        let _ = reply.send(answer);
+    }
+
+    fn start_task(&mut self, name: &str, task: Option<&mut Task>) -> Result<(), Refusal> {
+        let gripper = match task {
+            None => {
+                return Err(Refusal::Unavailable(
+                    "this run has no finger servos to run a task on".into(),
+                ));
+            }
+            Some(Task::Grasp(_)) => {
+                return Err(Refusal::Busy(
+                    "task `gentle-grasp` is driving the gripper: stop it first".into(),
+                ));
+            }
+            Some(Task::Gripper { gripper, .. }) => gripper,
+        };
+        if let Some(running) = gripper.running_script() {
+            return Err(Refusal::Busy(format!(
+                "task `{running}` is driving the gripper: stop it first"
+            )));
+        }
+        let script =
+            load_script(name, &self.config).map_err(|e| Refusal::Invalid(e.to_string()))?;
+        gripper.start_script(script).map_err(|running| {
+            Refusal::Busy(format!(
+                "task `{running}` is driving the gripper: stop it first"
+            ))
+        })
+    }
+
+    fn world(&self) -> Result<&SharedWorld, Refusal> {
+        self.world.as_ref().ok_or_else(|| {
+            Refusal::Unavailable(format!(
+                "simulator controls need the simulated hub; this run's hub is `{}`",
+                self.config.hub.transport
+            ))
+        })
+    }
+
+    fn inject(&mut self, sensor: usize, faults: SimFaults) -> Result<(), Refusal> {
+        let world = self.world()?;
+        let mut w = world
+            .lock()
+            .map_err(|_| Refusal::Unavailable("the simulator has failed".into()))?;
+        w.inject_faults(
+            sensor,
+            faults.any().then_some(SensorFaults {
+                capture_delay_us: faults.capture_delay_us,
+                delivery_delay_us: faults.delivery_delay_us,
+                drop_rate: faults.drop_rate,
+                corrupt_rate: faults.corrupt_rate,
+            }),
+        );
+        drop(w);
+        if let Some(slot) = self.faults.get_mut(sensor) {
+            *slot = faults;
+        }
+        tracing::info!(sensor, ?faults, "simulator faults injected");
+        Ok(())
+    }
+
+    fn switch_scene(&mut self, name: &str, task: Option<&mut Task>) -> Result<(), Refusal> {
+        let world = self.world()?.clone();
+        let spec = if name == "none" {
+            None
+        } else {
+            let (text, path) = catalog::read(Kind::Scene, name)
+                .map_err(|e| Refusal::Invalid(format!("scene `{name}`: {e}")))?
+                .ok_or_else(|| {
+                    Refusal::Invalid(format!(
+                        "no scene `{name}`; scenes: none, {}",
+                        catalog::names(Kind::Scene).join(", ")
+                    ))
+                })?;
+            let spec =
+                SceneSpec::from_toml(&path.display().to_string(), &text, &self.config.layout)
+                    .map_err(|e| Refusal::Invalid(e.to_string()))?;
+            Some(spec)
+        };
+        // The object appears where the fingers close: they must be open.
+        match task {
+            Some(Task::Grasp(_)) => {
+                return Err(Refusal::Busy(
+                    "task `gentle-grasp` is driving the gripper: stop it first".into(),
+                ));
+            }
+            Some(Task::Gripper { gripper, .. }) => {
+                if let Some(running) = gripper.running_script() {
+                    return Err(Refusal::Busy(format!(
+                        "task `{running}` is driving the gripper: stop it first"
+                    )));
+                }
+                let closed: Vec<String> = gripper
+                    .io()
+                    .states()
+                    .iter()
+                    .zip(&self.config.layout.fingers)
+                    .filter(|(s, _)| s.position_deg > OPEN_DEG)
+                    .map(|(s, f)| format!("{} at {:.0}°", f.id, s.position_deg))
+                    .collect();
+                if !closed.is_empty() {
+                    return Err(Refusal::Busy(format!(
+                        "release the gripper first: a scene switches only with every finger \
+                         open (within {OPEN_DEG}°); {}",
+                        closed.join(", ")
+                    )));
+                }
+            }
+            None => {}
+        }
+        let mut w = world
+            .lock()
+            .map_err(|_| Refusal::Unavailable("the simulator has failed".into()))?;
+        w.set_scene(spec);
+        self.scene = name.to_string();
+        tracing::info!(scene = name, "simulator scene switched");
+        Ok(())
+    }
+
+    /// The simulator's controls for the page (`None` off the simulator).
+    pub fn sim_view(&self) -> Option<SimView> {
+        self.world.as_ref()?;
+        let mut scenes = vec!["none".to_string()];
+        scenes.extend(catalog::names(Kind::Scene));
+        Some(SimView {
+            scene: self.scene.clone(),
+            scenes,
+            faults: self
+                .faults
+                .iter()
+                .enumerate()
+                .filter(|(_, f)| f.any())
+                .map(|(i, f)| SensorFaultView {
+                    sensor: self.config.layout.sensors[i].id.to_string(),
+                    faults: *f,
+                })
+                .collect(),
+        })
+    }
+}
