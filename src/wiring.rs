@@ -7,11 +7,10 @@ use std::sync::Arc;
 
 use anyhow::Context;
 
-use gelgrip_controller::acquire::{Acquisition, gate_limits};
+use gelgrip_controller::acquire::{Acquisition, make_gate};
 use gelgrip_controller::actuator::ServoBus;
 use gelgrip_controller::clock::{Clock, RealClock, VirtualClock};
 use gelgrip_controller::config::{AppConfig, ConfigError, DiskFiles};
-use gelgrip_controller::gate::Gate;
 use gelgrip_controller::hub::SensorSettings;
 use gelgrip_controller::registry::{OpenError, OpenRequest, TransportRegistry};
 use gelgrip_dynamixel::driver::DynamixelBus;
@@ -175,8 +174,11 @@ pub async fn open_acquisition(
     hub.configure_sensors(&settings)
         .await
         .context("configuring the sensor boards")?;
-    let limits = gate_limits(&config.gate, &hub.describe().prediction);
-    let gate = Gate::new(config.layout.sensors.len(), limits);
+    let gate = make_gate(
+        &config.gate,
+        config.layout.sensors.len(),
+        &hub.describe().prediction,
+    );
     Ok(
         Acquisition::new(hub, gate, clock, config.hub.first_trigger_seq)
             .with_cpu_clock(thread_cpu_ns),

@@ -245,3 +245,19 @@ fn bench_bus_rows_match_the_model_in_virtual_time() {
     let spread = seq["spread_us_p99"].as_u64().unwrap_or(0);
     assert!((148..=153).contains(&spread), "{seq}");
 }
+
+#[test]
+fn the_approximate_gate_forms_the_trigger_gates_sets_from_capture_times_alone() {
+    let by_trigger = virtual_run(&["--config", &fixture("sequential.toml")]);
+    let by_time = virtual_run(&["--config", &fixture("approximate.toml")]);
+    let sets = |v: &Value| v["sets"].as_u64().unwrap_or(0);
+    assert!(sets(&by_trigger) >= 90, "{by_trigger}");
+    // The newest set waits for later frames to prove it: at most one fewer.
+    assert!(
+        sets(&by_trigger) - sets(&by_time) <= 1,
+        "{by_trigger}\n{by_time}"
+    );
+    assert_eq!(by_trigger["spread_us_p99"], by_time["spread_us_p99"]);
+    assert_eq!(total(&by_time, "drops"), 0, "{by_time}");
+    assert_eq!(total(&by_time, "sets_rejected"), 0, "{by_time}");
+}

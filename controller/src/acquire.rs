@@ -8,7 +8,7 @@
 use std::sync::Arc;
 
 use crate::clock::Clock;
-use crate::config::{GateSettings, Limit};
+use crate::config::{GatePolicy, GateSettings, Limit};
 use crate::frame::FrameSet;
 use crate::gate::{Gate, GateLimits};
 use crate::hub::{BusPrediction, HubError, HubEvent, HubTransport};
@@ -28,6 +28,15 @@ pub fn gate_limits(settings: &GateSettings, prediction: &BusPrediction) -> GateL
             Limit::Fixed(us) => us,
             Limit::Auto => (2.0 * prediction.set_latency_us).ceil() as u64,
         },
+    }
+}
+
+/// The gate `settings` ask for, for `sensors` sensors on a bus with `prediction`.
+pub fn make_gate(settings: &GateSettings, sensors: usize, prediction: &BusPrediction) -> Gate {
+    let limits = gate_limits(settings, prediction);
+    match settings.policy {
+        GatePolicy::Trigger => Gate::new(sensors, limits),
+        GatePolicy::Approximate => Gate::approximate(sensors, limits, settings.queue_size),
     }
 }
 

@@ -30,11 +30,16 @@ pub enum Limit<T> {
     Fixed(T),
 }
 
+/// Default `[gate] queue_size`: a quarter second of frames at 30 Hz.
+pub const DEFAULT_QUEUE_SIZE: usize = 8;
+
 /// Which gate policy groups frames into sets.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum GatePolicy {
     /// Group by trigger sequence.
     Trigger,
+    /// Match by capture time (hubs without a shared trigger).
+    Approximate,
 }
 
 /// `[gate]`.
@@ -46,6 +51,8 @@ pub struct GateSettings {
     pub max_spread_us: Limit<u32>,
     /// Largest age of an emitted set, in µs (configured in ms).
     pub max_age_us: Limit<u64>,
+    /// `approximate`: frames held per sensor while they wait for partners.
+    pub queue_size: usize,
 }
 
 /// `[servos]`: the finger servo bus.
@@ -170,6 +177,7 @@ struct RawGate {
     policy: String,
     max_spread_us: toml::Value,
     max_age_ms: toml::Value,
+    queue_size: f64,
 }
 
 impl Default for RawGate {
@@ -178,6 +186,7 @@ impl Default for RawGate {
             policy: "trigger".into(),
             max_spread_us: toml::Value::String("auto".into()),
             max_age_ms: toml::Value::String("auto".into()),
+            queue_size: DEFAULT_QUEUE_SIZE as f64,
         }
     }
 }
@@ -336,16 +345,13 @@ fn limit(
 fn validate_gate(check: &FieldCheck, raw: RawGate) -> Result<GateSettings, ConfigError> {
     let policy = match raw.policy.as_str() {
         "trigger" => GatePolicy::Trigger,
-        "approximate" => {
-            return Err(check.unavailable(
-                "gate.policy",
-                "approximate",
-                Some("the hardware hub transports issue"),
-                &["trigger"],
-            ));
-        }
-        other => return Err(check.invalid("gate.policy", other, "trigger")),
+        "approximate" => GatePolicy::Approximate,
+        other => return Err(check.invalid("gate.policy", other, "trigger or approximate")),
     };
+    let queue_size = check.range("gate.queue_size", raw.queue_size, 2.0, 1000.0)?;
+    if queue_size.fract() != 0.0 {
+        return Err(check.invalid("gate.queue_size", raw.queue_size, "a whole number"));
+    }
     let spread = limit(check, "gate.max_spread_us", &raw.max_spread_us, 1.0, 1e6)?;
     let age = limit(check, "gate.max_age_ms", &raw.max_age_ms, 0.1, 60_000.0)?;
     Ok(GateSettings {
@@ -358,6 +364,7 @@ fn validate_gate(check: &FieldCheck, raw: RawGate) -> Result<GateSettings, Confi
             Limit::Auto => Limit::Auto,
             Limit::Fixed(v) => Limit::Fixed((v * 1000.0).round() as u64),
         },
+        queue_size: queue_size as usize,
     })
 }
 

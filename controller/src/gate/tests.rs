@@ -6,7 +6,8 @@ use bytes::Bytes;
 use proptest::prelude::*;
 
 use super::*;
-use crate::frame::{Frame, SensorIndex};
+use crate::frame::{Frame, ReceivedFrame, SensorIndex};
+use crate::hubtime::seq_newer;
 
 const LIMITS: GateLimits = GateLimits {
     max_spread_us: 500,
