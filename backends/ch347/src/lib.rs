@@ -1,0 +1,27 @@
+//! gelgrip's host driver for the WCH CH347 USB bridge (CH347T in mode 1, PID 0x55DB, and
+//! CH347F, PID 0x55DE): SPI, I2C and GPIO over the chip's vendor bulk interface, as
+//! described in `shared/reference/ch347.md`.
+//!
+//! - [`frames`]: the command frames and the I2C stream as bytes (pure encoders and parsers);
+//! - [`transport`]: the small bulk-transport trait all protocol code is generic over;
+//! - [`driver`]: [`Ch347`], the commands with every reply checked;
+//! - [`usb`]: the libusb transport (rusb, explicit context: a machine without USB gets an
+//!   error, never a panic), opened by VID:PID or bus-port path;
+//! - [`emu`] (feature `emulator`): the chip emulator, byte for byte.
+//!
+//! The disputed points of the reference are configurable: the chip-select polarity bits
+//! ([`frames::CsPolarityBits`]), the SPI clock index (30 MHz by default, §3), and the
+//! default MOSI byte during reads.
+
+pub mod driver;
+#[cfg(feature = "emulator")]
+pub mod emu;
+pub mod error;
+pub mod frames;
+pub mod transport;
+pub mod usb;
+
+pub use driver::{Ch347, CsLine};
+pub use error::{Ch347Error, OpenError, UsbError};
+pub use frames::{HwCs, SpiConfig, SpiMode};
+pub use transport::UsbBulk;
