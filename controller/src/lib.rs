@@ -8,6 +8,7 @@
 
 pub mod acquire;
 pub mod actuator;
+pub mod camera;
 pub mod clock;
 pub mod config;
 pub mod fingers;

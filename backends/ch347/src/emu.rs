@@ -38,6 +38,10 @@ pub trait I2cTarget: Send {
     fn write(&mut self, general_call: bool, data: &[u8]);
     /// A read of `n` bytes.
     fn read(&mut self, n: usize) -> Vec<u8>;
+    /// Whether it answers (acknowledges) its address at all.
+    fn present(&self) -> bool {
+        true
+    }
 }
 
 /// A command the emulator could not parse, with its bytes.
@@ -350,7 +354,8 @@ impl Ch347Emulator {
                             None => {
                                 current = Some((b, Vec::new()));
                                 let address = b >> 1;
-                                acked = address == 0 || self.i2c.contains_key(&address);
+                                acked = address == 0
+                                    || self.i2c.get(&address).is_some_and(|t| t.present());
                             }
                             Some((_, data)) => data.push(b),
                         }

@@ -7,17 +7,23 @@
 //! - [`driver`]: [`Ch347`], the commands with every reply checked;
 //! - [`usb`]: the libusb transport (rusb, explicit context: a machine without USB gets an
 //!   error, never a panic), opened by VID:PID or bus-port path;
-//! - [`emu`] (feature `emulator`): the chip emulator, byte for byte.
+//! - [`hub`]: [`hub::Ch347Hub`], the hub protocol on top as a `HubTransport`: the trigger
+//!   over I2C, FRAME_READY polled, each board's frame read over SPI with its CRC checked;
+//! - [`emu`] (feature `emulator`): the chip emulator, byte for byte, and [`board`]: the
+//!   emulated sensor boards behind it, whose images come from the simulator's camera port.
 //!
 //! The disputed points of the reference are configurable: the chip-select polarity bits
 //! ([`frames::CsPolarityBits`]), the SPI clock index (30 MHz by default, §3), and the
 //! default MOSI byte during reads.
 
+#[cfg(feature = "emulator")]
+pub mod board;
 pub mod driver;
 #[cfg(feature = "emulator")]
 pub mod emu;
 pub mod error;
 pub mod frames;
+pub mod hub;
 pub mod transport;
 pub mod usb;
 

@@ -17,6 +17,7 @@
 //!   it stepped in simulated time, with a [`world_log`]) and [`servo_bus`] (the simulated
 //!   `ServoBus`).
 
+pub mod board_cameras;
 pub mod config;
 pub mod contact;
 pub mod factory;

@@ -1,0 +1,419 @@
+//! [`Ch347Hub`]: the hub protocol (`docs/protocol.md`) run by the host through a CH347, as a
+//! [`HubTransport`]. Per trigger:
+//!
+//! 1. the trigger over I2C: one general call (`0x00`, `0x0C`) for broadcast, or an
+//!    address-only write to each board's `0x40 + i` for sequential; the host stamps each
+//!    board's trigger with its own clock (the hub timebase is host µs, truncated to u32);
+//! 2. each board's STATUS, FRAME_LENGTH and FRAME_SEQ in one register read, polled until
+//!    FRAME_READY;
+//! 3. the frame over SPI on the board's chip select (one `C3` read), decoded and CRC-checked;
+//!    its sequence must match the trigger (a mismatch is a corrupt frame, and the boards'
+//!    NEXT_SEQ are rewritten).
+//!
+//! A board that does not acknowledge or never gets ready is reported `Disconnected`; a bad
+//! frame `Corrupt` with the decoder's evidence; then `SetEnd`. On the chip emulator, whose
+//! transfers take no time, the hub waits (on the injected clock) for the time the modelled
+//! bus would take: USB command turnaround, I2C bits and SPI bytes at the configured clocks.
+
+use std::collections::VecDeque;
+use std::sync::Arc;
+
+use async_trait::async_trait;
+use bytes::Bytes;
+
+use gelgrip_controller::clock::Clock;
+use gelgrip_controller::frame::{Frame, ReceivedFrame, SensorIndex};
+use gelgrip_controller::hub::{
+    BusPrediction, HubDescription, HubError, HubEvent, HubTransport, SensorSettings, TriggerMode,
+};
+use gelgrip_hubwire::regs::{self, Register, status};
+use gelgrip_hubwire::spi_frame::{self, HEADER_LEN, TRAILER_LEN};
+use gelgrip_hubwire::timing::BusModel;
+
+use crate::driver::{Ch347, CsLine};
+use crate::error::Ch347Error;
+use crate::frames::{SpiConfig, clock_index_for, spi_clock_hz};
+use crate::transport::UsbBulk;
+
+/// How the hub is set up.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Ch347HubConfig {
+    /// Chip select of each board, in board order.
+    pub cs: Vec<CsLine>,
+    /// Trigger mode.
+    pub trigger: TriggerMode,
+    /// Requested SPI clock, Hz (the fastest CH347 clock not above it is used).
+    pub spi_clock_hz: u32,
+    /// I2C speed code (2 = 400 kHz).
+    pub i2c_speed: u8,
+    /// FRAME_READY polls before a board counts as disconnected.
+    pub ready_polls: u32,
+    /// Model the bus time on the injected clock (the emulator; real chips take it anyway).
+    pub pace: bool,
+    /// USB round trip of one command, µs (paced mode).
+    pub command_turnaround_us: f64,
+    /// Expected frame size for the bus model, bytes.
+    pub mean_frame_bytes: f64,
+}
+
+impl Ch347HubConfig {
+    /// `n` boards on CS0, CS1, then GPIO 0, 1, … (a CH347F has eight free GPIOs).
+    pub fn default_for(n: usize, trigger: TriggerMode) -> Self {
+        let cs = (0..n)
+            .map(|i| match i {
+                0 => CsLine::Hw(crate::frames::HwCs::Cs0),
+                1 => CsLine::Hw(crate::frames::HwCs::Cs1),
+                k => CsLine::Gpio((k - 2) as u8),
+            })
+            .collect();
+        Self {
+            cs,
+            trigger,
+            spi_clock_hz: 30_000_000,
+            i2c_speed: 2,
+            ready_polls: 20,
+            pace: false,
+            command_turnaround_us: 125.0,
+            mean_frame_bytes: 20_000.0,
+        }
+    }
+}
+
+/// The hub.
+pub struct Ch347Hub<T: UsbBulk> {
+    ch: Ch347<T>,
+    cfg: Ch347HubConfig,
+    description: HubDescription,
+    clock: Arc<dyn Clock>,
+    triggers: VecDeque<u32>,
+    events: VecDeque<HubEvent>,
+    /// The boards' NEXT_SEQ must be (re)written before the next trigger.
+    resync: bool,
+    /// Modelled bus time owed since the last wait, µs.
+    owed_us: f64,
+}
+
+impl<T: UsbBulk> std::fmt::Debug for Ch347Hub<T> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Ch347Hub")
+            .field("description", &self.description)
+            .field("cs", &self.cfg.cs)
+            .finish()
+    }
+}
+
+fn hub_error(e: Ch347Error) -> HubError {
+    match e {
+        Ch347Error::Usb { source, command } => HubError::Disconnected {
+            detail: format!("CH347 {command}: {source}"),
+        },
+        other => HubError::Disconnected {
+            detail: format!("CH347: {other}"),
+        },
+    }
+}
+
+/// I2C clock of a speed code, Hz.
+fn i2c_hz(code: u8) -> u32 {
+    match code {
+        0 => 20_000,
+        1 => 100_000,
+        3 => 750_000,
+        _ => 400_000,
+    }
+}
+
+impl<T: UsbBulk> Ch347Hub<T> {
+    /// Configure the chip (SPI, I2C speed) and check every board answers WHO_AM_I.
+    pub fn open(
+        ch: Ch347<T>,
+        cfg: Ch347HubConfig,
+        clock: Arc<dyn Clock>,
+    ) -> Result<Self, HubError> {
+        let index = clock_index_for(cfg.spi_clock_hz);
+        let model = BusModel {
+            sensors: u8::try_from(cfg.cs.len()).unwrap_or(u8::MAX),
+            trigger: match cfg.trigger {
+                TriggerMode::Broadcast => gelgrip_hubwire::i2c::TriggerMode::Broadcast,
+                TriggerMode::Sequential => gelgrip_hubwire::i2c::TriggerMode::Sequential,
+            },
+            i2c_hz: i2c_hz(cfg.i2c_speed),
+            spi_clock_hz: spi_clock_hz(index),
+            mean_frame_bytes: cfg.mean_frame_bytes + (HEADER_LEN + TRAILER_LEN) as f64,
+            t_buf_us: 1000.0,
+            t_usb_us: cfg.command_turnaround_us,
+            capture_jitter_us: 2.0,
+        };
+        let description = HubDescription {
+            transport: "ch347".into(),
+            sensors: cfg.cs.len(),
+            trigger: cfg.trigger,
+            prediction: BusPrediction {
+                mean_frame_bytes: model.mean_frame_bytes,
+                t_spi_us: model.t_spi_us(),
+                trigger_spread_us: model.trigger_spread_us(),
+                paper_rate_hz: model.paper_rate_hz(),
+                paper_latency_us: model.paper_latency_us(),
+                set_period_us: model.set_period_us(),
+                set_latency_us: model.set_latency_us(),
+            },
+        };
+        let mut hub = Self {
+            ch,
+            cfg,
+            description,
+            clock,
+            triggers: VecDeque::new(),
+            events: VecDeque::new(),
+            resync: true,
+            owed_us: 0.0,
+        };
+        hub.ch.drain(std::time::Duration::from_millis(5));
+        hub.ch
+            .spi_configure(SpiConfig {
+                clock_index: index,
+                ..SpiConfig::default()
+            })
+            .map_err(hub_error)?;
+        hub.ch.i2c_speed(hub.cfg.i2c_speed).map_err(hub_error)?;
+        for (i, line) in hub.cfg.cs.clone().into_iter().enumerate() {
+            if let CsLine::Gpio(_) = line {
+                hub.ch.deselect(line).map_err(hub_error)?;
+            }
+            let who = regs::register_address(i as u8)
+                .map(|a| hub.ch.i2c_write_read(a, &[Register::WhoAmI as u8], 1));
+            match who {
+                Some(Ok(v)) if v == [regs::WHO_AM_I_VALUE] => {}
+                Some(Ok(v)) => tracing::warn!(board = i, ?v, "unexpected WHO_AM_I"),
+                Some(Err(e)) => tracing::warn!(board = i, "board does not answer: {e}"),
+                None => tracing::warn!(board = i, "no I2C address for this board"),
+            }
+        }
+        Ok(hub)
+    }
+
+    /// The chip (for the emulator's counters in tests and benches).
+    pub fn chip(&self) -> &Ch347<T> {
+        &self.ch
+    }
+
+    /// Count `commands` USB round trips, `i2c_bytes` I2C bytes and `spi_bytes` SPI bytes
+    /// of bus time.
+    fn owe(&mut self, commands: u32, i2c_bytes: usize, spi_bytes: usize) {
+        if !self.cfg.pace {
+            return;
+        }
+        let spi_hz = f64::from(
+            self.ch
+                .spi_config()
+                .map_or(30_000_000, |c| spi_clock_hz(c.clock_index)),
+        );
+        self.owed_us += f64::from(commands) * self.cfg.command_turnaround_us
+            + i2c_bytes as f64 * 9.0 / f64::from(i2c_hz(self.cfg.i2c_speed)) * 1e6
+            + spi_bytes as f64 * 8.0 / spi_hz * 1e6;
+    }
+
+    /// Wait out the bus time owed (paced mode).
+    async fn settle(&mut self) {
+        if self.owed_us >= 1.0 {
+            let until = self.clock.now_us() + self.owed_us as u64;
+            self.owed_us -= self.owed_us.floor();
+            self.clock.sleep_until(until).await;
+        }
+    }
+
+    fn write_next_seq(&mut self, seq: u32) {
+        for i in 0..self.cfg.cs.len() {
+            if let Some(a) = regs::register_address(i as u8) {
+                let mut data = vec![Register::NextSeq as u8];
+                data.extend_from_slice(&seq.to_le_bytes());
+                let _ = self.ch.i2c_write(a, &data);
+                self.owe(1, 6, 0);
+            }
+        }
+        self.resync = false;
+    }
+
+    /// Fire trigger `seq`; returns each board's trigger time (host µs), `None` where the
+    /// board did not acknowledge it.
+    async fn fire(&mut self, seq: u32) -> Result<Vec<Option<u64>>, HubError> {
+        if self.resync {
+            self.write_next_seq(seq);
+        }
+        let n = self.cfg.cs.len();
+        match self.cfg.trigger {
+            TriggerMode::Broadcast => {
+                self.owe(1, 2, 0);
+                self.settle().await;
+                let at = self.clock.now_us();
+                match self
+                    .ch
+                    .i2c_write(regs::GENERAL_CALL_ADDR, &[regs::GENERAL_CALL_CAPTURE])
+                {
+                    Ok(()) => Ok(vec![Some(at); n]),
+                    Err(Ch347Error::Nack { .. }) => Ok(vec![None; n]),
+                    Err(e) => Err(hub_error(e)),
+                }
+            }
+            TriggerMode::Sequential => {
+                let mut at = Vec::with_capacity(n);
+                for i in 0..n {
+                    self.owe(1, 1, 0);
+                    self.settle().await;
+                    let t = self.clock.now_us();
+                    let addr = regs::trigger_address(i as u8).unwrap_or(0x7F);
+                    match self.ch.i2c_write(addr, &[]) {
+                        Ok(()) => at.push(Some(t)),
+                        Err(Ch347Error::Nack { .. }) => at.push(None),
+                        Err(e) => return Err(hub_error(e)),
+                    }
+                }
+                Ok(at)
+            }
+        }
+    }
+
+    /// STATUS, FRAME_LENGTH and FRAME_SEQ of board `i`, polled until FRAME_READY.
+    async fn wait_ready(&mut self, i: usize) -> Result<Option<(usize, u32)>, HubError> {
+        let Some(addr) = regs::register_address(i as u8) else {
+            return Ok(None);
+        };
+        for _ in 0..self.cfg.ready_polls.max(1) {
+            self.owe(1, 16, 0);
+            self.settle().await;
+            let regs = match self.ch.i2c_write_read(addr, &[Register::Status as u8], 12) {
+                Ok(r) => r,
+                Err(Ch347Error::Nack { .. }) => return Ok(None),
+                Err(e) => return Err(hub_error(e)),
+            };
+            if regs[0] & status::FRAME_READY != 0 {
+                let len = u32::from_le_bytes([regs[4], regs[5], regs[6], regs[7]]) as usize;
+                let seq = u32::from_le_bytes([regs[8], regs[9], regs[10], regs[11]]);
+                return Ok(Some((len, seq)));
+            }
+        }
+        Ok(None)
+    }
+
+    /// Collect every board's frame for trigger `seq` into the event queue.
+    async fn collect(&mut self, seq: u32) -> Result<(), HubError> {
+        let triggered = self.fire(seq).await?;
+        let mut sent = 0u8;
+        for (i, at) in triggered.into_iter().enumerate() {
+            let sensor = SensorIndex(i as u8);
+            let ready = match at {
+                Some(_) => self.wait_ready(i).await?,
+                None => None,
+            };
+            let (Some(trigger_us), Some((len, _ready_seq))) = (at, ready) else {
+                self.events.push_back(HubEvent::Disconnected {
+                    sensor,
+                    trigger_seq: seq,
+                });
+                continue;
+            };
+            let max = spi_frame::MAX_PAYLOAD as usize + HEADER_LEN + TRAILER_LEN;
+            if len < HEADER_LEN + TRAILER_LEN || len > max {
+                sent += 1;
+                self.events.push_back(HubEvent::Corrupt {
+                    sensor: Some(sensor),
+                    trigger_seq: Some(seq),
+                    detail: format!(
+                        "FRAME_LENGTH = {len}: expected {} to {max}",
+                        HEADER_LEN + TRAILER_LEN
+                    ),
+                });
+                continue;
+            }
+            let line = self.cfg.cs[i];
+            let bytes = self.ch.spi_transaction(line, &[], len).map_err(hub_error)?;
+            // Select, read, deselect: three commands; the read's packets stream behind the
+            // SPI clock, so its bytes cost SPI time only.
+            self.owe(3, 0, len);
+            self.settle().await;
+            sent += 1;
+            let event = self.frame_event(i, seq, trigger_us, &bytes);
+            self.events.push_back(event);
+        }
+        self.events.push_back(HubEvent::SetEnd {
+            trigger_seq: seq,
+            frames_sent: sent,
+        });
+        Ok(())
+    }
+
+    fn frame_event(&mut self, i: usize, seq: u32, trigger_us: u64, bytes: &[u8]) -> HubEvent {
+        let sensor = SensorIndex(i as u8);
+        let corrupt = |detail: String| HubEvent::Corrupt {
+            sensor: Some(sensor),
+            trigger_seq: Some(seq),
+            detail,
+        };
+        let frame = match spi_frame::decode(bytes) {
+            Ok((frame, _)) => frame,
+            Err(e) => return corrupt(format!("board {i}: {e}")),
+        };
+        if usize::from(frame.header.sensor_id) != i {
+            return corrupt(format!(
+                "board {i}: frame says sensor {}",
+                frame.header.sensor_id
+            ));
+        }
+        if frame.header.trigger_seq != seq {
+            self.resync = true;
+            return corrupt(format!(
+                "board {i}: frame sequence {} for trigger {seq} (a missed trigger; NEXT_SEQ rewritten)",
+                frame.header.trigger_seq
+            ));
+        }
+        let capture_host_us = trigger_us + u64::from(frame.header.capture_offset_us);
+        HubEvent::Frame(ReceivedFrame {
+            frame: Frame {
+                sensor,
+                trigger_seq: seq,
+                capture_ts_us: capture_host_us as u32,
+                exposure_us: frame.header.exposure_us,
+                jpeg: Bytes::from(frame.jpeg),
+            },
+            capture_host_us,
+            received_host_us: self.clock.now_us(),
+        })
+    }
+}
+
+#[async_trait]
+impl<T: UsbBulk> HubTransport for Ch347Hub<T> {
+    fn describe(&self) -> &HubDescription {
+        &self.description
+    }
+
+    async fn configure_sensors(&mut self, settings: &[SensorSettings]) -> Result<(), HubError> {
+        for (i, s) in settings.iter().enumerate().take(self.cfg.cs.len()) {
+            if let Some(a) = regs::register_address(i as u8) {
+                let mut data = vec![Register::ExposureUs as u8];
+                data.extend_from_slice(&s.exposure_us.to_le_bytes());
+                if let Err(e) = self.ch.i2c_write(a, &data) {
+                    tracing::warn!(board = i, "exposure not set: {e}");
+                }
+            }
+        }
+        Ok(())
+    }
+
+    async fn trigger(&mut self, trigger_seq: u32) -> Result<(), HubError> {
+        self.triggers.push_back(trigger_seq);
+        Ok(())
+    }
+
+    async fn next_event(&mut self) -> Result<HubEvent, HubError> {
+        loop {
+            if let Some(e) = self.events.pop_front() {
+                return Ok(e);
+            }
+            let Some(seq) = self.triggers.pop_front() else {
+                return Err(HubError::Idle);
+            };
+            self.collect(seq).await?;
+        }
+    }
+}

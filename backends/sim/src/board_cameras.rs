@@ -1,0 +1,112 @@
+//! The simulator as the camera port ([`BoardCameras`]) of emulated hubs (the CH347 chip
+//! emulator's sensor boards, the CDC hub emulator): with a world, each capture renders the
+//! pads' indentation at that instant; without, the built-in presses from the frame pool.
+//!
+//! Boards capture one by one; a broadcast trigger makes every board capture at the same
+//! host time, so the world is rendered once per (time, capture) and shared by all boards.
+
+use bytes::Bytes;
+
+use gelgrip_controller::camera::BoardCameras;
+use gelgrip_controller::layout::HandLayout;
+
+use crate::config::SimConfig;
+use crate::pool::{EncodeError, FramePool};
+use crate::scene_frames::SceneFrames;
+use crate::world::SharedWorld;
+
+/// Simulated cameras for every sensor of a layout.
+#[derive(Debug)]
+pub struct SimCameras {
+    boards: usize,
+    pool: Option<FramePool>,
+    scene: Option<SceneFrames>,
+    /// The last rendering: (time, capture index) and every board's frame.
+    last: Option<((u64, u64), Vec<Bytes>)>,
+}
+
+impl SimCameras {
+    /// Cameras showing the built-in presses.
+    pub fn presses(layout: &HandLayout, cfg: &SimConfig) -> Result<Self, EncodeError> {
+        Ok(Self {
+            boards: layout.sensors.len(),
+            pool: Some(FramePool::render(layout, cfg)?),
+            scene: None,
+            last: None,
+        })
+    }
+
+    /// Cameras showing `world`'s pads.
+    pub fn of_world(
+        layout: &HandLayout,
+        cfg: &SimConfig,
+        world: SharedWorld,
+    ) -> Result<Self, EncodeError> {
+        Ok(Self {
+            boards: layout.sensors.len(),
+            pool: None,
+            scene: Some(SceneFrames::new(world, layout, cfg)?),
+            last: None,
+        })
+    }
+}
+
+impl BoardCameras for SimCameras {
+    fn boards(&self) -> usize {
+        self.boards
+    }
+
+    fn capture(&mut self, board: usize, nth: u64, now_us: u64) -> Bytes {
+        if let Some(pool) = &self.pool {
+            return pool.frame(board, nth).cloned().unwrap_or_default();
+        }
+        let key = (now_us, nth);
+        if self.last.as_ref().is_none_or(|(k, _)| *k != key)
+            && let Some(scene) = self.scene.as_mut()
+        {
+            let frames = scene.capture(now_us, nth).unwrap_or_default();
+            self.last = Some((key, frames));
+        }
+        self.last
+            .as_ref()
+            .and_then(|(_, frames)| frames.get(board).cloned())
+            .unwrap_or_default()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::world::World;
+
+    fn layout() -> HandLayout {
+        HandLayout::from_toml(
+            "three-finger.toml",
+            include_str!("../../../configs/layouts/three-finger.toml"),
+        )
+        .expect("layout")
+    }
+
+    fn cfg(layout: &HandLayout) -> SimConfig {
+        crate::pool::tests::default_config(layout)
+    }
+
+    #[test]
+    fn every_board_gets_a_jpeg_and_a_broadcast_renders_once() {
+        let layout = layout();
+        let cfg = cfg(&layout);
+        let mut presses = SimCameras::presses(&layout, &cfg).expect("pool");
+        assert_eq!(presses.boards(), 7);
+        for b in 0..7 {
+            let jpeg = presses.capture(b, 0, 0);
+            assert_eq!(&jpeg[..2], &[0xFF, 0xD8], "board {b}: a JPEG");
+        }
+        let world = World::new(&layout, None).into_shared();
+        let mut cams = SimCameras::of_world(&layout, &cfg, world).expect("scene");
+        let a = cams.capture(0, 3, 1_000);
+        let b = cams.capture(0, 3, 1_000);
+        assert_eq!(a, b, "same capture, same frame");
+        assert_eq!(&a[..2], &[0xFF, 0xD8]);
+        assert!(cams.capture(9, 3, 1_000).is_empty(), "no such board");
+    }
+}
