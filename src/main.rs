@@ -3,6 +3,7 @@
 
 mod bench_config;
 mod catalog;
+mod ch347_hub;
 mod cli;
 mod commands;
 mod dashboard;

@@ -178,14 +178,52 @@ fn check_config_wants_one_servo_per_finger() {
 
 #[test]
 fn unbuilt_backends_get_a_clear_error_listing_what_exists() {
-    let out = gelgrip(&["check-config", &repo_file("configs/gelgripper.toml")]);
+    let out = gelgrip(&["check-config", &fixture("cdc-unbuilt.toml")]);
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
-        err.contains("hub.transport") && err.contains("ch347"),
+        err.contains("hub.transport") && err.contains("cdc"),
         "{err}"
     );
-    assert!(err.contains("available: sim"), "{err}");
+    assert!(err.contains("available: sim, ch347"), "{err}");
+    // The hardware template names only what this build has.
+    let out = gelgrip(&["check-config", &repo_file("configs/gelgripper.toml")]);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+#[test]
+fn the_ch347_transport_runs_on_its_chip_emulator_and_without_usb_fails_clearly() {
+    let v = virtual_run(&["--config", &fixture("ch347-emu.toml")]);
+    assert_eq!(v["transport"], "ch347");
+    assert!(v["sets"].as_u64() >= Some(60), "{v}");
+    assert_eq!(total(&v, "drops"), 0, "{v}");
+    assert_eq!(total(&v, "sets_rejected"), 0, "{v}");
+    let rate = v["set_rate_hz"].as_f64().unwrap_or(0.0);
+    assert!(
+        (20.0..26.0).contains(&rate),
+        "7 × 20 KB at 30 MHz: {rate} Hz"
+    );
+    // A real chip on a machine without one: a clear error, no panic.
+    let out = gelgrip(&[
+        "run",
+        "--config",
+        &fixture("ch347-usb.toml"),
+        "--headless",
+        "--duration",
+        "1",
+    ]);
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("no USB on this machine") || err.contains("no CH347 matches"),
+        "{err}"
+    );
+    assert!(!err.contains("panicked"), "{err}");
 }
 
 #[test]

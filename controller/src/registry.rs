@@ -46,9 +46,8 @@ pub enum OpenError {
 }
 
 /// Transport names the contract reserves, with the issue that brings each.
-const PLANNED: [(&str, &str); 3] = [
+const PLANNED: [(&str, &str); 2] = [
     ("cdc", "the hardware hub transports issue"),
-    ("ch347", "the hardware hub transports issue"),
     ("replay", "the recording and replay issue"),
 ];
 

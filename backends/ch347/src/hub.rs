@@ -12,8 +12,13 @@
 //!
 //! A board that does not acknowledge or never gets ready is reported `Disconnected`; a bad
 //! frame `Corrupt` with the decoder's evidence; then `SetEnd`. On the chip emulator, whose
-//! transfers take no time, the hub waits (on the injected clock) for the time the modelled
-//! bus would take: USB command turnaround, I2C bits and SPI bytes at the configured clocks.
+//! transfers take no time, the hub stamps and releases each event at the time the modelled
+//! bus would reach it (USB command turnaround, I2C bits and SPI bytes at the configured
+//! clocks), waiting on the injected clock.
+//!
+//! `next_event` is cancel-safe (the run loop selects over it): a trigger's transfers run to
+//! completion without an await, and its events wait in a queue, each removed only once its
+//! release time has come.
 
 use std::collections::VecDeque;
 use std::sync::Arc;
@@ -86,11 +91,12 @@ pub struct Ch347Hub<T: UsbBulk> {
     description: HubDescription,
     clock: Arc<dyn Clock>,
     triggers: VecDeque<u32>,
-    events: VecDeque<HubEvent>,
+    /// Events and the host time each is released at.
+    events: VecDeque<(u64, HubEvent)>,
     /// The boards' NEXT_SEQ must be (re)written before the next trigger.
     resync: bool,
-    /// Modelled bus time owed since the last wait, µs.
-    owed_us: f64,
+    /// Paced mode: where the modelled bus is now, host µs.
+    bus_us: f64,
 }
 
 impl<T: UsbBulk> std::fmt::Debug for Ch347Hub<T> {
@@ -166,7 +172,7 @@ impl<T: UsbBulk> Ch347Hub<T> {
             triggers: VecDeque::new(),
             events: VecDeque::new(),
             resync: true,
-            owed_us: 0.0,
+            bus_us: 0.0,
         };
         hub.ch.drain(std::time::Duration::from_millis(5));
         hub.ch
@@ -197,8 +203,8 @@ impl<T: UsbBulk> Ch347Hub<T> {
         &self.ch
     }
 
-    /// Count `commands` USB round trips, `i2c_bytes` I2C bytes and `spi_bytes` SPI bytes
-    /// of bus time.
+    /// Advance the modelled bus by `commands` USB round trips, `i2c_bytes` I2C bytes and
+    /// `spi_bytes` SPI bytes (paced mode).
     fn owe(&mut self, commands: u32, i2c_bytes: usize, spi_bytes: usize) {
         if !self.cfg.pace {
             return;
@@ -208,17 +214,17 @@ impl<T: UsbBulk> Ch347Hub<T> {
                 .spi_config()
                 .map_or(30_000_000, |c| spi_clock_hz(c.clock_index)),
         );
-        self.owed_us += f64::from(commands) * self.cfg.command_turnaround_us
+        self.bus_us += f64::from(commands) * self.cfg.command_turnaround_us
             + i2c_bytes as f64 * 9.0 / f64::from(i2c_hz(self.cfg.i2c_speed)) * 1e6
             + spi_bytes as f64 * 8.0 / spi_hz * 1e6;
     }
 
-    /// Wait out the bus time owed (paced mode).
-    async fn settle(&mut self) {
-        if self.owed_us >= 1.0 {
-            let until = self.clock.now_us() + self.owed_us as u64;
-            self.owed_us -= self.owed_us.floor();
-            self.clock.sleep_until(until).await;
+    /// Host time now as the bus sees it: the modelled bus's time when paced.
+    fn now(&self) -> u64 {
+        if self.cfg.pace {
+            self.bus_us as u64
+        } else {
+            self.clock.now_us()
         }
     }
 
@@ -236,7 +242,7 @@ impl<T: UsbBulk> Ch347Hub<T> {
 
     /// Fire trigger `seq`; returns each board's trigger time (host µs), `None` where the
     /// board did not acknowledge it.
-    async fn fire(&mut self, seq: u32) -> Result<Vec<Option<u64>>, HubError> {
+    fn fire(&mut self, seq: u32) -> Result<Vec<Option<u64>>, HubError> {
         if self.resync {
             self.write_next_seq(seq);
         }
@@ -244,8 +250,7 @@ impl<T: UsbBulk> Ch347Hub<T> {
         match self.cfg.trigger {
             TriggerMode::Broadcast => {
                 self.owe(1, 2, 0);
-                self.settle().await;
-                let at = self.clock.now_us();
+                let at = self.now();
                 match self
                     .ch
                     .i2c_write(regs::GENERAL_CALL_ADDR, &[regs::GENERAL_CALL_CAPTURE])
@@ -259,8 +264,7 @@ impl<T: UsbBulk> Ch347Hub<T> {
                 let mut at = Vec::with_capacity(n);
                 for i in 0..n {
                     self.owe(1, 1, 0);
-                    self.settle().await;
-                    let t = self.clock.now_us();
+                    let t = self.now();
                     let addr = regs::trigger_address(i as u8).unwrap_or(0x7F);
                     match self.ch.i2c_write(addr, &[]) {
                         Ok(()) => at.push(Some(t)),
@@ -274,13 +278,12 @@ impl<T: UsbBulk> Ch347Hub<T> {
     }
 
     /// STATUS, FRAME_LENGTH and FRAME_SEQ of board `i`, polled until FRAME_READY.
-    async fn wait_ready(&mut self, i: usize) -> Result<Option<(usize, u32)>, HubError> {
+    fn wait_ready(&mut self, i: usize) -> Result<Option<(usize, u32)>, HubError> {
         let Some(addr) = regs::register_address(i as u8) else {
             return Ok(None);
         };
         for _ in 0..self.cfg.ready_polls.max(1) {
             self.owe(1, 16, 0);
-            self.settle().await;
             let regs = match self.ch.i2c_write_read(addr, &[Register::Status as u8], 12) {
                 Ok(r) => r,
                 Err(Ch347Error::Nack { .. }) => return Ok(None),
@@ -295,18 +298,27 @@ impl<T: UsbBulk> Ch347Hub<T> {
         Ok(None)
     }
 
-    /// Collect every board's frame for trigger `seq` into the event queue.
-    async fn collect(&mut self, seq: u32) -> Result<(), HubError> {
-        let triggered = self.fire(seq).await?;
+    fn push(&mut self, event: HubEvent) {
+        let at = self.now();
+        self.events.push_back((at, event));
+    }
+
+    /// Collect every board's frame for trigger `seq` into the event queue (no await: a
+    /// cancelled `next_event` never leaves a trigger half read).
+    fn collect(&mut self, seq: u32) -> Result<(), HubError> {
+        if self.cfg.pace {
+            self.bus_us = self.bus_us.max(self.clock.now_us() as f64);
+        }
+        let triggered = self.fire(seq)?;
         let mut sent = 0u8;
         for (i, at) in triggered.into_iter().enumerate() {
             let sensor = SensorIndex(i as u8);
             let ready = match at {
-                Some(_) => self.wait_ready(i).await?,
+                Some(_) => self.wait_ready(i)?,
                 None => None,
             };
             let (Some(trigger_us), Some((len, _ready_seq))) = (at, ready) else {
-                self.events.push_back(HubEvent::Disconnected {
+                self.push(HubEvent::Disconnected {
                     sensor,
                     trigger_seq: seq,
                 });
@@ -315,7 +327,7 @@ impl<T: UsbBulk> Ch347Hub<T> {
             let max = spi_frame::MAX_PAYLOAD as usize + HEADER_LEN + TRAILER_LEN;
             if len < HEADER_LEN + TRAILER_LEN || len > max {
                 sent += 1;
-                self.events.push_back(HubEvent::Corrupt {
+                self.push(HubEvent::Corrupt {
                     sensor: Some(sensor),
                     trigger_seq: Some(seq),
                     detail: format!(
@@ -330,12 +342,11 @@ impl<T: UsbBulk> Ch347Hub<T> {
             // Select, read, deselect: three commands; the read's packets stream behind the
             // SPI clock, so its bytes cost SPI time only.
             self.owe(3, 0, len);
-            self.settle().await;
             sent += 1;
             let event = self.frame_event(i, seq, trigger_us, &bytes);
-            self.events.push_back(event);
+            self.push(event);
         }
-        self.events.push_back(HubEvent::SetEnd {
+        self.push(HubEvent::SetEnd {
             trigger_seq: seq,
             frames_sent: sent,
         });
@@ -376,7 +387,7 @@ impl<T: UsbBulk> Ch347Hub<T> {
                 jpeg: Bytes::from(frame.jpeg),
             },
             capture_host_us,
-            received_host_us: self.clock.now_us(),
+            received_host_us: self.now(),
         })
     }
 }
@@ -407,13 +418,19 @@ impl<T: UsbBulk> HubTransport for Ch347Hub<T> {
 
     async fn next_event(&mut self) -> Result<HubEvent, HubError> {
         loop {
-            if let Some(e) = self.events.pop_front() {
-                return Ok(e);
+            if let Some(&(release_us, _)) = self.events.front() {
+                if self.clock.now_us() < release_us {
+                    // Cancelled here, the event stays queued.
+                    self.clock.sleep_until(release_us).await;
+                }
+                if let Some((_, event)) = self.events.pop_front() {
+                    return Ok(event);
+                }
             }
             let Some(seq) = self.triggers.pop_front() else {
                 return Err(HubError::Idle);
             };
-            self.collect(seq).await?;
+            self.collect(seq)?;
         }
     }
 }

@@ -18,6 +18,7 @@
 
 #[cfg(feature = "emulator")]
 pub mod board;
+pub mod config;
 pub mod driver;
 #[cfg(feature = "emulator")]
 pub mod emu;
