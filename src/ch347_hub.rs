@@ -10,6 +10,7 @@ use gelgrip_ch347::board::Boards;
 use gelgrip_ch347::config::{Ch347Settings, Device};
 use gelgrip_ch347::emu::Ch347Emulator;
 use gelgrip_ch347::hub::Ch347Hub;
+use gelgrip_ch347::transport::MeteredBulk;
 use gelgrip_ch347::usb::RusbBulk;
 use gelgrip_controller::camera::BoardCameras;
 use gelgrip_controller::config::{BackendSection, ConfigError};
@@ -20,7 +21,7 @@ use gelgrip_sim::board_cameras::SimCameras;
 use gelgrip_sim::config::SimConfig;
 use gelgrip_sim::world::SharedWorld;
 
-/// The frame size the bus model assumes, bytes (the paper's S).
+/// The frame size the bus model assumes when the cameras do not say, bytes (the paper's S).
 const MEAN_FRAME_BYTES: f64 = 20_000.0;
 
 /// Opens CH347 hubs; the emulator's boards render `world` when there is one.
@@ -66,7 +67,6 @@ impl HubFactory for Ch347Factory {
 
     fn open(&self, request: OpenRequest<'_>) -> Result<Box<dyn HubTransport>, OpenError> {
         let settings = Ch347Settings::from_section(request.section, request.layout)?;
-        let cfg = settings.hub_config(request.trigger, MEAN_FRAME_BYTES);
         let clock = request.clock.clone();
         match &settings.device {
             Device::Emulator => {
@@ -74,25 +74,27 @@ impl HubFactory for Ch347Factory {
                     &emulator_section(request.section, &settings.emulator),
                     request.layout,
                 )?;
-                let cameras: Box<dyn BoardCameras> = match &self.world {
-                    Some(w) => Box::new(
-                        SimCameras::of_world(request.layout, &sim, w.clone())
-                            .map_err(|e| hub_error(format!("emulated boards: {e}")))?,
-                    ),
-                    None => Box::new(
-                        SimCameras::presses(request.layout, &sim)
-                            .map_err(|e| hub_error(format!("emulated boards: {e}")))?,
-                    ),
-                };
+                let cameras = match &self.world {
+                    Some(w) => SimCameras::of_world(request.layout, &sim, w.clone()),
+                    None => SimCameras::presses(request.layout, &sim),
+                }
+                .map_err(|e| hub_error(format!("emulated boards: {e}")))?;
+                let mean = cameras.mean_jpeg_bytes().unwrap_or(MEAN_FRAME_BYTES);
+                let cfg = settings.hub_config(request.trigger, mean);
+                let cameras: Box<dyn BoardCameras> = Box::new(cameras);
                 let mut emu = Ch347Emulator::new();
                 let now = clock.clone();
                 Boards::attach(&mut emu, cameras, &cfg.cs, Arc::new(move || now.now_us()));
-                let hub = Ch347Hub::open(Ch347::new(emu), cfg, clock)?;
+                let metered = MeteredBulk::new(emu, crate::wiring::thread_cpu_ns);
+                let hub = Ch347Hub::open(Ch347::new(metered), cfg, clock)?
+                    .with_cpu_clock(crate::wiring::thread_cpu_ns);
                 Ok(Box::new(hub))
             }
             Device::Usb(selector) => {
+                let cfg = settings.hub_config(request.trigger, MEAN_FRAME_BYTES);
                 let usb = RusbBulk::open(selector).map_err(|e| hub_error(e.to_string()))?;
-                let hub = Ch347Hub::open(Ch347::new(usb), cfg, clock)?;
+                let hub = Ch347Hub::open(Ch347::new(usb), cfg, clock)?
+                    .with_cpu_clock(crate::wiring::thread_cpu_ns);
                 Ok(Box::new(hub))
             }
         }

@@ -299,3 +299,33 @@ fn the_approximate_gate_forms_the_trigger_gates_sets_from_capture_times_alone() 
     assert_eq!(total(&by_time, "drops"), 0, "{by_time}");
     assert_eq!(total(&by_time, "sets_rejected"), 0, "{by_time}");
 }
+
+#[test]
+fn bench_bus_measures_the_ch347_on_its_emulator_with_the_hosts_share() {
+    let out = gelgrip(&[
+        "bench",
+        "bus",
+        "--transport",
+        "ch347-emu",
+        "--sensors",
+        "3",
+        "--spi-clock-hz",
+        "30000000",
+        "--clock",
+        "virtual",
+        "--seconds",
+        "0.5",
+        "--json",
+    ]);
+    let rows = json(&out);
+    let rows = rows.as_array().expect("array");
+    assert_eq!(rows.len(), 2, "one row per trigger");
+    for r in rows {
+        assert_eq!(r["transport"], "ch347-emu");
+        assert_eq!(r["usb"], "hs");
+        assert_eq!(r["spi_clock_hz"], 30_000_000);
+        assert_eq!(r["frames_dropped"], 0);
+        let f = r["host_fraction_of_bus"].as_f64().unwrap_or(1.0);
+        assert!(f > 0.0 && f < 0.1, "{r}");
+    }
+}

@@ -150,4 +150,9 @@ pub trait HubTransport: Send {
     async fn trigger(&mut self, trigger_seq: u32) -> Result<(), HubError>;
     /// The next event, waiting (on the injected clock) until it arrives.
     async fn next_event(&mut self) -> Result<HubEvent, HubError>;
+    /// CPU time of this transport's own receive work so far (driver and decoding; an
+    /// emulated device's work excluded), ns; `None` when the transport does not measure it.
+    fn host_cpu_ns(&self) -> Option<u64> {
+        None
+    }
 }

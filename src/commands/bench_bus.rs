@@ -1,17 +1,28 @@
-//! `gelgrip bench bus`: the simulated hub's set rate, latency and spread as the host observes
-//! them, against the paper's model f = 1/(N·t_spi + t_buf), latency = N·t_spi + t_buf + t_usb.
+//! `gelgrip bench bus`: a hub transport's set rate, latency and spread as the host observes
+//! them, against the paper's model f = 1/(N·t_spi + t_buf), latency = N·t_spi + t_buf + t_usb,
+//! and what the host's own receive path costs against the bus time of a set.
 //!
-//! Each row runs the default simulated hub with a generated layout of N identical sensors,
-//! warms up, then measures for `--seconds` on the chosen clock (real by default: the bench
-//! measures pacing the host actually achieves). `t_spi` in the model comes from the mean
-//! frame length the simulator actually produced.
+//! Each row runs the transport (`--transport sim`, the simulated hub; `ch347-emu`, the CH347
+//! driver and hub protocol on the chip emulator with simulated boards) with a generated
+//! layout of N identical sensors, warms up, then measures for `--seconds` on the chosen clock
+//! (real by default: the bench measures pacing the host actually achieves). `t_spi` in the
+//! model comes from the mean frame length the transport reports.
+//!
+//! `host_fraction_of_bus` is `host_cpu_ms_per_set` over the transport's modelled bus time
+//! per set (its `set_period_us`, which for the CH347 counts the USB command turnarounds).
+//! The host CPU is the gate's, plus what the transport measures of its own receive work:
+//! on ch347-emu the driver and the hub protocol (the time spent inside the emulated chip
+//! and boards left out). The simulated hub does not measure its own (its work is mostly the
+//! simulation), so on sim only the gate counts.
 
 use serde::Serialize;
 
 use gelgrip_controller::hub::TriggerMode;
 use gelgrip_controller::layout::HandLayout;
 
-use crate::cli::{BenchBusArgs, ClockArg, TriggerArg};
+use gelgrip_controller::config::AppConfig;
+
+use crate::cli::{BenchBusArgs, BusTransportArg, ClockArg, TriggerArg};
 use crate::wiring;
 
 /// Sets discarded before measuring (pipeline fill).
@@ -20,6 +31,12 @@ const WARMUP_SETS: usize = 5;
 /// One row of the bench.
 #[derive(Debug, Serialize)]
 pub struct BusRow {
+    /// `sim` or `ch347-emu`.
+    pub transport: &'static str,
+    /// USB speed of the link (`hs` for the CH347; none for the simulator).
+    pub usb: Option<&'static str>,
+    /// SPI clock, Hz.
+    pub spi_clock_hz: u32,
     /// N.
     pub sensors: u8,
     /// `broadcast` or `sequential`.
@@ -34,8 +51,12 @@ pub struct BusRow {
     pub measured_latency_ms: f64,
     /// p99 capture spread.
     pub spread_us_p99: u64,
-    /// CPU time of the receive path (assembler and gate) per set.
+    /// CPU time of gelgrip's own receive path per set (see the module doc).
     pub host_cpu_ms_per_set: f64,
+    /// `host_cpu_ms_per_set` over the modelled bus time per set.
+    pub host_fraction_of_bus: f64,
+    /// The transport's modelled set period, µs.
+    pub bus_period_us: f64,
     /// Mean SPI frame length S (header + JPEG + CRC), bytes.
     pub mean_frame_bytes: f64,
     /// I2C time from trigger START to capture, which the paper's formula leaves out, µs.
@@ -58,11 +79,50 @@ fn triggers(filter: Option<TriggerArg>) -> Vec<TriggerMode> {
     }
 }
 
-async fn measure(n: u8, trigger: TriggerMode, args: &BenchBusArgs) -> anyhow::Result<BusRow> {
+/// The default config with `n` generated sensors on `transport`, at `spi_clock_hz`.
+fn bench_config(
+    n: u8,
+    trigger: TriggerMode,
+    transport: BusTransportArg,
+    spi_clock_hz: Option<u32>,
+) -> anyhow::Result<AppConfig> {
     let registry = wiring::registry();
     let mut config = wiring::load_config(None, &registry)?;
     config.layout = HandLayout::generated(usize::from(n))?;
     config.hub.trigger = trigger;
+    let section = &mut config.hub.section;
+    match transport {
+        BusTransportArg::Sim => {
+            if let Some(hz) = spi_clock_hz {
+                section
+                    .table
+                    .insert("spi_clock_hz".into(), toml::Value::Integer(i64::from(hz)));
+            }
+        }
+        BusTransportArg::Ch347Emu => {
+            config.hub.transport = "ch347".into();
+            section.prefix = "hub.ch347".into();
+            let mut table = toml::Table::new();
+            table.insert("device".into(), toml::Value::String("emulator".into()));
+            let index = gelgrip_ch347::frames::clock_index_for(spi_clock_hz.unwrap_or(30_000_000));
+            table.insert(
+                "spi_clock_index".into(),
+                toml::Value::Integer(i64::from(index)),
+            );
+            section.table = table;
+        }
+    }
+    Ok(config)
+}
+
+async fn measure(
+    n: u8,
+    trigger: TriggerMode,
+    spi_clock_hz: Option<u32>,
+    args: &BenchBusArgs,
+) -> anyhow::Result<BusRow> {
+    let registry = wiring::registry();
+    let config = bench_config(n, trigger, args.transport, spi_clock_hz)?;
     let clock = wiring::make_clock(args.clock);
     let mut acq = wiring::open_acquisition(&config, &registry, clock.clone()).await?;
     let prediction = acq.hub().describe().prediction;
@@ -76,6 +136,7 @@ async fn measure(n: u8, trigger: TriggerMode, args: &BenchBusArgs) -> anyhow::Re
         }
     }
     let cpu_start = acq.receive_cpu_ns();
+    let transport_cpu_start = acq.hub().host_cpu_ns();
     let drops_start = acq.gate().stats().drops.total();
     let start = clock.now_us();
     let end = start + (args.seconds * 1e6) as u64;
@@ -97,7 +158,22 @@ async fn measure(n: u8, trigger: TriggerMode, args: &BenchBusArgs) -> anyhow::Re
         .copied()
         .unwrap_or(0);
     let model_rate_hz = prediction.paper_rate_hz;
+    let mut host_cpu_ns = acq.receive_cpu_ns() - cpu_start;
+    if let (Some(end), Some(start)) = (acq.hub().host_cpu_ns(), transport_cpu_start) {
+        host_cpu_ns += end.saturating_sub(start);
+    }
+    let host_cpu_ms_per_set = host_cpu_ns as f64 / 1e6 / sets.max(1) as f64;
     Ok(BusRow {
+        transport: match args.transport {
+            BusTransportArg::Sim => "sim",
+            BusTransportArg::Ch347Emu => "ch347-emu",
+        },
+        usb: match args.transport {
+            BusTransportArg::Sim => None,
+            BusTransportArg::Ch347Emu => Some("hs"),
+        },
+        spi_clock_hz: (prediction.mean_frame_bytes * 8.0 / (prediction.t_spi_us / 1e6)).round()
+            as u32,
         sensors: n,
         trigger: trigger.as_str(),
         model_rate_hz,
@@ -105,7 +181,9 @@ async fn measure(n: u8, trigger: TriggerMode, args: &BenchBusArgs) -> anyhow::Re
         model_latency_ms: prediction.paper_latency_us / 1e3,
         measured_latency_ms: latency_sum_us as f64 / sets.max(1) as f64 / 1e3,
         spread_us_p99: u64::from(p99),
-        host_cpu_ms_per_set: (acq.receive_cpu_ns() - cpu_start) as f64 / 1e6 / sets.max(1) as f64,
+        host_cpu_ms_per_set,
+        host_fraction_of_bus: host_cpu_ms_per_set * 1e3 / prediction.set_period_us,
+        bus_period_us: prediction.set_period_us,
         mean_frame_bytes: prediction.mean_frame_bytes,
         i2c_trigger_us: prediction.set_period_us - (1e6 / prediction.paper_rate_hz),
         rate_diff_pct: (measured_rate_hz - model_rate_hz) / model_rate_hz * 100.0,
@@ -120,11 +198,13 @@ async fn measure(n: u8, trigger: TriggerMode, args: &BenchBusArgs) -> anyhow::Re
 
 fn table(rows: &[BusRow]) -> String {
     let mut s = String::from(
-        "  N  trigger     S bytes  model Hz  meas Hz  diff %  model ms  meas ms  spread p99 us  cpu ms/set\n",
+        "transport  SPI MHz   N  trigger     S bytes  model Hz  meas Hz  diff %  model ms  meas ms  spread p99 us  cpu ms/set  host/bus\n",
     );
     for r in rows {
         s += &format!(
-            "{:>3}  {:<10} {:>8.0} {:>9.2} {:>8.2} {:>7.2} {:>9.2} {:>8.2} {:>14} {:>11.4}\n",
+            "{:<9} {:>8.2} {:>3}  {:<10} {:>8.0} {:>9.2} {:>8.2} {:>7.2} {:>9.2} {:>8.2} {:>14} {:>11.4} {:>9.4}\n",
+            r.transport,
+            f64::from(r.spi_clock_hz) / 1e6,
             r.sensors,
             r.trigger,
             r.mean_frame_bytes,
@@ -134,7 +214,8 @@ fn table(rows: &[BusRow]) -> String {
             r.model_latency_ms,
             r.measured_latency_ms,
             r.spread_us_p99,
-            r.host_cpu_ms_per_set
+            r.host_cpu_ms_per_set,
+            r.host_fraction_of_bus
         );
     }
     s
@@ -142,9 +223,17 @@ fn table(rows: &[BusRow]) -> String {
 
 /// Run the command; returns the exit code.
 pub async fn run(args: BenchBusArgs) -> anyhow::Result<u8> {
-    let counts: Vec<u8> = match args.sensors {
-        Some(n) => vec![n],
-        None => (1..=16).collect(),
+    let counts: Vec<u8> = match (args.sensors, args.transport) {
+        (Some(n), _) => vec![n],
+        (None, BusTransportArg::Sim) => (1..=16).collect(),
+        (None, BusTransportArg::Ch347Emu) => vec![7],
+    };
+    let clocks: Vec<Option<u32>> = match (args.spi_clock_hz, args.transport) {
+        (Some(hz), _) => vec![Some(hz)],
+        (None, BusTransportArg::Sim) => vec![None],
+        (None, BusTransportArg::Ch347Emu) => {
+            vec![Some(15_000_000), Some(30_000_000), Some(60_000_000)]
+        }
     };
     let clock_name = if args.clock == ClockArg::Real {
         "real (wall-clock)"
@@ -153,17 +242,19 @@ pub async fn run(args: BenchBusArgs) -> anyhow::Result<u8> {
     };
     tracing::info!("bench bus: {clock_name} time, {} s per row", args.seconds);
     let mut rows = Vec::new();
-    for trigger in triggers(args.trigger) {
-        for &n in &counts {
-            let row = measure(n, trigger, &args).await?;
-            tracing::info!(
-                sensors = n,
-                trigger = trigger.as_str(),
-                measured_rate_hz = format!("{:.2}", row.measured_rate_hz),
-                model_rate_hz = format!("{:.2}", row.model_rate_hz),
-                "row done"
-            );
-            rows.push(row);
+    for &spi in &clocks {
+        for trigger in triggers(args.trigger) {
+            for &n in &counts {
+                let row = measure(n, trigger, spi, &args).await?;
+                tracing::info!(
+                    sensors = n,
+                    trigger = trigger.as_str(),
+                    measured_rate_hz = format!("{:.2}", row.measured_rate_hz),
+                    model_rate_hz = format!("{:.2}", row.model_rate_hz),
+                    "row done"
+                );
+                rows.push(row);
+            }
         }
     }
     if args.json {

@@ -302,6 +302,19 @@ impl<T: UsbBulk> Ch347<T> {
         Self::check_acks(address, &stream, &reply).map(|_| ())
     }
 
+    /// Address-only writes (SMBus quick commands) to each of `addresses`, in order, in one
+    /// I2C stream (one USB command, so the writes follow each other at the I2C clock);
+    /// returns which were acknowledged.
+    pub fn i2c_quick_writes(&mut self, addresses: &[u8]) -> Result<Vec<bool>, Ch347Error> {
+        let mut ops = Vec::with_capacity(addresses.len() * 3);
+        for &a in addresses {
+            Self::check_address(a)?;
+            ops.extend([I2cOp::Start, I2cOp::Write(vec![a << 1]), I2cOp::Stop]);
+        }
+        let (_, reply) = self.i2c_run(&ops)?;
+        Ok(reply.iter().map(|s| *s == 0x01).collect())
+    }
+
     /// Write `tx` to `address`, repeated START, read `rx_len` bytes, STOP.
     pub fn i2c_write_read(
         &mut self,

@@ -97,6 +97,9 @@ pub struct Ch347Hub<T: UsbBulk> {
     resync: bool,
     /// Paced mode: where the modelled bus is now, host µs.
     bus_us: f64,
+    /// Measures the host's receive work (the calling thread's CPU time, ns).
+    cpu_clock: Option<fn() -> u64>,
+    host_cpu_ns: u64,
 }
 
 impl<T: UsbBulk> std::fmt::Debug for Ch347Hub<T> {
@@ -150,6 +153,14 @@ impl<T: UsbBulk> Ch347Hub<T> {
             t_usb_us: cfg.command_turnaround_us,
             capture_jitter_us: 2.0,
         };
+        // What the paper's model leaves out: one USB round trip per command, that is the
+        // trigger (one, or one per board) and per board a ready poll, select, read, deselect.
+        let n = cfg.cs.len() as f64;
+        let trigger_commands = match cfg.trigger {
+            TriggerMode::Broadcast => 1.0,
+            TriggerMode::Sequential => n,
+        };
+        let turnarounds_us = (trigger_commands + 4.0 * n) * cfg.command_turnaround_us;
         let description = HubDescription {
             transport: "ch347".into(),
             sensors: cfg.cs.len(),
@@ -160,8 +171,8 @@ impl<T: UsbBulk> Ch347Hub<T> {
                 trigger_spread_us: model.trigger_spread_us(),
                 paper_rate_hz: model.paper_rate_hz(),
                 paper_latency_us: model.paper_latency_us(),
-                set_period_us: model.set_period_us(),
-                set_latency_us: model.set_latency_us(),
+                set_period_us: model.set_period_us() + turnarounds_us,
+                set_latency_us: model.set_latency_us() + turnarounds_us,
             },
         };
         let mut hub = Self {
@@ -173,6 +184,8 @@ impl<T: UsbBulk> Ch347Hub<T> {
             events: VecDeque::new(),
             resync: true,
             bus_us: 0.0,
+            cpu_clock: None,
+            host_cpu_ns: 0,
         };
         hub.ch.drain(std::time::Duration::from_millis(5));
         hub.ch
@@ -196,6 +209,13 @@ impl<T: UsbBulk> Ch347Hub<T> {
             }
         }
         Ok(hub)
+    }
+
+    /// Measure the host's receive work with `cpu_clock` (the calling thread's CPU time, ns);
+    /// an emulated chip's work (its `device_cpu_ns`) is left out.
+    pub fn with_cpu_clock(mut self, cpu_clock: fn() -> u64) -> Self {
+        self.cpu_clock = Some(cpu_clock);
+        self
     }
 
     /// The chip (for the emulator's counters in tests and benches).
@@ -261,18 +281,27 @@ impl<T: UsbBulk> Ch347Hub<T> {
                 }
             }
             TriggerMode::Sequential => {
-                let mut at = Vec::with_capacity(n);
-                for i in 0..n {
-                    self.owe(1, 1, 0);
-                    let t = self.now();
-                    let addr = regs::trigger_address(i as u8).unwrap_or(0x7F);
-                    match self.ch.i2c_write(addr, &[]) {
-                        Ok(()) => at.push(Some(t)),
-                        Err(Ch347Error::Nack { .. }) => at.push(None),
-                        Err(e) => return Err(hub_error(e)),
-                    }
-                }
-                Ok(at)
+                // One stream of address-only writes: the boards capture at the I2C clock's
+                // pace, one transfer (25 µs at 400 kHz) apart.
+                let addresses: Vec<u8> = (0..n)
+                    .map(|i| regs::trigger_address(i as u8).unwrap_or(0x7F))
+                    .collect();
+                self.owe(1, n, 0);
+                let t0 = self.now();
+                let offsets = gelgrip_hubwire::i2c::capture_instants_ns(
+                    gelgrip_hubwire::i2c::TriggerMode::Sequential,
+                    n as u8,
+                    i2c_hz(self.cfg.i2c_speed),
+                );
+                let acked = match self.ch.i2c_quick_writes(&addresses) {
+                    Ok(a) => a,
+                    Err(e) => return Err(hub_error(e)),
+                };
+                Ok(acked
+                    .into_iter()
+                    .zip(offsets)
+                    .map(|(ack, off)| ack.then_some(t0 + off / 1000))
+                    .collect())
             }
         }
     }
@@ -411,6 +440,10 @@ impl<T: UsbBulk> HubTransport for Ch347Hub<T> {
         Ok(())
     }
 
+    fn host_cpu_ns(&self) -> Option<u64> {
+        self.cpu_clock.map(|_| self.host_cpu_ns)
+    }
+
     async fn trigger(&mut self, trigger_seq: u32) -> Result<(), HubError> {
         self.triggers.push_back(trigger_seq);
         Ok(())
@@ -430,7 +463,16 @@ impl<T: UsbBulk> HubTransport for Ch347Hub<T> {
             let Some(seq) = self.triggers.pop_front() else {
                 return Err(HubError::Idle);
             };
-            self.collect(seq)?;
+            let start = self
+                .cpu_clock
+                .map(|c| (c(), self.ch.transport().device_cpu_ns()));
+            let collected = self.collect(seq);
+            if let (Some(c), Some((cpu0, device0))) = (self.cpu_clock, start) {
+                let spent = c().saturating_sub(cpu0);
+                let device = self.ch.transport().device_cpu_ns().saturating_sub(device0);
+                self.host_cpu_ns += spent.saturating_sub(device);
+            }
+            collected?;
         }
     }
 }

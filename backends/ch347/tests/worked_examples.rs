@@ -408,3 +408,13 @@ fn no_usb_here_is_an_error_never_a_panic() {
         }
     }
 }
+
+#[test]
+fn sequential_triggers_go_out_in_one_stream_of_quick_commands() {
+    let mut ch = chip();
+    ch.transport_mut()
+        .attach_i2c(0x40, Box::new(Registers::default()));
+    let acked = ch.i2c_quick_writes(&[0x40, 0x41]).expect("stream");
+    assert_eq!(last(&ch), hex("AA 74 81 80 75 74 81 82 75 00"));
+    assert_eq!(acked, vec![true, false], "0x41 has no target");
+}

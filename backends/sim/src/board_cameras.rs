@@ -51,6 +51,13 @@ impl SimCameras {
     }
 }
 
+impl SimCameras {
+    /// Mean JPEG size of the built-in presses (`None` when rendering a world), bytes.
+    pub fn mean_jpeg_bytes(&self) -> Option<f64> {
+        self.pool.as_ref().map(FramePool::mean_jpeg_bytes)
+    }
+}
+
 impl BoardCameras for SimCameras {
     fn boards(&self) -> usize {
         self.boards
