@@ -13,3 +13,37 @@ pub trait BoardCameras: Send {
     /// `Bytes` when the board has no camera (a dead board).
     fn capture(&mut self, board: usize, nth: u64, now_us: u64) -> Bytes;
 }
+
+/// Cameras whose every JPEG names its board and capture: byte 0 is the board, bytes 1–8 the
+/// capture index (little-endian), the rest padding up to `jpeg_bytes`. Not an image: a
+/// source for transport tests, which check that each frame arrives whole, once, and in its
+/// set.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PatternCameras {
+    /// Number of boards.
+    pub boards: usize,
+    /// Size of every "JPEG", bytes (at least 9).
+    pub jpeg_bytes: usize,
+}
+
+impl PatternCameras {
+    /// Whether `jpeg` is board `board`'s capture `nth` (whole).
+    pub fn matches(&self, jpeg: &[u8], board: usize, nth: u64) -> bool {
+        jpeg.len() == self.jpeg_bytes.max(9)
+            && jpeg[0] == board as u8
+            && jpeg[1..9] == nth.to_le_bytes()
+    }
+}
+
+impl BoardCameras for PatternCameras {
+    fn boards(&self) -> usize {
+        self.boards
+    }
+
+    fn capture(&mut self, board: usize, nth: u64, _now_us: u64) -> Bytes {
+        let mut v = vec![board as u8];
+        v.extend_from_slice(&nth.to_le_bytes());
+        v.resize(self.jpeg_bytes.max(9), 0x5A);
+        Bytes::from(v)
+    }
+}
