@@ -107,6 +107,36 @@ pub struct ServoArgs {
 pub enum EmulateCommand {
     /// XM430-W350 servos over Dynamixel Protocol 2.0.
     Servos(EmulateServosArgs),
+    /// An MCU hub on USB-CDC (hubwire's COBS stream), its boards showing the simulator's
+    /// presses.
+    Hub(EmulateHubArgs),
+}
+
+/// USB speed of an emulated hub's link.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum UsbArg {
+    /// Full speed, about 1 MB/s: less than 7 sensors × 20 KB × 34 Hz, so the link limits the rate.
+    Fs,
+    /// High speed, about 40 MB/s.
+    Hs,
+}
+
+/// `gelgrip emulate hub`.
+#[derive(Debug, Args)]
+pub struct EmulateHubArgs {
+    /// Symlink to create to the pseudo-terminal (removed on SIGINT/SIGTERM).
+    #[arg(long)]
+    pub link: String,
+    /// Configuration whose layout and `[hub.sim]` camera settings the boards use (default:
+    /// the embedded simulated gripper).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// USB speed of the link.
+    #[arg(long, value_enum, default_value = "hs")]
+    pub usb: UsbArg,
+    /// Sets kept for `Resume` after an unplug.
+    #[arg(long, default_value_t = 64)]
+    pub ring: u16,
 }
 
 /// `gelgrip emulate servos`.

@@ -3,6 +3,7 @@
 
 mod bench_config;
 mod catalog;
+mod cdc_hub;
 mod ch347_hub;
 mod cli;
 mod commands;
@@ -69,6 +70,7 @@ fn main() -> ExitCode {
             Command::Calibrate(cmd) => commands::calibrate::run(cmd),
             Command::Depth(args) => commands::depth::run(args),
             Command::Emulate(EmulateCommand::Servos(args)) => commands::emulate::run(args).await,
+            Command::Emulate(EmulateCommand::Hub(args)) => commands::emulate_hub::run(args).await,
             Command::Servo(args) => commands::servo::run(args),
             Command::Plot(args) => commands::plot::run(args),
         }

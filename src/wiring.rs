@@ -20,6 +20,7 @@ use gelgrip_sim::scene_spec::SceneSpec;
 use gelgrip_sim::servo_bus::SimServoBus;
 use gelgrip_sim::world::{SharedWorld, World};
 
+use crate::cdc_hub::CdcFactory;
 use crate::ch347_hub::Ch347Factory;
 use crate::cli::ClockArg;
 use crate::embedded;
@@ -29,6 +30,7 @@ pub fn registry() -> TransportRegistry {
     let mut registry = TransportRegistry::new();
     registry.register(Box::new(SimHubFactory::default()));
     registry.register(Box::new(Ch347Factory::default()));
+    registry.register(Box::new(CdcFactory));
     registry
 }
 
@@ -37,6 +39,7 @@ pub fn registry_with_world(world: SharedWorld) -> TransportRegistry {
     let mut registry = TransportRegistry::new();
     registry.register(Box::new(SimHubFactory::with_world(world.clone())));
     registry.register(Box::new(Ch347Factory::with_world(Some(world))));
+    registry.register(Box::new(CdcFactory));
     registry
 }
 

@@ -1,5 +1,7 @@
-//! `gelgrip emulate servos` end to end: the CLI contract (link after serving, one JSON line,
-//! link removed on SIGTERM) and a real Protocol 2.0 client (`dynamixel2`) on the link.
+//! `gelgrip emulate servos` and `emulate hub` end to end: the CLI contract (link after
+//! serving, one JSON line, link removed on SIGTERM), a real Protocol 2.0 client
+//! (`dynamixel2`) on the servos' link, and `gelgrip run` on the hub's link through the CDC
+//! transport at high and full speed.
 
 use std::process::Command;
 
@@ -123,4 +125,80 @@ fn field_tools(port: &str) {
         (1010..=1030).contains(&pulses),
         "present position {pulses}: {pos}"
     );
+}
+
+/// A copy of configs/gelgripper-cdc.toml pointing at `port`, in `dir`.
+fn cdc_config(dir: &std::path::Path, port: &str) -> std::path::PathBuf {
+    let repo = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(repo.join("configs/gelgripper-cdc.toml"))
+        .expect("the CDC config")
+        .replace("/tmp/gelgrip-hub", port)
+        .replace(
+            "layouts/three-finger.toml",
+            &repo
+                .join("configs/layouts/three-finger.toml")
+                .display()
+                .to_string(),
+        );
+    let path = dir.join("cdc.toml");
+    std::fs::write(&path, text).expect("config written");
+    path
+}
+
+fn cdc_run(usb: &str) -> serde_json::Value {
+    let emu = common::ServoEmulator::start_hub(&format!("hub-{usb}"), usb);
+    assert_eq!(emu.announced["usb"], usb);
+    assert_eq!(emu.announced["sensors"], 7);
+    let dir = emu.link.parent().expect("dir").to_path_buf();
+    let config = cdc_config(&dir, emu.path());
+    let out = common::gelgrip(&[
+        "run",
+        "--config",
+        config.to_str().expect("path"),
+        "--duration",
+        "3",
+        "--headless",
+        "--json",
+    ]);
+    let v = common::json(&out);
+    emu.stop();
+    v
+}
+
+#[test]
+fn the_cdc_hub_runs_at_the_simulators_rate_at_high_speed_and_slower_at_full_speed() {
+    let sim = common::report(
+        &common::virtual_run(&["--duration", "3"])
+            .output()
+            .expect("runs"),
+        0,
+    );
+    let sim_hz = sim["set_rate_hz"].as_f64().expect("rate");
+    let hs = cdc_run("hs");
+    assert_eq!(hs["transport"], "cdc");
+    let hs_hz = hs["set_rate_hz"].as_f64().expect("rate");
+    assert!(
+        (hs_hz - sim_hz).abs() < 0.05 * sim_hz,
+        "{hs_hz} Hz vs the simulator's {sim_hz} Hz"
+    );
+    for key in ["drops", "sets_rejected"] {
+        let total: u64 = hs[key]
+            .as_object()
+            .expect(key)
+            .values()
+            .filter_map(|v| v.as_u64())
+            .sum();
+        assert_eq!(total, 0, "{key}: {hs}");
+    }
+    // Full speed carries about 1 MB/s, less than 7 × 20 KB × 34 Hz: a lower rate, no drops.
+    let fs = cdc_run("fs");
+    let fs_hz = fs["set_rate_hz"].as_f64().expect("rate");
+    assert!(fs_hz > 5.0 && fs_hz < 9.0, "{fs_hz} Hz at full speed");
+    let dropped: u64 = fs["drops"]
+        .as_object()
+        .expect("drops")
+        .values()
+        .filter_map(|v| v.as_u64())
+        .sum();
+    assert_eq!(dropped, 0, "{fs}");
 }

@@ -10,6 +10,7 @@ pub mod calibrate_force;
 pub mod check_config;
 pub mod depth;
 pub mod emulate;
+pub mod emulate_hub;
 pub mod plot;
 pub mod run;
 pub mod servo;

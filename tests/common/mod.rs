@@ -45,15 +45,25 @@ impl ServoEmulator {
     /// Start `gelgrip emulate servos --link <tmp>/<name>/dxl --ids IDS --baud BAUD` and wait
     /// for its JSON line.
     pub fn start(name: &str, ids: &str, baud: u32) -> Self {
+        Self::launch(name, "servos", &["--ids", ids, "--baud", &baud.to_string()])
+    }
+
+    /// Start `gelgrip emulate hub --link <tmp>/<name>/hub --usb USB` and wait for its JSON
+    /// line.
+    pub fn start_hub(name: &str, usb: &str) -> Self {
+        Self::launch(name, "hub", &["--usb", usb])
+    }
+
+    fn launch(name: &str, what: &str, args: &[&str]) -> Self {
         use std::io::BufRead;
         let dir = std::env::temp_dir().join(format!("gelgrip-{name}-{}", std::process::id()));
         std::fs::create_dir_all(&dir).expect("temp dir");
-        let link = dir.join("dxl");
+        let link = dir.join(if what == "hub" { "hub" } else { "dxl" });
         let _ = std::fs::remove_file(&link);
         let mut child = Command::new(env!("CARGO_BIN_EXE_gelgrip"))
-            .args(["emulate", "servos", "--link"])
+            .args(["emulate", what, "--link"])
             .arg(&link)
-            .args(["--ids", ids, "--baud", &baud.to_string()])
+            .args(args)
             .env("RUST_LOG", "warn")
             .stdout(std::process::Stdio::piped())
             .spawn()

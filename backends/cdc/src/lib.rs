@@ -4,6 +4,7 @@
 //! protocol on a pseudo-terminal from the simulator's cameras, paced at the modelled USB
 //! link rate. The wire format is `hubwire::cdc` (docs/protocol.md §5).
 
+pub mod config;
 #[cfg(feature = "emulator")]
 pub mod emu;
 pub mod hub;

@@ -1,0 +1,69 @@
+//! The `cdc` hub transport's registry entry: an MCU hub on USB-CDC at `[hub.cdc] port` (a
+//! real one, or `gelgrip emulate hub`'s link).
+
+use gelgrip_cdc::config::CdcSettings;
+use gelgrip_cdc::hub::{CdcHub, CdcHubConfig};
+use gelgrip_controller::config::{BackendSection, ConfigError};
+use gelgrip_controller::hub::{BusPrediction, HubTransport, TriggerMode};
+use gelgrip_controller::layout::HandLayout;
+use gelgrip_controller::registry::{HubFactory, OpenError, OpenRequest};
+use gelgrip_hubwire::spi_frame::{HEADER_LEN, TRAILER_LEN};
+use gelgrip_hubwire::timing::BusModel;
+
+/// The frame size the bus model assumes, bytes (the paper's S).
+const MEAN_JPEG_BYTES: f64 = 20_400.0;
+
+/// Opens CDC hubs.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct CdcFactory;
+
+fn prediction(sensors: usize, trigger: TriggerMode, spi_clock_hz: u32) -> BusPrediction {
+    let model = BusModel {
+        sensors: u8::try_from(sensors).unwrap_or(u8::MAX),
+        trigger: match trigger {
+            TriggerMode::Broadcast => gelgrip_hubwire::i2c::TriggerMode::Broadcast,
+            TriggerMode::Sequential => gelgrip_hubwire::i2c::TriggerMode::Sequential,
+        },
+        i2c_hz: 400_000,
+        spi_clock_hz,
+        mean_frame_bytes: MEAN_JPEG_BYTES + (HEADER_LEN + TRAILER_LEN) as f64,
+        t_buf_us: 1000.0,
+        t_usb_us: 500.0,
+        capture_jitter_us: 2.0,
+    };
+    BusPrediction {
+        mean_frame_bytes: model.mean_frame_bytes,
+        t_spi_us: model.t_spi_us(),
+        trigger_spread_us: model.trigger_spread_us(),
+        paper_rate_hz: model.paper_rate_hz(),
+        paper_latency_us: model.paper_latency_us(),
+        set_period_us: model.set_period_us(),
+        set_latency_us: model.set_latency_us(),
+    }
+}
+
+impl HubFactory for CdcFactory {
+    fn name(&self) -> &'static str {
+        "cdc"
+    }
+
+    fn validate(&self, section: &BackendSection, _layout: &HandLayout) -> Result<(), ConfigError> {
+        CdcSettings::from_section(section).map(|_| ())
+    }
+
+    fn open(&self, request: OpenRequest<'_>) -> Result<Box<dyn HubTransport>, OpenError> {
+        let s = CdcSettings::from_section(request.section)?;
+        let n = request.layout.sensors.len();
+        let hub = CdcHub::open(
+            CdcHubConfig {
+                port: s.port,
+                sensors: n,
+                trigger: request.trigger,
+                reconnect_s: s.reconnect_s,
+                prediction: prediction(n, request.trigger, s.spi_clock_hz),
+            },
+            request.clock,
+        )?;
+        Ok(Box::new(hub))
+    }
+}
