@@ -31,15 +31,7 @@ fn prediction(sensors: usize, trigger: TriggerMode, spi_clock_hz: u32) -> BusPre
         t_usb_us: 500.0,
         capture_jitter_us: 2.0,
     };
-    BusPrediction {
-        mean_frame_bytes: model.mean_frame_bytes,
-        t_spi_us: model.t_spi_us(),
-        trigger_spread_us: model.trigger_spread_us(),
-        paper_rate_hz: model.paper_rate_hz(),
-        paper_latency_us: model.paper_latency_us(),
-        set_period_us: model.set_period_us(),
-        set_latency_us: model.set_latency_us(),
-    }
+    BusPrediction::from(&model)
 }
 
 impl HubFactory for CdcFactory {

@@ -166,13 +166,9 @@ impl<T: UsbBulk> Ch347Hub<T> {
             sensors: cfg.cs.len(),
             trigger: cfg.trigger,
             prediction: BusPrediction {
-                mean_frame_bytes: model.mean_frame_bytes,
-                t_spi_us: model.t_spi_us(),
-                trigger_spread_us: model.trigger_spread_us(),
-                paper_rate_hz: model.paper_rate_hz(),
-                paper_latency_us: model.paper_latency_us(),
                 set_period_us: model.set_period_us() + turnarounds_us,
                 set_latency_us: model.set_latency_us() + turnarounds_us,
+                ..BusPrediction::from(&model)
             },
         };
         let mut hub = Self {

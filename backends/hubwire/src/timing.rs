@@ -74,6 +74,21 @@ impl BusModel {
     }
 }
 
+impl From<&BusModel> for gelgrip_controller::hub::BusPrediction {
+    /// The model's predictions, as transports describe them.
+    fn from(model: &BusModel) -> Self {
+        Self {
+            mean_frame_bytes: model.mean_frame_bytes,
+            t_spi_us: model.t_spi_us(),
+            trigger_spread_us: model.trigger_spread_us(),
+            paper_rate_hz: model.paper_rate_hz(),
+            paper_latency_us: model.paper_latency_us(),
+            set_period_us: model.set_period_us(),
+            set_latency_us: model.set_latency_us(),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

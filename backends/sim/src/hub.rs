@@ -108,15 +108,7 @@ impl SimHub {
             transport: "sim".into(),
             sensors: layout.sensors.len(),
             trigger,
-            prediction: BusPrediction {
-                mean_frame_bytes: model.mean_frame_bytes,
-                t_spi_us: model.t_spi_us(),
-                trigger_spread_us: model.trigger_spread_us(),
-                paper_rate_hz: model.paper_rate_hz(),
-                paper_latency_us: model.paper_latency_us(),
-                set_period_us: model.set_period_us(),
-                set_latency_us: model.set_latency_us(),
-            },
+            prediction: BusPrediction::from(&model),
         };
         let start = clock.now_us();
         Ok(Self {
