@@ -78,8 +78,6 @@ struct Shared {
     slave: Option<TTYPort>,
     ring: SetRing<Vec<u8>>,
     started: Option<u8>,
-    sets: u32,
-    produced_bytes: u64,
     /// Bumped at every (re)plug, so the reader takes a fresh clone of the master.
     generation: u64,
     /// Sets go to the host (after Start or Resume; not after a replug until then).
@@ -142,8 +140,6 @@ impl RunningHub {
             slave: Some(slave),
             ring: SetRing::new(usize::from(cfg.ring_capacity)),
             started: None,
-            sets: 0,
-            produced_bytes: 0,
             generation: 0,
             streaming: false,
         }));
@@ -176,11 +172,6 @@ impl RunningHub {
     /// The pseudo-terminal served now.
     pub fn pty(&self) -> String {
         self.pty.lock().map(|p| p.clone()).unwrap_or_default()
-    }
-
-    /// Sets produced so far.
-    pub fn sets(&self) -> u32 {
-        self.shared.lock().map_or(0, |s| s.sets)
     }
 
     /// Unplug for `outage`: the pseudo-terminal closes (the host's port fails), the hub
@@ -311,8 +302,6 @@ fn produce(
             if s.streaming {
                 write(&mut s, &stop, &bytes);
             }
-            s.produced_bytes += bytes.len() as u64;
-            s.sets += 1;
             s.ring.push(seq, bytes);
         }
         seq = seq.wrapping_add(1);

@@ -106,14 +106,6 @@ impl Boards {
             s.faults = faults;
         }
     }
-
-    /// Captures board `i` has made.
-    pub fn captures(&self, i: usize) -> u64 {
-        self.states
-            .get(i)
-            .and_then(|s| s.lock().ok().map(|s| s.captures))
-            .unwrap_or(0)
-    }
 }
 
 /// One board's view, attached at each of its addresses and its chip select.

@@ -70,8 +70,6 @@ pub struct Ch347Emulator {
     pub log: Vec<Vec<u8>>,
     /// Commands it could not parse.
     pub errors: Vec<EmuError>,
-    /// Bytes clocked on SPI so far (MOSI + MISO counted once per clocked byte).
-    pub spi_bytes: u64,
     /// While set, every transfer fails as if the device was unplugged.
     pub unplugged: bool,
 }
@@ -123,7 +121,6 @@ impl Ch347Emulator {
             replies: VecDeque::new(),
             log: Vec::new(),
             errors: Vec::new(),
-            spi_bytes: 0,
             unplugged: false,
         }
     }
@@ -136,11 +133,6 @@ impl Ch347Emulator {
     /// Attach an I2C target at the 7-bit `address`.
     pub fn attach_i2c(&mut self, address: u8, target: Box<dyn I2cTarget>) {
         self.i2c.insert(address, target);
-    }
-
-    /// The SPI configuration block last written.
-    pub fn spi_config(&self) -> &[u8; SPI_CONFIG_LEN] {
-        &self.spi_config
     }
 
     /// The SPI clock the configuration selects, Hz.
@@ -202,7 +194,6 @@ impl Ch347Emulator {
     /// MISO for `mosi`: every selected target shifts; their outputs are wire-ANDed (an
     /// undriven line reads high).
     fn clock(&mut self, mosi: &[u8]) -> Vec<u8> {
-        self.spi_bytes += mosi.len() as u64;
         let mut miso = vec![0xFF; mosi.len()];
         for k in self.selected() {
             if let Some(t) = self.spi.get_mut(&k) {

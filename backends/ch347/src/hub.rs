@@ -214,11 +214,6 @@ impl<T: UsbBulk> Ch347Hub<T> {
         self
     }
 
-    /// The chip (for the emulator's counters in tests and benches).
-    pub fn chip(&self) -> &Ch347<T> {
-        &self.ch
-    }
-
     /// Advance the modelled bus by `commands` USB round trips, `i2c_bytes` I2C bytes and
     /// `spi_bytes` SPI bytes (paced mode).
     fn owe(&mut self, commands: u32, i2c_bytes: usize, spi_bytes: usize) {
@@ -314,9 +309,13 @@ impl<T: UsbBulk> Ch347Hub<T> {
                 Err(Ch347Error::Nack { .. }) => return Ok(None),
                 Err(e) => return Err(hub_error(e)),
             };
-            if regs[0] & status::FRAME_READY != 0 {
-                let len = u32::from_le_bytes([regs[4], regs[5], regs[6], regs[7]]) as usize;
-                let seq = u32::from_le_bytes([regs[8], regs[9], regs[10], regs[11]]);
+            // STATUS at 0x08, FRAME_LENGTH at 0x0C, FRAME_SEQ at 0x10.
+            let [st, _, _, _, l0, l1, l2, l3, s0, s1, s2, s3] = regs[..] else {
+                return Ok(None); // the driver checks the length; a short answer is no answer
+            };
+            if st & status::FRAME_READY != 0 {
+                let len = u32::from_le_bytes([l0, l1, l2, l3]) as usize;
+                let seq = u32::from_le_bytes([s0, s1, s2, s3]);
                 return Ok(Some((len, seq)));
             }
         }

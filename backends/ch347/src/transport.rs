@@ -39,16 +39,6 @@ impl<T> MeteredBulk<T> {
             spent_ns: 0,
         }
     }
-
-    /// The device.
-    pub fn inner(&self) -> &T {
-        &self.inner
-    }
-
-    /// The device, mutably.
-    pub fn inner_mut(&mut self) -> &mut T {
-        &mut self.inner
-    }
 }
 
 impl<T: UsbBulk> UsbBulk for MeteredBulk<T> {
