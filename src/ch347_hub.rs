@@ -5,13 +5,14 @@
 
 use std::sync::Arc;
 
-use gelgrip_ch347::Ch347;
 use gelgrip_ch347::board::Boards;
 use gelgrip_ch347::config::{Ch347Settings, Device};
 use gelgrip_ch347::emu::Ch347Emulator;
 use gelgrip_ch347::hub::Ch347Hub;
+use gelgrip_ch347::plug::EmulatedPort;
 use gelgrip_ch347::transport::MeteredBulk;
 use gelgrip_ch347::usb::RusbBulk;
+use gelgrip_ch347::{Ch347, UsbError};
 use gelgrip_controller::camera::BoardCameras;
 use gelgrip_controller::config::{BackendSection, ConfigError};
 use gelgrip_controller::hub::{HubError, HubTransport};
@@ -85,16 +86,29 @@ impl HubFactory for Ch347Factory {
                 let mut emu = Ch347Emulator::new();
                 let now = clock.clone();
                 Boards::attach(&mut emu, cameras, &cfg.cs, Arc::new(move || now.now_us()));
-                let metered = MeteredBulk::new(emu, crate::wiring::thread_cpu_ns);
-                let hub = Ch347Hub::open(Ch347::new(metered), cfg, clock)?
-                    .with_cpu_clock(crate::wiring::thread_cpu_ns);
+                let port = EmulatedPort::new(emu);
+                let open = move || {
+                    port.open()
+                        .map(|h| MeteredBulk::new(h, crate::wiring::thread_cpu_ns))
+                };
+                let usb = open().map_err(|e| hub_error(e.to_string()))?;
+                let hub = Ch347Hub::open(Ch347::new(usb), cfg, clock)?
+                    .with_cpu_clock(crate::wiring::thread_cpu_ns)
+                    .with_reopen(Box::new(open));
                 Ok(Box::new(hub))
             }
             Device::Usb(selector) => {
                 let cfg = settings.hub_config(request.trigger, MEAN_FRAME_BYTES);
                 let usb = RusbBulk::open(selector).map_err(|e| hub_error(e.to_string()))?;
+                let selector = selector.clone();
+                let reopen = move || {
+                    RusbBulk::open(&selector).map_err(|e| UsbError::Disconnected {
+                        detail: e.to_string(),
+                    })
+                };
                 let hub = Ch347Hub::open(Ch347::new(usb), cfg, clock)?
-                    .with_cpu_clock(crate::wiring::thread_cpu_ns);
+                    .with_cpu_clock(crate::wiring::thread_cpu_ns)
+                    .with_reopen(Box::new(reopen));
                 Ok(Box::new(hub))
             }
         }

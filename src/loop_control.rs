@@ -121,6 +121,7 @@ impl LoopControl {
                 delivery_delay_us: faults.delivery_delay_us,
                 drop_rate: faults.drop_rate,
                 corrupt_rate: faults.corrupt_rate,
+                dead: false,
             }),
         );
         drop(w);

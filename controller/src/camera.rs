@@ -14,6 +14,17 @@ pub trait BoardCameras: Send {
     fn capture(&mut self, board: usize, nth: u64, now_us: u64) -> Bytes;
 }
 
+/// Faults an emulated sensor board can be given (the CH347 and CDC hub emulators').
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct BoardFaults {
+    /// The board never answers (no ACK, no frame).
+    pub dead: bool,
+    /// Flip one bit of every `n`th frame on the wire (0 = never).
+    pub corrupt_every: u64,
+    /// Captures this long after its trigger, µs.
+    pub capture_delay_us: u32,
+}
+
 /// Cameras whose every JPEG names its board and capture: byte 0 is the board, bytes 1–8 the
 /// capture index (little-endian), the rest padding up to `jpeg_bytes`. Not an image: a
 /// source for transport tests, which check that each frame arrives whole, once, and in its

@@ -16,7 +16,7 @@ use std::time::{Duration, Instant};
 
 use serialport::{SerialPort, TTYPort};
 
-use gelgrip_controller::camera::BoardCameras;
+use gelgrip_controller::camera::{BoardCameras, BoardFaults};
 use gelgrip_hubwire::cdc::{AckStatus, CdcStreamDecoder, Command, Message, ResumeReply};
 use gelgrip_hubwire::ring::{ResumePlan, SetRing};
 use gelgrip_hubwire::spi_frame::{self, FrameHeader};
@@ -82,6 +82,8 @@ struct Shared {
     generation: u64,
     /// Sets go to the host (after Start or Resume; not after a replug until then).
     streaming: bool,
+    /// Faults per board.
+    faults: Vec<BoardFaults>,
 }
 
 /// A hub being served; stops (and removes its link) when dropped.
@@ -142,6 +144,7 @@ impl RunningHub {
             started: None,
             generation: 0,
             streaming: false,
+            faults: vec![BoardFaults::default(); cameras.boards()],
         }));
         let stop = Arc::new(AtomicBool::new(false));
         let epoch = Instant::now();
@@ -172,6 +175,17 @@ impl RunningHub {
     /// The pseudo-terminal served now.
     pub fn pty(&self) -> String {
         self.pty.lock().map(|p| p.clone()).unwrap_or_default()
+    }
+
+    /// Give board `board` `faults` from its next capture on: a dead board's frame is left
+    /// out of its sets (the set's frame count says so), a corrupted one has a bit of its SPI
+    /// frame flipped (its CRC fails at the host), a slow one captures later.
+    pub fn set_faults(&self, board: usize, faults: BoardFaults) {
+        if let Ok(mut s) = self.shared.lock()
+            && let Some(f) = s.faults.get_mut(board)
+        {
+            *f = faults;
+        }
     }
 
     /// Unplug for `outage`: the pseudo-terminal closes (the host's port fails), the hub
@@ -252,8 +266,11 @@ fn produce(
     let mut next = Instant::now();
     let mut seq: u32 = 0;
     while !stop.load(Ordering::SeqCst) {
-        let mode = shared.lock().ok().and_then(|s| s.started);
-        let Some(mode) = mode else {
+        let state = shared
+            .lock()
+            .ok()
+            .and_then(|s| Some((s.started?, s.faults.clone())));
+        let Some((mode, faults)) = state else {
             std::thread::sleep(Duration::from_millis(5));
             next = Instant::now();
             continue;
@@ -265,8 +282,13 @@ fn produce(
         }
         .encode();
         let mut spi_bytes = 0usize;
+        let mut frames = 0u8;
         for b in 0..n {
-            let offset = if mode == 0 { 25 * b as u32 } else { 2 };
+            let fault = faults.get(b).copied().unwrap_or_default();
+            if fault.dead {
+                continue;
+            }
+            let offset = if mode == 0 { 25 * b as u32 } else { 2 } + fault.capture_delay_us;
             let jpeg = cameras.capture(b, u64::from(seq), u64::from(trigger_ts));
             let header = FrameHeader {
                 sensor_id: b as u8,
@@ -275,8 +297,13 @@ fn produce(
                 exposure_us: 8000,
                 payload_len: 0,
             };
-            let frame = spi_frame::encode(&header, &jpeg);
+            let mut frame = spi_frame::encode(&header, &jpeg);
+            if fault.corrupt_every > 0 && u64::from(seq).is_multiple_of(fault.corrupt_every) {
+                let at = frame.len() / 2;
+                frame[at] ^= 0x10;
+            }
             spi_bytes += frame.len();
+            frames += 1;
             bytes.extend(
                 Message::Frame {
                     capture_ts_us: trigger_ts.wrapping_add(offset),
@@ -288,7 +315,7 @@ fn produce(
         bytes.extend(
             Message::SetEnd {
                 set_seq: seq,
-                frames: n as u8,
+                frames,
             }
             .encode(),
         );

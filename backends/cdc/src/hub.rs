@@ -223,6 +223,10 @@ pub struct CdcHub {
     last_set: Option<u32>,
     /// The set being received.
     current_set: Option<u32>,
+    /// Sensors whose frame (valid or not) of the current set was passed on.
+    delivered: Vec<bool>,
+    /// A set cut off by an unplug, and the sensors already passed on: its replay skips them.
+    cut_off: Option<(u32, Vec<bool>)>,
     /// Reconnections so far.
     pub reconnects: u32,
 }
@@ -249,7 +253,6 @@ impl CdcHub {
         };
         Ok(Self {
             cfg,
-            description,
             clock,
             link: Some(link),
             pending: VecDeque::new(),
@@ -257,6 +260,9 @@ impl CdcHub {
             next_id: 1,
             last_set: None,
             current_set: None,
+            delivered: vec![false; description.sensors],
+            cut_off: None,
+            description,
             reconnects: 0,
         })
     }
@@ -281,8 +287,11 @@ impl CdcHub {
     /// Reopen the port with backoff, shake hands, sync, and resume after the last set.
     async fn reconnect(&mut self, why: &str) -> Result<(), HubError> {
         self.link = None;
-        // A set cut off mid-way: the hub replays it whole.
-        self.current_set = None;
+        // A set cut off mid-way: the hub replays it whole, and the frames already passed on
+        // are skipped then.
+        if let Some(seq) = self.current_set.take() {
+            self.cut_off = Some((seq, std::mem::take(&mut self.delivered)));
+        }
         let give_up = Instant::now() + Duration::from_secs_f64(self.cfg.reconnect_s);
         let mut backoff = Duration::from_millis(50);
         tracing::warn!("CDC hub lost ({why}); reconnecting");
@@ -327,12 +336,16 @@ impl CdcHub {
         match message {
             Message::SetBegin { set_seq, .. } => {
                 self.current_set = Some(set_seq);
+                self.delivered = match self.cut_off.take() {
+                    Some((seq, delivered)) if seq == set_seq => delivered,
+                    _ => vec![false; self.cfg.sensors],
+                };
                 None
             }
             Message::Frame {
                 capture_ts_us,
                 spi_frame,
-            } => Some(self.frame_event(capture_ts_us, &spi_frame)),
+            } => self.frame_event(capture_ts_us, &spi_frame),
             Message::SetEnd { set_seq, frames } => {
                 self.current_set = None;
                 if self
@@ -342,10 +355,23 @@ impl CdcHub {
                     return None; // a replayed set the host already has
                 }
                 self.last_set = Some(set_seq);
-                Some(HubEvent::SetEnd {
+                // The hub left out boards that did not answer: report them, as a bridge
+                // would report a board that does not acknowledge its trigger.
+                if usize::from(frames) < self.cfg.sensors {
+                    for (s, done) in self.delivered.iter().enumerate() {
+                        if !done {
+                            self.pending.push_back(HubEvent::Disconnected {
+                                sensor: SensorIndex(s as u8),
+                                trigger_seq: set_seq,
+                            });
+                        }
+                    }
+                }
+                self.pending.push_back(HubEvent::SetEnd {
                     trigger_seq: set_seq,
                     frames_sent: frames,
-                })
+                });
+                None
             }
             Message::ResumeReply(ResumeReply::Gap { oldest_held, lost }) => {
                 tracing::warn!(lost, "CDC hub: sets lost while unplugged");
@@ -370,19 +396,35 @@ impl CdcHub {
         }
     }
 
-    fn frame_event(&mut self, capture_ts_us: u32, bytes: &[u8]) -> HubEvent {
+    /// The event of a frame, `None` for one already passed on (a replay after an unplug).
+    fn frame_event(&mut self, capture_ts_us: u32, bytes: &[u8]) -> Option<HubEvent> {
         let set = self.current_set;
-        match spi_frame::decode(bytes) {
+        let decoded = spi_frame::decode(bytes);
+        let sensor = match &decoded {
+            Ok((frame, _)) => Some(usize::from(frame.header.sensor_id)),
+            // A payload CRC failure comes with its (checked) header.
+            Err(spi_frame::FrameError::FrameCrc { header, .. }) => {
+                Some(usize::from(header.sensor_id))
+            }
+            Err(_) => None,
+        };
+        if let Some(done) = sensor.and_then(|s| self.delivered.get_mut(s)) {
+            if *done {
+                return None;
+            }
+            *done = true;
+        }
+        Some(match decoded {
             Ok((frame, _)) => {
                 if set.is_some_and(|s| s != frame.header.trigger_seq) {
-                    return HubEvent::Corrupt {
+                    return Some(HubEvent::Corrupt {
                         sensor: Some(SensorIndex(frame.header.sensor_id)),
                         trigger_seq: set,
                         detail: format!(
                             "frame of set {} inside set {set:?}",
                             frame.header.trigger_seq
                         ),
-                    };
+                    });
                 }
                 let time = self.link.as_ref().map(|l| l.time);
                 let capture_host_us = time.map_or(0, |t| t.to_host_us(capture_ts_us));
@@ -399,11 +441,11 @@ impl CdcHub {
                 })
             }
             Err(e) => HubEvent::Corrupt {
-                sensor: None,
+                sensor: sensor.map(|s| SensorIndex(s as u8)),
                 trigger_seq: set,
                 detail: e.to_string(),
             },
-        }
+        })
     }
 }
 

@@ -6,22 +6,12 @@
 use std::sync::{Arc, Mutex};
 
 use gelgrip_controller::camera::BoardCameras;
+pub use gelgrip_controller::camera::BoardFaults;
 use gelgrip_hubwire::regs::{self, Register, status};
 use gelgrip_hubwire::spi_frame::{self, FrameHeader};
 
 use crate::driver::CsLine;
 use crate::emu::{Ch347Emulator, I2cTarget, SpiTarget};
-
-/// Faults a board can be given.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct BoardFaults {
-    /// The board never answers (no ACK, no frame).
-    pub dead: bool,
-    /// Flip one bit of every `n`th frame on the wire (0 = never).
-    pub corrupt_every: u64,
-    /// Captures this long after its trigger, µs.
-    pub capture_delay_us: u32,
-}
 
 #[derive(Debug, Default)]
 struct BoardState {

@@ -8,6 +8,7 @@
 //! cs = ["cs0", "cs1", "gpio0", "gpio1", "gpio2", "gpio3", "gpio4"]   # per board
 //! command_turnaround_us = 125  # the emulator's modelled USB round trip
 //! ready_polls = 20             # FRAME_READY polls before a board counts as disconnected
+//! reconnect_s = 10             # give up reopening a lost chip after this long
 //! [hub.ch347.emulator]         # device = "emulator": the simulated boards ([hub.sim] keys)
 //! ```
 
@@ -46,6 +47,8 @@ pub struct Ch347Settings {
     pub command_turnaround_us: f64,
     /// FRAME_READY polls.
     pub ready_polls: u32,
+    /// Reconnection window, s.
+    pub reconnect_s: f64,
     /// `[hub.ch347.emulator]`, for the simulated boards.
     pub emulator: toml::Table,
 }
@@ -59,6 +62,7 @@ struct RawCh347 {
     cs: Option<Vec<String>>,
     command_turnaround_us: f64,
     ready_polls: f64,
+    reconnect_s: f64,
     emulator: toml::Table,
 }
 
@@ -71,6 +75,7 @@ impl Default for RawCh347 {
             cs: None,
             command_turnaround_us: 125.0,
             ready_polls: 20.0,
+            reconnect_s: 10.0,
             emulator: toml::Table::new(),
         }
     }
@@ -172,7 +177,9 @@ impl Ch347Settings {
             1e5,
         )?;
         let polls = check.range(&p("ready_polls"), raw.ready_polls, 1.0, 10_000.0)?;
+        let reconnect_s = check.range(&p("reconnect_s"), raw.reconnect_s, 0.0, 3600.0)?;
         Ok(Self {
+            reconnect_s,
             device,
             spi_clock_index: spi as u8,
             i2c_speed,
@@ -194,6 +201,7 @@ impl Ch347Settings {
             pace: self.device == Device::Emulator,
             command_turnaround_us: self.command_turnaround_us,
             mean_frame_bytes,
+            reconnect_s: self.reconnect_s,
         }
     }
 }

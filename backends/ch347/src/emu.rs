@@ -66,8 +66,10 @@ pub struct Ch347Emulator {
     i2c: BTreeMap<u8, Box<dyn I2cTarget>>,
     i2c_speed: u8,
     replies: VecDeque<Vec<u8>>,
-    /// Every OUT transfer, in order.
+    /// Every OUT transfer, in order (while `keep_log` is set).
     pub log: Vec<Vec<u8>>,
+    /// Record OUT transfers in `log` (on by default, for tests; a long run turns it off).
+    pub keep_log: bool,
     /// Commands it could not parse.
     pub errors: Vec<EmuError>,
     /// While set, every transfer fails as if the device was unplugged.
@@ -120,6 +122,7 @@ impl Ch347Emulator {
             i2c_speed: 1,
             replies: VecDeque::new(),
             log: Vec::new(),
+            keep_log: true,
             errors: Vec::new(),
             unplugged: false,
         }
@@ -133,6 +136,16 @@ impl Ch347Emulator {
     /// Attach an I2C target at the 7-bit `address`.
     pub fn attach_i2c(&mut self, address: u8, target: Box<dyn I2cTarget>) {
         self.i2c.insert(address, target);
+    }
+
+    /// Power-on state again, as after a replug: SPI unconfigured, chip selects released,
+    /// I2C at its default speed, no reply queued. Attached targets stay.
+    pub fn power_cycle(&mut self) {
+        self.spi_config = [0; SPI_CONFIG_LEN];
+        self.cs_asserted = [false; 2];
+        self.gpio = [0x40; 8];
+        self.i2c_speed = 1;
+        self.replies.clear();
     }
 
     /// The SPI clock the configuration selects, Hz.
@@ -391,7 +404,9 @@ impl UsbBulk for Ch347Emulator {
                 detail: "emulated unplug".into(),
             });
         }
-        self.log.push(data.to_vec());
+        if self.keep_log {
+            self.log.push(data.to_vec());
+        }
         self.handle(data);
         Ok(data.len())
     }

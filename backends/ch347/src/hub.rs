@@ -16,12 +16,19 @@
 //! bus would reach it (USB command turnaround, I2C bits and SPI bytes at the configured
 //! clocks), waiting on the injected clock.
 //!
+//! When the chip goes away (a USB error), the hub reopens it with backoff (50 ms doubling to
+//! 1 s) through its `reopen` function, for up to `reconnect_s`; the boards are set up
+//! afresh and their NEXT_SEQ rewritten. A CH347 holds no sets, so every trigger of the
+//! outage is reported `Disconnected` for every board (one set period apart), and frames read
+//! before the failure are kept. Past `reconnect_s` the hub fails with `Disconnected`.
+//!
 //! `next_event` is cancel-safe (the run loop selects over it): a trigger's transfers run to
 //! completion without an await, and its events wait in a queue, each removed only once its
 //! release time has come.
 
 use std::collections::VecDeque;
 use std::sync::Arc;
+use std::time::Duration;
 
 use async_trait::async_trait;
 use bytes::Bytes;
@@ -36,7 +43,7 @@ use gelgrip_hubwire::spi_frame::{self, HEADER_LEN, TRAILER_LEN};
 use gelgrip_hubwire::timing::BusModel;
 
 use crate::driver::{Ch347, CsLine};
-use crate::error::Ch347Error;
+use crate::error::{Ch347Error, UsbError};
 use crate::frames::{SpiConfig, clock_index_for, spi_clock_hz};
 use crate::transport::UsbBulk;
 
@@ -59,6 +66,8 @@ pub struct Ch347HubConfig {
     pub command_turnaround_us: f64,
     /// Expected frame size for the bus model, bytes.
     pub mean_frame_bytes: f64,
+    /// Give up reopening a lost chip after this long, s.
+    pub reconnect_s: f64,
 }
 
 impl Ch347HubConfig {
@@ -80,6 +89,7 @@ impl Ch347HubConfig {
             pace: false,
             command_turnaround_us: 125.0,
             mean_frame_bytes: 20_000.0,
+            reconnect_s: 5.0,
         }
     }
 }
@@ -100,6 +110,22 @@ pub struct Ch347Hub<T: UsbBulk> {
     /// Measures the host's receive work (the calling thread's CPU time, ns).
     cpu_clock: Option<fn() -> u64>,
     host_cpu_ns: u64,
+    /// Opens the chip again after it went away (`None`: a lost chip ends the run).
+    reopen: Option<Reopen<T>>,
+    /// The chip is away: since when, the next reopen attempt and the current backoff (µs).
+    lost: Option<Lost>,
+    /// Reconnections so far.
+    pub reconnects: u32,
+}
+
+/// Opens the chip again (a fresh handle: libusb's old one stays dead).
+pub type Reopen<T> = Box<dyn FnMut() -> Result<T, UsbError> + Send>;
+
+#[derive(Debug, Clone, Copy)]
+struct Lost {
+    since_us: u64,
+    next_attempt_us: u64,
+    backoff_us: u64,
 }
 
 impl<T: UsbBulk> std::fmt::Debug for Ch347Hub<T> {
@@ -182,8 +208,27 @@ impl<T: UsbBulk> Ch347Hub<T> {
             bus_us: 0.0,
             cpu_clock: None,
             host_cpu_ns: 0,
+            reopen: None,
+            lost: None,
+            reconnects: 0,
         };
-        hub.ch.drain(std::time::Duration::from_millis(5));
+        hub.set_up()?;
+        Ok(hub)
+    }
+
+    /// Reopen the chip with `reopen` when it goes away, instead of failing.
+    pub fn with_reopen(mut self, reopen: Reopen<T>) -> Self {
+        self.reopen = Some(reopen);
+        self
+    }
+
+    /// Drain stale IN data, configure SPI and I2C, release GPIO chip selects, and check
+    /// every board answers WHO_AM_I (a silent board is a warning: it is reported
+    /// disconnected at each trigger).
+    fn set_up(&mut self) -> Result<(), HubError> {
+        let hub = self;
+        let index = clock_index_for(hub.cfg.spi_clock_hz);
+        hub.ch.drain(Duration::from_millis(5));
         hub.ch
             .spi_configure(SpiConfig {
                 clock_index: index,
@@ -204,7 +249,96 @@ impl<T: UsbBulk> Ch347Hub<T> {
                 None => tracing::warn!(board = i, "no I2C address for this board"),
             }
         }
-        Ok(hub)
+        hub.resync = true;
+        Ok(())
+    }
+
+    /// Whether `e` means the chip itself went away (rather than a board misbehaving).
+    fn chip_lost(e: &HubError) -> bool {
+        matches!(e, HubError::Disconnected { .. })
+    }
+
+    /// Try to get the chip back; `Ok(true)` once it is set up again.
+    fn try_reconnect(&mut self, now_us: u64) -> Result<bool, HubError> {
+        let Some(lost) = self.lost else {
+            return Ok(true);
+        };
+        if now_us < lost.next_attempt_us {
+            return Ok(false);
+        }
+        let Some(reopen) = self.reopen.as_mut() else {
+            return Ok(false);
+        };
+        let attempt = reopen().map_err(|e| HubError::Disconnected {
+            detail: format!("reopening the CH347: {e}"),
+        });
+        let result = attempt.and_then(|usb| {
+            self.ch = Ch347::new(usb);
+            self.set_up()
+        });
+        match result {
+            Ok(()) => {
+                self.lost = None;
+                self.reconnects += 1;
+                tracing::info!(reconnects = self.reconnects, "CH347 back");
+                Ok(true)
+            }
+            Err(e) => {
+                let waited_s = (now_us.saturating_sub(lost.since_us)) as f64 / 1e6;
+                if waited_s > self.cfg.reconnect_s {
+                    return Err(HubError::Disconnected {
+                        detail: format!(
+                            "the CH347 did not come back within {} s: {e}",
+                            self.cfg.reconnect_s
+                        ),
+                    });
+                }
+                tracing::debug!("CH347 reconnect failed: {e}");
+                let backoff_us = (lost.backoff_us * 2).min(1_000_000);
+                self.lost = Some(Lost {
+                    next_attempt_us: now_us + lost.backoff_us,
+                    backoff_us,
+                    ..lost
+                });
+                Ok(false)
+            }
+        }
+    }
+
+    /// Report every board of trigger `seq` not yet reported as disconnected, and the set's
+    /// end, one set period from now (the chip is away: nothing paces the triggers).
+    fn report_lost_set(&mut self, seq: u32, first_event: usize) {
+        let mut reported = vec![false; self.cfg.cs.len()];
+        let mut sent = 0u8;
+        for (_, e) in self.events.iter().skip(first_event) {
+            let sensor = match e {
+                HubEvent::Frame(f) => Some(f.frame.sensor),
+                HubEvent::Corrupt { sensor, .. } => *sensor,
+                HubEvent::Disconnected { sensor, .. } => Some(*sensor),
+                HubEvent::SetEnd { .. } => None,
+            };
+            if matches!(e, HubEvent::Frame(_) | HubEvent::Corrupt { .. }) {
+                sent += 1;
+            }
+            if let Some(r) = sensor.and_then(|s| reported.get_mut(usize::from(s.0))) {
+                *r = true;
+            }
+        }
+        let at = self.clock.now_us() + self.description.prediction.set_period_us as u64;
+        for (i, done) in reported.into_iter().enumerate() {
+            if !done {
+                let event = HubEvent::Disconnected {
+                    sensor: SensorIndex(i as u8),
+                    trigger_seq: seq,
+                };
+                self.events.push_back((at, event));
+            }
+        }
+        let end = HubEvent::SetEnd {
+            trigger_seq: seq,
+            frames_sent: sent,
+        };
+        self.events.push_back((at, end));
     }
 
     /// Measure the host's receive work with `cpu_clock` (the calling thread's CPU time, ns);
@@ -458,6 +592,11 @@ impl<T: UsbBulk> HubTransport for Ch347Hub<T> {
             let Some(seq) = self.triggers.pop_front() else {
                 return Err(HubError::Idle);
             };
+            let first_event = self.events.len();
+            if !self.try_reconnect(self.clock.now_us())? {
+                self.report_lost_set(seq, first_event);
+                continue;
+            }
             let start = self
                 .cpu_clock
                 .map(|c| (c(), self.ch.transport().device_cpu_ns()));
@@ -467,7 +606,20 @@ impl<T: UsbBulk> HubTransport for Ch347Hub<T> {
                 let device = self.ch.transport().device_cpu_ns().saturating_sub(device0);
                 self.host_cpu_ns += spent.saturating_sub(device);
             }
-            collected?;
+            match collected {
+                Ok(()) => {}
+                Err(e) if self.reopen.is_some() && Self::chip_lost(&e) => {
+                    tracing::warn!("CH347 lost ({e}); reconnecting");
+                    let now_us = self.clock.now_us();
+                    self.lost = Some(Lost {
+                        since_us: now_us,
+                        next_attempt_us: now_us + 50_000,
+                        backoff_us: 100_000,
+                    });
+                    self.report_lost_set(seq, first_event);
+                }
+                Err(e) => return Err(e),
+            }
         }
     }
 }

@@ -10,7 +10,8 @@
 //! - [`hub`]: [`hub::Ch347Hub`], the hub protocol on top as a `HubTransport`: the trigger
 //!   over I2C, FRAME_READY polled, each board's frame read over SPI with its CRC checked;
 //! - [`emu`] (feature `emulator`): the chip emulator, byte for byte, and [`board`]: the
-//!   emulated sensor boards behind it, whose images come from the simulator's camera port.
+//!   emulated sensor boards behind it, whose images come from the simulator's camera port;
+//!   [`plug`]: the emulated chip on a USB port that can be unplugged and plugged back.
 //!
 //! The disputed points of the reference are configurable: the chip-select polarity bits
 //! ([`frames::CsPolarityBits`]), the SPI clock index (30 MHz by default, §3), and the
@@ -25,6 +26,8 @@ pub mod emu;
 pub mod error;
 pub mod frames;
 pub mod hub;
+#[cfg(feature = "emulator")]
+pub mod plug;
 pub mod transport;
 pub mod usb;
 

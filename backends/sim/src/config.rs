@@ -18,6 +18,8 @@ pub struct SensorFaults {
     pub drop_rate: f64,
     /// Probability that a frame has one bit flipped on the bus.
     pub corrupt_rate: f64,
+    /// The board stops answering: no frame, reported `Disconnected` for every trigger.
+    pub dead: bool,
 }
 
 /// A validated simulated-hub configuration.
@@ -109,6 +111,8 @@ struct RawFault {
     drop_rate: f64,
     #[serde(default)]
     corrupt_rate: f64,
+    #[serde(default)]
+    dead: bool,
 }
 
 impl SimConfig {
@@ -154,6 +158,7 @@ impl SimConfig {
                 )? as u32,
                 drop_rate: check.range(&field("drop_rate"), f.drop_rate, 0.0, 1.0)?,
                 corrupt_rate: check.range(&field("corrupt_rate"), f.corrupt_rate, 0.0, 1.0)?,
+                dead: f.dead,
             };
         }
         Ok(Self {

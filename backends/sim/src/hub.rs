@@ -47,6 +47,11 @@ enum Pending {
         seq: u32,
         frames_sent: u8,
     },
+    /// A board that did not answer the trigger (dead, or the hub unplugged).
+    Silent {
+        board: u8,
+        seq: u32,
+    },
 }
 
 /// The simulated hub.
@@ -173,7 +178,8 @@ impl SimHub {
         &mut self,
         seq: u32,
         captured: Option<Vec<Bytes>>,
-    ) -> Vec<(BoardInput, Option<Vec<u8>>, u32)> {
+        unplugged: bool,
+    ) -> Vec<(BoardInput, Option<Vec<u8>>, bool)> {
         let n = self.description.sensors;
         let nth = self.triggers_fired;
         self.triggers_fired += 1;
@@ -193,7 +199,9 @@ impl SimHub {
                 } else {
                     0
                 };
-                let lost = faults.drop_rate > 0.0 && self.rng.random_bool(faults.drop_rate);
+                let silent = unplugged || faults.dead;
+                let lost =
+                    silent || (faults.drop_rate > 0.0 && self.rng.random_bool(faults.drop_rate));
                 let corrupt =
                     faults.corrupt_rate > 0.0 && self.rng.random_bool(faults.corrupt_rate);
                 let capture_delay_ns = u64::from(faults.capture_delay_us) * 1000;
@@ -223,7 +231,7 @@ impl SimHub {
                     delivery_delay_ns: u64::from(faults.delivery_delay_us) * 1000,
                     frame_bytes: wire.as_ref().map(Vec::len),
                 };
-                (input, wire, offset_us)
+                (input, wire, silent)
             })
             .collect()
     }
@@ -233,6 +241,10 @@ impl SimHub {
             Pending::SetEnd { seq, frames_sent } => HubEvent::SetEnd {
                 trigger_seq: seq,
                 frames_sent,
+            },
+            Pending::Silent { board, seq } => HubEvent::Disconnected {
+                sensor: SensorIndex(board),
+                trigger_seq: seq,
             },
             Pending::Frame {
                 board,
@@ -303,11 +315,16 @@ impl HubTransport for SimHub {
             })?),
             None => None,
         };
-        let boards = self.board_inputs(seq, captured);
+        let unplugged = self.scene.as_ref().is_some_and(|s| s.hub_unplugged(now_us));
+        let boards = self.board_inputs(seq, captured, unplugged);
         let inputs: Vec<BoardInput> = boards.iter().map(|(i, _, _)| *i).collect();
         let times = schedule_set(&self.bus, start_ns, &inputs);
         let mut sent = 0u8;
-        for (b, ((_, wire, _), t)) in boards.into_iter().zip(&times.boards).enumerate() {
+        let mut silent_boards = Vec::new();
+        for (b, ((_, wire, silent), t)) in boards.into_iter().zip(&times.boards).enumerate() {
+            if silent {
+                silent_boards.push(b as u8);
+            }
             if let (Some(wire), Some(at)) = (wire, t.delivered_ns) {
                 sent += 1;
                 let trigger_hub_us = self.hub_us(t.trigger_receipt_ns);
@@ -322,6 +339,9 @@ impl HubTransport for SimHub {
                     },
                 );
             }
+        }
+        for board in silent_boards {
+            self.enqueue(times.set_end_ns, Pending::Silent { board, seq });
         }
         let set_end = Pending::SetEnd {
             seq,

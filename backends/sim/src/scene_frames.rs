@@ -51,6 +51,11 @@ impl SceneFrames {
         }
     }
 
+    /// Whether the world has the hub unplugged at host time `at_us`.
+    pub fn hub_unplugged(&self, at_us: u64) -> bool {
+        self.world.lock().is_ok_and(|w| w.hub_unplugged(at_us))
+    }
+
     /// Frames of `world` for `layout`'s cameras.
     pub fn new(
         world: SharedWorld,

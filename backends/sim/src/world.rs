@@ -76,6 +76,8 @@ pub struct World {
     /// Faults injected at run time per sensor (the dashboard's sim controls); they replace
     /// the configured ones.
     injected_faults: Vec<Option<SensorFaults>>,
+    /// The hub is unplugged until this host time, µs (fault injection).
+    hub_unplugged_until_us: Option<u64>,
     /// When the scene was set (its fixture's release time counts from here), µs of
     /// simulated time.
     scene_since_us: u64,
@@ -158,6 +160,7 @@ impl World {
             elapsed_us: 0,
             weight_factor: None,
             injected_faults: Vec::new(),
+            hub_unplugged_until_us: None,
             scene_since_us: 0,
         }
     }
@@ -191,6 +194,18 @@ impl World {
     /// The faults injected into sensor `sensor`, if any.
     pub fn injected_faults(&self, sensor: usize) -> Option<&SensorFaults> {
         self.injected_faults.get(sensor)?.as_ref()
+    }
+
+    /// Unplug the simulated hub until host time `until_us`: every trigger fired before then
+    /// reaches no board (each is reported disconnected), as on a bridge with no set buffer.
+    pub fn unplug_hub(&mut self, until_us: u64) {
+        self.hub_unplugged_until_us = Some(until_us);
+    }
+
+    /// Whether the hub is unplugged at host time `at_us`.
+    pub fn hub_unplugged(&self, at_us: u64) -> bool {
+        self.hub_unplugged_until_us
+            .is_some_and(|until| at_us < until)
     }
 
     /// Share it between the hub and the servo bus.
