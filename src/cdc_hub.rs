@@ -1,7 +1,7 @@
 //! The `cdc` hub transport's registry entry: an MCU hub on USB-CDC at `[hub.cdc] port` (a
 //! real one, or `gelgrip emulate hub`'s link).
 
-use gelgrip_cdc::config::CdcSettings;
+use gelgrip_cdc::config::{CdcSettings, UsbSpeed};
 use gelgrip_cdc::hub::{CdcHub, CdcHubConfig};
 use gelgrip_controller::config::{BackendSection, ConfigError};
 use gelgrip_controller::hub::{BusPrediction, HubTransport, TriggerMode};
@@ -13,11 +13,21 @@ use gelgrip_hubwire::timing::BusModel;
 /// The frame size the bus model assumes, bytes (the paper's S).
 const MEAN_JPEG_BYTES: f64 = 20_400.0;
 
+/// COBS and message framing per frame on the link, bytes (about 1 in 254, plus headers).
+const LINK_FRAMING_BYTES: f64 = 100.0;
+
 /// Opens CDC hubs.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct CdcFactory;
 
-fn prediction(sensors: usize, trigger: TriggerMode, spi_clock_hz: u32) -> BusPrediction {
+/// The bus model's prediction; the link's time for a set's bytes (its frames and framing)
+/// sets the period when it is longer than the SPI bus's (USB full speed).
+fn prediction(
+    sensors: usize,
+    trigger: TriggerMode,
+    spi_clock_hz: u32,
+    usb: UsbSpeed,
+) -> BusPrediction {
     let model = BusModel {
         sensors: u8::try_from(sensors).unwrap_or(u8::MAX),
         trigger: match trigger {
@@ -31,7 +41,14 @@ fn prediction(sensors: usize, trigger: TriggerMode, spi_clock_hz: u32) -> BusPre
         t_usb_us: 500.0,
         capture_jitter_us: 2.0,
     };
-    BusPrediction::from(&model)
+    let spi = BusPrediction::from(&model);
+    let link_us =
+        sensors as f64 * (model.mean_frame_bytes + LINK_FRAMING_BYTES) / usb.bytes_per_s() * 1e6;
+    BusPrediction {
+        set_period_us: spi.set_period_us.max(link_us),
+        set_latency_us: spi.set_latency_us.max(link_us + spi.trigger_spread_us),
+        ..spi
+    }
 }
 
 impl HubFactory for CdcFactory {
@@ -52,7 +69,8 @@ impl HubFactory for CdcFactory {
                 sensors: n,
                 trigger: request.trigger,
                 reconnect_s: s.reconnect_s,
-                prediction: prediction(n, request.trigger, s.spi_clock_hz),
+                prediction: prediction(n, request.trigger, s.spi_clock_hz, s.usb),
+                cpu_clock: Some(crate::wiring::thread_cpu_ns),
             },
             request.clock,
         )?;

@@ -545,21 +545,28 @@ pub enum BusTransportArg {
     /// The CH347 driver and hub protocol on the chip emulator with simulated boards.
     #[value(name = "ch347-emu")]
     Ch347Emu,
+    /// The CDC hub transport over a pseudo-terminal to the hub firmware emulator (started by
+    /// the bench) with simulated boards.
+    #[value(name = "cdc-pty")]
+    CdcPty,
 }
 
 /// `gelgrip bench bus`.
 #[derive(Debug, Args)]
 pub struct BenchBusArgs {
-    /// Only this sensor count (default: sweep 1..=16 on sim, 7 on ch347-emu).
+    /// Only this sensor count (default: sweep 1..=16 on sim, 7 on ch347-emu and cdc-pty).
     #[arg(long, value_parser = clap::value_parser!(u8).range(1..=32))]
     pub sensors: Option<u8>,
     /// The transport to measure.
     #[arg(long, value_enum, default_value = "sim")]
     pub transport: BusTransportArg,
     /// SPI clock, Hz (default: the config's on sim; 15, 30 and 60 MHz on ch347-emu, each
-    /// rounded down to a CH347 clock).
+    /// rounded down to a CH347 clock; 40 MHz on cdc-pty).
     #[arg(long, value_parser = clap::value_parser!(u32).range(400_000..=80_000_000))]
     pub spi_clock_hz: Option<u32>,
+    /// cdc-pty only: the emulated hub's USB link (default: both, full speed then high).
+    #[arg(long, value_enum)]
+    pub usb: Option<UsbArg>,
     /// Only this trigger mode (default: both).
     #[arg(long, value_enum)]
     pub trigger: Option<TriggerArg>,

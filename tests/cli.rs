@@ -336,3 +336,54 @@ fn bench_bus_measures_the_ch347_on_its_emulator_with_the_hosts_share() {
         assert!(f > 0.0 && f < 0.1, "{r}");
     }
 }
+
+#[test]
+fn bench_bus_measures_the_cdc_hub_over_a_pty_at_full_and_high_speed() {
+    let out = gelgrip(&[
+        "bench",
+        "bus",
+        "--transport",
+        "cdc-pty",
+        "--trigger",
+        "broadcast",
+        "--seconds",
+        "1.5",
+        "--json",
+    ]);
+    let rows = json(&out);
+    let rows = rows.as_array().expect("array");
+    assert_eq!(rows.len(), 2, "full speed, then high speed");
+    let (fs, hs) = (&rows[0], &rows[1]);
+    assert_eq!(
+        (fs["usb"].as_str(), hs["usb"].as_str()),
+        (Some("fs"), Some("hs"))
+    );
+    for r in rows {
+        assert_eq!(r["transport"], "cdc-pty");
+        assert_eq!(r["frames_dropped"], 0, "{r}");
+        let share = r["host_fraction_of_bus"].as_f64().unwrap_or(1.0);
+        assert!(
+            share > 0.0 && share <= 0.1,
+            "the host is not the bottleneck: {r}"
+        );
+        let (measured, bus) = (
+            r["measured_rate_hz"].as_f64().unwrap_or(0.0),
+            r["bus_rate_hz"].as_f64().unwrap_or(0.0),
+        );
+        assert!(
+            (measured - bus).abs() / bus < 0.1,
+            "at the modelled rate: {r}"
+        );
+    }
+    // About 1 MB/s cannot carry 7 × 20 KB × 34 Hz: the link sets the rate.
+    let rate = |r: &serde_json::Value| r["measured_rate_hz"].as_f64().unwrap_or(0.0);
+    assert!(
+        rate(fs) < 0.3 * rate(hs),
+        "fs {} Hz, hs {} Hz",
+        rate(fs),
+        rate(hs)
+    );
+    // --usb is the CDC hub's alone.
+    let out = gelgrip(&["bench", "bus", "--transport", "sim", "--usb", "fs"]);
+    assert_eq!(out.status.code(), Some(2), "a usage error");
+}

@@ -38,6 +38,9 @@ pub struct BusPrediction {
     pub t_spi_us: f64,
     /// Capture spread of one set, in µs.
     pub trigger_spread_us: f64,
+    /// I2C time of the trigger (START to the last board's capture), which the paper's
+    /// formula leaves out, in µs.
+    pub trigger_us: f64,
     /// The paper's set rate 1/(N·t_spi + t_buf), in Hz.
     pub paper_rate_hz: f64,
     /// The paper's latency N·t_spi + t_buf + t_usb, in µs.

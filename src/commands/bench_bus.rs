@@ -3,7 +3,9 @@
 //! and what the host's own receive path costs against the bus time of a set.
 //!
 //! Each row runs the transport (`--transport sim`, the simulated hub; `ch347-emu`, the CH347
-//! driver and hub protocol on the chip emulator with simulated boards) with a generated
+//! driver and hub protocol on the chip emulator with simulated boards; `cdc-pty`, the CDC
+//! transport over a pseudo-terminal to the hub firmware emulator, which the bench starts,
+//! at USB full or high speed) with a generated
 //! layout of N identical sensors, warms up, then measures for `--seconds` on the chosen clock
 //! (real by default: the bench measures pacing the host actually achieves). `t_spi` in the
 //! model comes from the mean frame length the transport reports.
@@ -12,18 +14,28 @@
 //! per set (its `set_period_us`, which for the CH347 counts the USB command turnarounds).
 //! The host CPU is the gate's, plus what the transport measures of its own receive work:
 //! on ch347-emu the driver and the hub protocol (the time spent inside the emulated chip
-//! and boards left out). The simulated hub does not measure its own (its work is mostly the
+//! and boards left out); on cdc-pty the reader thread (serial reads, COBS and message
+//! checks) and the frame decoding (the emulator's threads left out). The simulated hub does not measure its own (its work is mostly the
 //! simulation), so on sim only the gate counts.
 
+use std::path::PathBuf;
+
+use anyhow::Context;
 use serde::Serialize;
 
+use gelgrip_cdc::config::UsbSpeed;
+use gelgrip_cdc::emu::{HubEmulatorConfig, RunningHub};
+use gelgrip_controller::config::AppConfig;
 use gelgrip_controller::hub::TriggerMode;
 use gelgrip_controller::layout::HandLayout;
+use gelgrip_sim::board_cameras::SimCameras;
+use gelgrip_sim::config::SimConfig;
 
-use gelgrip_controller::config::AppConfig;
-
-use crate::cli::{BenchBusArgs, BusTransportArg, ClockArg, TriggerArg};
+use crate::cli::{BenchBusArgs, BusTransportArg, ClockArg, TriggerArg, UsbArg};
 use crate::wiring;
+
+/// The SPI clock of the emulated CDC hub's boards by default, Hz.
+const CDC_SPI_CLOCK_HZ: u32 = 40_000_000;
 
 /// Sets discarded before measuring (pipeline fill).
 const WARMUP_SETS: usize = 5;
@@ -31,9 +43,10 @@ const WARMUP_SETS: usize = 5;
 /// One row of the bench.
 #[derive(Debug, Serialize)]
 pub struct BusRow {
-    /// `sim` or `ch347-emu`.
+    /// `sim`, `ch347-emu` or `cdc-pty`.
     pub transport: &'static str,
-    /// USB speed of the link (`hs` for the CH347; none for the simulator).
+    /// USB speed of the link (`hs` for the CH347, `fs` or `hs` for the CDC hub; none for
+    /// the simulator).
     pub usb: Option<&'static str>,
     /// SPI clock, Hz.
     pub spi_clock_hz: u32,
@@ -55,8 +68,11 @@ pub struct BusRow {
     pub host_cpu_ms_per_set: f64,
     /// `host_cpu_ms_per_set` over the modelled bus time per set.
     pub host_fraction_of_bus: f64,
-    /// The transport's modelled set period, µs.
+    /// The transport's modelled set period, µs: the paper's terms plus the I2C trigger, the
+    /// CH347's USB command turnarounds, or the CDC link's time for a set's bytes if longer.
     pub bus_period_us: f64,
+    /// 1 / `bus_period_us`: the rate the modelled bus allows, Hz.
+    pub bus_rate_hz: f64,
     /// Mean SPI frame length S (header + JPEG + CRC), bytes.
     pub mean_frame_bytes: f64,
     /// I2C time from trigger START to capture, which the paper's formula leaves out, µs.
@@ -79,13 +95,23 @@ fn triggers(filter: Option<TriggerArg>) -> Vec<TriggerMode> {
     }
 }
 
-/// The default config with `n` generated sensors on `transport`, at `spi_clock_hz`.
-fn bench_config(
-    n: u8,
+/// One row's set-up.
+#[derive(Debug, Clone, Copy)]
+struct RowSpec {
+    sensors: u8,
     trigger: TriggerMode,
-    transport: BusTransportArg,
     spi_clock_hz: Option<u32>,
+    usb: Option<UsbSpeed>,
+}
+
+/// The default config with `n` generated sensors on `transport`, at `spi_clock_hz`; a CDC
+/// hub is reached at `link`.
+fn bench_config(
+    row: RowSpec,
+    transport: BusTransportArg,
+    link: &std::path::Path,
 ) -> anyhow::Result<AppConfig> {
+    let (n, trigger, spi_clock_hz) = (row.sensors, row.trigger, row.spi_clock_hz);
     let registry = wiring::registry();
     let mut config = wiring::load_config(None, &registry)?;
     config.layout = HandLayout::generated(usize::from(n))?;
@@ -111,18 +137,56 @@ fn bench_config(
             );
             section.table = table;
         }
+        BusTransportArg::CdcPty => {
+            config.hub.transport = "cdc".into();
+            section.prefix = "hub.cdc".into();
+            let mut table = toml::Table::new();
+            table.insert("port".into(), link.display().to_string().into());
+            let hz = spi_clock_hz.unwrap_or(CDC_SPI_CLOCK_HZ);
+            table.insert("spi_clock_hz".into(), toml::Value::Integer(i64::from(hz)));
+            let usb = row.usb.unwrap_or(UsbSpeed::High);
+            table.insert("usb".into(), usb.as_str().into());
+            section.table = table;
+        }
     }
     Ok(config)
 }
 
-async fn measure(
-    n: u8,
-    trigger: TriggerMode,
-    spi_clock_hz: Option<u32>,
-    args: &BenchBusArgs,
-) -> anyhow::Result<BusRow> {
+/// Start the hub firmware emulator for a cdc-pty row, its boards showing the built-in
+/// presses of `config`'s layout.
+fn start_cdc_emulator(
+    config: &AppConfig,
+    row: RowSpec,
+    link: &std::path::Path,
+) -> anyhow::Result<RunningHub> {
+    let mut section = config.hub.section.clone();
+    section.prefix = "hub.sim".into();
+    section.table = toml::Table::new();
+    let sim = SimConfig::from_section(&section, &config.layout)?;
+    let cameras =
+        SimCameras::presses(&config.layout, &sim).context("rendering the boards' frames")?;
+    let _ = std::fs::remove_file(link);
+    RunningHub::serve(
+        link,
+        Box::new(cameras),
+        HubEmulatorConfig {
+            usb: row.usb.unwrap_or(UsbSpeed::High),
+            spi_clock_hz: row.spi_clock_hz.unwrap_or(CDC_SPI_CLOCK_HZ),
+            ..HubEmulatorConfig::default()
+        },
+    )
+    .with_context(|| format!("serving the hub emulator at {}", link.display()))
+}
+
+async fn measure(row: RowSpec, args: &BenchBusArgs) -> anyhow::Result<BusRow> {
+    let (n, trigger) = (row.sensors, row.trigger);
     let registry = wiring::registry();
-    let config = bench_config(n, trigger, args.transport, spi_clock_hz)?;
+    let link = PathBuf::from(format!("/tmp/gelgrip-bench-bus-{}", std::process::id()));
+    let config = bench_config(row, args.transport, &link)?;
+    let _emulator = match args.transport {
+        BusTransportArg::CdcPty => Some(start_cdc_emulator(&config, row, &link)?),
+        _ => None,
+    };
     let clock = wiring::make_clock(args.clock);
     let mut acq = wiring::open_acquisition(&config, &registry, clock.clone()).await?;
     let prediction = acq.hub().describe().prediction;
@@ -167,10 +231,12 @@ async fn measure(
         transport: match args.transport {
             BusTransportArg::Sim => "sim",
             BusTransportArg::Ch347Emu => "ch347-emu",
+            BusTransportArg::CdcPty => "cdc-pty",
         },
         usb: match args.transport {
             BusTransportArg::Sim => None,
             BusTransportArg::Ch347Emu => Some("hs"),
+            BusTransportArg::CdcPty => Some(row.usb.unwrap_or(UsbSpeed::High).as_str()),
         },
         spi_clock_hz: (prediction.mean_frame_bytes * 8.0 / (prediction.t_spi_us / 1e6)).round()
             as u32,
@@ -185,7 +251,8 @@ async fn measure(
         host_fraction_of_bus: host_cpu_ms_per_set * 1e3 / prediction.set_period_us,
         bus_period_us: prediction.set_period_us,
         mean_frame_bytes: prediction.mean_frame_bytes,
-        i2c_trigger_us: prediction.set_period_us - (1e6 / prediction.paper_rate_hz),
+        i2c_trigger_us: prediction.trigger_us,
+        bus_rate_hz: 1e6 / prediction.set_period_us,
         rate_diff_pct: (measured_rate_hz - model_rate_hz) / model_rate_hz * 100.0,
         sets,
         frames_dropped: acq.gate().stats().drops.total() - drops_start,
@@ -198,17 +265,19 @@ async fn measure(
 
 fn table(rows: &[BusRow]) -> String {
     let mut s = String::from(
-        "transport  SPI MHz   N  trigger     S bytes  model Hz  meas Hz  diff %  model ms  meas ms  spread p99 us  cpu ms/set  host/bus\n",
+        "transport  USB SPI MHz   N  trigger     S bytes  model Hz  bus Hz  meas Hz  diff %  model ms  meas ms  spread p99 us  cpu ms/set  host/bus\n",
     );
     for r in rows {
         s += &format!(
-            "{:<9} {:>8.2} {:>3}  {:<10} {:>8.0} {:>9.2} {:>8.2} {:>7.2} {:>9.2} {:>8.2} {:>14} {:>11.4} {:>9.4}\n",
+            "{:<9} {:>4} {:>7.2} {:>3}  {:<10} {:>8.0} {:>9.2} {:>7.2} {:>8.2} {:>7.2} {:>9.2} {:>8.2} {:>14} {:>11.4} {:>9.4}\n",
             r.transport,
+            r.usb.unwrap_or("-"),
             f64::from(r.spi_clock_hz) / 1e6,
             r.sensors,
             r.trigger,
             r.mean_frame_bytes,
             r.model_rate_hz,
+            r.bus_rate_hz,
             r.measured_rate_hz,
             r.rate_diff_pct,
             r.model_latency_ms,
@@ -226,14 +295,26 @@ pub async fn run(args: BenchBusArgs) -> anyhow::Result<u8> {
     let counts: Vec<u8> = match (args.sensors, args.transport) {
         (Some(n), _) => vec![n],
         (None, BusTransportArg::Sim) => (1..=16).collect(),
-        (None, BusTransportArg::Ch347Emu) => vec![7],
+        (None, BusTransportArg::Ch347Emu | BusTransportArg::CdcPty) => vec![7],
     };
     let clocks: Vec<Option<u32>> = match (args.spi_clock_hz, args.transport) {
         (Some(hz), _) => vec![Some(hz)],
-        (None, BusTransportArg::Sim) => vec![None],
+        (None, BusTransportArg::Sim | BusTransportArg::CdcPty) => vec![None],
         (None, BusTransportArg::Ch347Emu) => {
             vec![Some(15_000_000), Some(30_000_000), Some(60_000_000)]
         }
+    };
+    let usbs: Vec<Option<UsbSpeed>> = match (args.usb, args.transport) {
+        (Some(_), BusTransportArg::Sim | BusTransportArg::Ch347Emu) => {
+            return Err(crate::cli::UsageError(
+                "--usb applies to --transport cdc-pty only (the CH347 is high speed)".into(),
+            )
+            .into());
+        }
+        (Some(UsbArg::Fs), _) => vec![Some(UsbSpeed::Full)],
+        (Some(UsbArg::Hs), _) => vec![Some(UsbSpeed::High)],
+        (None, BusTransportArg::CdcPty) => vec![Some(UsbSpeed::Full), Some(UsbSpeed::High)],
+        (None, _) => vec![None],
     };
     let clock_name = if args.clock == ClockArg::Real {
         "real (wall-clock)"
@@ -242,18 +323,27 @@ pub async fn run(args: BenchBusArgs) -> anyhow::Result<u8> {
     };
     tracing::info!("bench bus: {clock_name} time, {} s per row", args.seconds);
     let mut rows = Vec::new();
-    for &spi in &clocks {
-        for trigger in triggers(args.trigger) {
-            for &n in &counts {
-                let row = measure(n, trigger, spi, &args).await?;
-                tracing::info!(
-                    sensors = n,
-                    trigger = trigger.as_str(),
-                    measured_rate_hz = format!("{:.2}", row.measured_rate_hz),
-                    model_rate_hz = format!("{:.2}", row.model_rate_hz),
-                    "row done"
-                );
-                rows.push(row);
+    for &usb in &usbs {
+        for &spi in &clocks {
+            for trigger in triggers(args.trigger) {
+                for &n in &counts {
+                    let spec = RowSpec {
+                        sensors: n,
+                        trigger,
+                        spi_clock_hz: spi,
+                        usb,
+                    };
+                    let row = measure(spec, &args).await?;
+                    tracing::info!(
+                        sensors = n,
+                        trigger = trigger.as_str(),
+                        usb = row.usb.unwrap_or("-"),
+                        measured_rate_hz = format!("{:.2}", row.measured_rate_hz),
+                        model_rate_hz = format!("{:.2}", row.model_rate_hz),
+                        "row done"
+                    );
+                    rows.push(row);
+                }
             }
         }
     }

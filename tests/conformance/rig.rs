@@ -153,6 +153,7 @@ impl Rig {
                         trigger: TriggerMode::Broadcast,
                         reconnect_s: 5.0,
                         prediction,
+                        cpu_clock: None,
                     },
                     clock.clone(),
                 )

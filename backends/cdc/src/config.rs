@@ -5,11 +5,39 @@
 //! port = "/tmp/gelgrip-hub"     # the serial port (or the emulator's link)
 //! reconnect_s = 10              # give up reconnecting after an unplug this long
 //! spi_clock_hz = 40_000_000     # the hub's SPI bus, for the bus model
+//! usb = "hs"                    # the hub's USB link: hs (about 40 MB/s) | fs (about 1 MB/s)
 //! ```
 
 use serde::Deserialize;
 
 use gelgrip_controller::config::{BackendSection, ConfigError};
+
+/// USB link speed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum UsbSpeed {
+    /// Full speed: 12 Mbit/s, about 1 MB/s of bulk data.
+    Full,
+    /// High speed: 480 Mbit/s, about 40 MB/s of bulk data.
+    High,
+}
+
+impl UsbSpeed {
+    /// Bulk bytes per second the link carries.
+    pub fn bytes_per_s(self) -> f64 {
+        match self {
+            Self::Full => 1.0e6,
+            Self::High => 40.0e6,
+        }
+    }
+
+    /// `fs` or `hs`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Full => "fs",
+            Self::High => "hs",
+        }
+    }
+}
 
 /// A validated `[hub.cdc]`.
 #[derive(Debug, Clone, PartialEq)]
@@ -20,6 +48,8 @@ pub struct CdcSettings {
     pub reconnect_s: f64,
     /// The hub's SPI clock, Hz (bus model only).
     pub spi_clock_hz: u32,
+    /// The hub's USB link (bus model only: at full speed the link sets the period).
+    pub usb: UsbSpeed,
 }
 
 #[derive(Deserialize)]
@@ -28,6 +58,7 @@ struct RawCdc {
     port: String,
     reconnect_s: f64,
     spi_clock_hz: f64,
+    usb: String,
 }
 
 impl Default for RawCdc {
@@ -36,6 +67,7 @@ impl Default for RawCdc {
             port: "/dev/ttyACM0".into(),
             reconnect_s: 10.0,
             spi_clock_hz: 40e6,
+            usb: "hs".into(),
         }
     }
 }
@@ -51,10 +83,16 @@ impl CdcSettings {
         }
         let reconnect_s = check.range(&p("reconnect_s"), raw.reconnect_s, 0.0, 3600.0)?;
         let spi = check.range(&p("spi_clock_hz"), raw.spi_clock_hz, 1e5, 1e8)?;
+        let usb = match raw.usb.as_str() {
+            "hs" => UsbSpeed::High,
+            "fs" => UsbSpeed::Full,
+            other => return Err(check.invalid(&p("usb"), other, "hs or fs")),
+        };
         Ok(Self {
             port: raw.port,
             reconnect_s,
             spi_clock_hz: spi as u32,
+            usb,
         })
     }
 }

@@ -5,7 +5,8 @@
 //! one set per period: the longer of the SPI bus time (N frames at the SPI clock plus the
 //! board buffering time) and the USB link time of the set's bytes (full speed carries about
 //! 1 MB/s, high speed about 40 MB/s), so at full speed the link, not the sensors, sets the
-//! rate. The last `ring_capacity` sets are kept for `Resume`. [`RunningHub::unplug`] closes
+//! rate. A set is written to the host at the end of its period (when it would have
+//! crossed both buses), so the host sees the modelled latency too. The last `ring_capacity` sets are kept for `Resume`. [`RunningHub::unplug`] closes
 //! the pseudo-terminal for a while (the host sees the device vanish) and then serves a new
 //! one behind the same link path, as a replugged USB device would reappear.
 
@@ -21,32 +22,7 @@ use gelgrip_hubwire::cdc::{AckStatus, CdcStreamDecoder, Command, Message, Resume
 use gelgrip_hubwire::ring::{ResumePlan, SetRing};
 use gelgrip_hubwire::spi_frame::{self, FrameHeader};
 
-/// USB link speed.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum UsbSpeed {
-    /// Full speed: 12 Mbit/s, about 1 MB/s of bulk data.
-    Full,
-    /// High speed: 480 Mbit/s, about 40 MB/s of bulk data.
-    High,
-}
-
-impl UsbSpeed {
-    /// Bulk bytes per second the link carries.
-    pub fn bytes_per_s(self) -> f64 {
-        match self {
-            Self::Full => 1.0e6,
-            Self::High => 40.0e6,
-        }
-    }
-
-    /// `fs` or `hs`.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Self::Full => "fs",
-            Self::High => "hs",
-        }
-    }
-}
+pub use crate::config::UsbSpeed;
 
 /// The emulated hub's make-up.
 #[derive(Debug, Clone, PartialEq)]
@@ -322,7 +298,15 @@ fn produce(
         let spi_s = spi_bytes as f64 * 8.0 / f64::from(cfg.spi_clock_hz.max(1))
             + f64::from(cfg.t_buf_us) / 1e6;
         let link_s = bytes.len() as f64 / cfg.usb.bytes_per_s();
+        // The set is at the host once the boards are read and its bytes have crossed the
+        // link; the next trigger fires then.
         next += Duration::from_secs_f64(spi_s.max(link_s));
+        let now = Instant::now();
+        if next > now {
+            std::thread::sleep(next - now);
+        } else {
+            next = now;
+        }
         // One lock for writing and keeping the set: a Resume sees it either in the ring
         // (and replays it) or after it was streamed.
         if let Ok(mut s) = shared.lock() {
@@ -332,12 +316,6 @@ fn produce(
             s.ring.push(seq, bytes);
         }
         seq = seq.wrapping_add(1);
-        let now = Instant::now();
-        if next > now {
-            std::thread::sleep(next - now);
-        } else {
-            next = now;
-        }
     }
 }
 

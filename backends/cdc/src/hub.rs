@@ -15,7 +15,7 @@
 
 use std::collections::VecDeque;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
 use async_trait::async_trait;
@@ -39,7 +39,7 @@ const REPLY_TIMEOUT: Duration = Duration::from_secs(2);
 const POLL: Duration = Duration::from_millis(20);
 
 /// How the hub is reached.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub struct CdcHubConfig {
     /// Serial port (a path; a symlink to a pty for the emulator).
     pub port: String,
@@ -51,6 +51,9 @@ pub struct CdcHubConfig {
     pub reconnect_s: f64,
     /// The bus model's prediction for this layout and link.
     pub prediction: BusPrediction,
+    /// Measures the host's receive work: a thread's CPU time, ns (the reader thread's and
+    /// the caller's; `None`: not measured).
+    pub cpu_clock: Option<fn() -> u64>,
 }
 
 enum LinkEvent {
@@ -115,8 +118,13 @@ fn await_reply<T>(
     found.ok_or(HubError::Idle)
 }
 
-/// Open `cfg.port`, shake hands, sync clocks, and start the reader thread.
-fn connect(cfg: &CdcHubConfig, clock: &Arc<dyn Clock>) -> Result<(Link, u16), HubError> {
+/// Open `cfg.port`, shake hands, sync clocks, and start the reader thread (which adds its
+/// CPU time to `reader_cpu_ns`).
+fn connect(
+    cfg: &CdcHubConfig,
+    clock: &Arc<dyn Clock>,
+    reader_cpu_ns: &Arc<AtomicU64>,
+) -> Result<(Link, u16), HubError> {
     let mut port = serialport::new(&cfg.port, 3_000_000)
         .timeout(POLL)
         .open()
@@ -173,7 +181,8 @@ fn connect(cfg: &CdcHubConfig, clock: &Arc<dyn Clock>) -> Result<(Link, u16), Hu
     let (tx, rx) = mpsc::unbounded_channel();
     let stop = Arc::new(AtomicBool::new(false));
     let thread_stop = stop.clone();
-    std::thread::spawn(move || read_loop(reader, decoder, tx, thread_stop));
+    let meter = cfg.cpu_clock.map(|c| (c, reader_cpu_ns.clone()));
+    std::thread::spawn(move || read_loop(reader, decoder, tx, thread_stop, meter));
     Ok((
         Link {
             writer: port,
@@ -185,14 +194,24 @@ fn connect(cfg: &CdcHubConfig, clock: &Arc<dyn Clock>) -> Result<(Link, u16), Hu
     ))
 }
 
+/// A thread-CPU clock and the total the reader thread adds its time to.
+type CpuMeter = (fn() -> u64, Arc<AtomicU64>);
+
 fn read_loop(
     mut port: Box<dyn serialport::SerialPort>,
     mut decoder: CdcStreamDecoder,
     tx: mpsc::UnboundedSender<LinkEvent>,
     stop: Arc<AtomicBool>,
+    meter: Option<CpuMeter>,
 ) {
     let mut buf = vec![0u8; 64 * 1024];
+    let mut cpu_seen = meter.as_ref().map_or(0, |(c, _)| c());
     while !stop.load(Ordering::SeqCst) {
+        if let Some((c, total)) = &meter {
+            let now = c();
+            total.fetch_add(now.saturating_sub(cpu_seen), Ordering::Relaxed);
+            cpu_seen = now;
+        }
         match port.read(&mut buf) {
             Ok(0) => {}
             Ok(n) => decoder.push(&buf[..n], |m| {
@@ -227,6 +246,10 @@ pub struct CdcHub {
     delivered: Vec<bool>,
     /// A set cut off by an unplug, and the sensors already passed on: its replay skips them.
     cut_off: Option<(u32, Vec<bool>)>,
+    /// CPU time of the reader threads, ns.
+    reader_cpu_ns: Arc<AtomicU64>,
+    /// CPU time of `next_event`'s own work (decoding frames), ns.
+    own_cpu_ns: u64,
     /// Reconnections so far.
     pub reconnects: u32,
 }
@@ -244,7 +267,8 @@ impl std::fmt::Debug for CdcHub {
 impl CdcHub {
     /// Connect to the hub at `cfg.port`.
     pub fn open(cfg: CdcHubConfig, clock: Arc<dyn Clock>) -> Result<Self, HubError> {
-        let (link, _) = connect(&cfg, &clock)?;
+        let reader_cpu_ns = Arc::new(AtomicU64::new(0));
+        let (link, _) = connect(&cfg, &clock, &reader_cpu_ns)?;
         let description = HubDescription {
             transport: "cdc".into(),
             sensors: cfg.sensors,
@@ -263,6 +287,8 @@ impl CdcHub {
             delivered: vec![false; description.sensors],
             cut_off: None,
             description,
+            reader_cpu_ns,
+            own_cpu_ns: 0,
             reconnects: 0,
         })
     }
@@ -297,7 +323,7 @@ impl CdcHub {
         tracing::warn!("CDC hub lost ({why}); reconnecting");
         loop {
             tokio::time::sleep(backoff).await;
-            match connect(&self.cfg, &self.clock) {
+            match connect(&self.cfg, &self.clock, &self.reader_cpu_ns) {
                 Ok((link, _)) => {
                     self.link = Some(link);
                     break;
@@ -455,6 +481,12 @@ impl HubTransport for CdcHub {
         &self.description
     }
 
+    fn host_cpu_ns(&self) -> Option<u64> {
+        self.cfg
+            .cpu_clock
+            .map(|_| self.own_cpu_ns + self.reader_cpu_ns.load(Ordering::Relaxed))
+    }
+
     async fn configure_sensors(&mut self, settings: &[SensorSettings]) -> Result<(), HubError> {
         for (board, s) in settings.iter().enumerate() {
             self.command(Command::WriteRegister {
@@ -486,7 +518,12 @@ impl HubTransport for CdcHub {
             };
             match received {
                 Some(LinkEvent::Message(m)) => {
-                    if let Some(e) = self.on_message(m) {
+                    let start = self.cfg.cpu_clock.map(|c| c());
+                    let event = self.on_message(m);
+                    if let (Some(c), Some(start)) = (self.cfg.cpu_clock, start) {
+                        self.own_cpu_ns += c().saturating_sub(start);
+                    }
+                    if let Some(e) = event {
                         return Ok(e);
                     }
                 }

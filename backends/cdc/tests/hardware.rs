@@ -38,11 +38,13 @@ async fn a_real_hub_streams_whole_sets_in_order() {
                 mean_frame_bytes: 20_000.0,
                 t_spi_us: 4_000.0,
                 trigger_spread_us: 50.0,
+                trigger_us: 50.0,
                 paper_rate_hz: 30.0,
                 paper_latency_us: 30_000.0,
                 set_period_us: 33_000.0,
                 set_latency_us: 30_000.0,
             },
+            cpu_clock: None,
         },
         clock.clone(),
     )

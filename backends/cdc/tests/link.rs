@@ -25,6 +25,7 @@ fn prediction() -> BusPrediction {
         mean_frame_bytes: 20_000.0,
         t_spi_us: 4_000.0,
         trigger_spread_us: 3.0,
+        trigger_us: 50.0,
         paper_rate_hz: 30.0,
         paper_latency_us: 30_000.0,
         set_period_us: 33_000.0,
@@ -56,6 +57,7 @@ fn acquisition(path: &Path, boards: usize) -> Acquisition {
             trigger: TriggerMode::Broadcast,
             reconnect_s: 5.0,
             prediction: prediction(),
+            cpu_clock: None,
         },
         clock.clone(),
     )

@@ -29,8 +29,11 @@ pub const TRAILER_LEN: usize = 4;
 /// Largest payload a v1 board may send (a 320×240 JPEG at quality 100 is about 60 KB).
 pub const MAX_PAYLOAD: u32 = 256 * 1024;
 
-const CRC16: crc::Crc<u16> = crc::Crc::<u16>::new(&crc::CRC_16_IBM_3740);
-const CRC32: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+/// Slice-by-16 tables: about 4x the bytewise speed on whole frames.
+const CRC16: crc::Crc<u16, crc::Table<16>> =
+    crc::Crc::<u16, crc::Table<16>>::new(&crc::CRC_16_IBM_3740);
+const CRC32: crc::Crc<u32, crc::Table<16>> =
+    crc::Crc::<u32, crc::Table<16>>::new(&crc::CRC_32_ISO_HDLC);
 
 /// The fixed-size header of an SPI frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

@@ -81,6 +81,7 @@ impl From<&BusModel> for gelgrip_controller::hub::BusPrediction {
             mean_frame_bytes: model.mean_frame_bytes,
             t_spi_us: model.t_spi_us(),
             trigger_spread_us: model.trigger_spread_us(),
+            trigger_us: model.trigger_us(),
             paper_rate_hz: model.paper_rate_hz(),
             paper_latency_us: model.paper_latency_us(),
             set_period_us: model.set_period_us(),
