@@ -128,11 +128,12 @@ fn field_tools(port: &str) {
 }
 
 /// A copy of configs/gelgripper-cdc.toml pointing at `port`, in `dir`.
-fn cdc_config(dir: &std::path::Path, port: &str) -> std::path::PathBuf {
+fn cdc_config(dir: &std::path::Path, port: &str, usb: &str) -> std::path::PathBuf {
     let repo = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     let text = std::fs::read_to_string(repo.join("configs/gelgripper-cdc.toml"))
         .expect("the CDC config")
         .replace("/tmp/gelgrip-hub", port)
+        .replace("usb = \"hs\"", &format!("usb = \"{usb}\""))
         .replace(
             "layouts/three-finger.toml",
             &repo
@@ -150,7 +151,7 @@ fn cdc_run(usb: &str) -> serde_json::Value {
     assert_eq!(emu.announced["usb"], usb);
     assert_eq!(emu.announced["sensors"], 7);
     let dir = emu.link.parent().expect("dir").to_path_buf();
-    let config = cdc_config(&dir, emu.path());
+    let config = cdc_config(&dir, emu.path(), usb);
     let out = common::gelgrip(&[
         "run",
         "--config",
