@@ -45,6 +45,68 @@ pub enum Command {
     /// Plot a task log (`run --task … --log`): each sensor's deformation signal over time
     /// with the stages shaded.
     Plot(PlotArgs),
+    /// Feed a recording (`run --record DIR`) back through the gate and the tactile
+    /// pipeline, checking it reproduces what the run decided and sensed.
+    Replay(ReplayArgs),
+    /// Recordings: what one holds.
+    #[command(subcommand)]
+    Record(RecordCommand),
+}
+
+/// `gelgrip record …`.
+#[derive(Debug, Subcommand)]
+pub enum RecordCommand {
+    /// Records, segments, frames, duration, a torn tail and CRC errors of a recording.
+    Info(RecordInfoArgs),
+}
+
+/// `gelgrip record info`.
+#[derive(Debug, Args)]
+pub struct RecordInfoArgs {
+    /// The recording's directory.
+    pub dir: PathBuf,
+    /// Print one JSON object on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `gelgrip replay`.
+#[derive(Debug, Args)]
+pub struct ReplayArgs {
+    /// The recording's directory.
+    pub dir: PathBuf,
+    /// Replay speed: a factor of the recorded pace (on the real clock), or `max` (virtual
+    /// time, as fast as the host can; the gate sees exactly the recorded times).
+    #[arg(long, default_value = "max", value_parser = parse_speed)]
+    pub speed: ReplaySpeed,
+    /// Process the frames with this config's pipeline instead of the recorded one.
+    #[arg(long, conflicts_with = "compare")]
+    pub config: Option<PathBuf>,
+    /// Run two configs' pipelines on the same sets and report how they differ.
+    #[arg(long, num_args = 2, value_names = ["A", "B"])]
+    pub compare: Option<Vec<PathBuf>>,
+    /// Print one JSON object on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// How fast `replay` goes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ReplaySpeed {
+    /// As fast as possible, on virtual time.
+    Max,
+    /// A factor of the recorded pace, on the real clock.
+    Factor(f64),
+}
+
+fn parse_speed(s: &str) -> Result<ReplaySpeed, String> {
+    if s == "max" {
+        return Ok(ReplaySpeed::Max);
+    }
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 && v <= 1000.0 => Ok(ReplaySpeed::Factor(v)),
+        _ => Err(format!("`{s}`: expected `max` or a factor in (0, 1000]")),
+    }
 }
 
 /// `gelgrip plot`.
@@ -487,6 +549,10 @@ pub struct RunArgs {
     /// finger) to this CSV file.
     #[arg(long)]
     pub log: Option<PathBuf>,
+    /// Record everything the run sees (hub events, gate decisions, servo, controller and
+    /// task states, the config) into this directory (docs/recording.md).
+    #[arg(long, value_name = "DIR")]
+    pub record: Option<PathBuf>,
 }
 
 fn parse_force_n(s: &str) -> Result<f64, String> {

@@ -14,6 +14,8 @@ mod gripper_loop;
 mod loop_control;
 mod output;
 mod plot;
+mod recording;
+mod replay_hub;
 mod scene_report;
 mod script_task;
 mod servo_loop;
@@ -73,6 +75,8 @@ fn main() -> ExitCode {
             Command::Emulate(EmulateCommand::Hub(args)) => commands::emulate_hub::run(args).await,
             Command::Servo(args) => commands::servo::run(args),
             Command::Plot(args) => commands::plot::run(args),
+            Command::Replay(args) => commands::replay::run(args).await,
+            Command::Record(cli::RecordCommand::Info(args)) => commands::record_info::run(args),
         }
     });
     match result {

@@ -80,6 +80,9 @@ pub struct RunReport {
     /// The dashboard's URL (when it was served).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub dashboard_url: Option<String>,
+    /// The recorder's counters (`--record`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub recording: Option<gelgrip_record::writer::RecorderStats>,
     /// The task fields (a task run).
     #[serde(flatten, skip_serializing_if = "Option::is_none")]
     pub task: Option<crate::grasp_task::TaskReport>,

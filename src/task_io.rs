@@ -94,6 +94,8 @@ pub struct TaskIo {
     pub layout: HandLayout,
     states: Vec<ServoState>,
     last_set_us: Option<u64>,
+    /// The trigger sequence of the last set sensed.
+    last_sensed_seq: Option<u32>,
     loop_ms: Vec<f64>,
     capture_ms: Vec<f64>,
     pipeline_ms: Vec<f64>,
@@ -132,6 +134,7 @@ impl TaskIo {
             layout,
             states: Vec::new(),
             last_set_us: None,
+            last_sensed_seq: None,
             loop_ms: Vec::new(),
             capture_ms: Vec::new(),
             pipeline_ms: Vec::new(),
@@ -150,6 +153,7 @@ impl TaskIo {
     pub fn sense(&mut self, set: &FrameSet, now_us: u64) -> anyhow::Result<Sensed> {
         let handed_over = Instant::now();
         self.last_set_us = Some(now_us);
+        self.last_sensed_seq = Some(set.trigger_seq);
         let readings = self.tactile.process(set);
         self.pipeline_ms
             .push(handed_over.elapsed().as_secs_f64() * 1e3);
@@ -166,6 +170,11 @@ impl TaskIo {
     /// Keep the last fused set (for the dashboard).
     pub fn remember(&mut self, fused: FusedSet) {
         self.last = Some(fused);
+    }
+
+    /// The trigger sequence of the last set sensed.
+    pub fn last_sensed_seq(&self) -> Option<u32> {
+        self.last_sensed_seq
     }
 
     /// The last fused set remembered.

@@ -10,7 +10,9 @@ use anyhow::Context;
 use gelgrip_controller::acquire::{Acquisition, make_gate};
 use gelgrip_controller::actuator::ServoBus;
 use gelgrip_controller::clock::{Clock, RealClock, VirtualClock};
-use gelgrip_controller::config::{AppConfig, ConfigError, DiskFiles};
+use gelgrip_controller::config::{
+    AppConfig, CapturingFiles, ConfigError, DiskFiles, FileSource, MemoryFiles,
+};
 use gelgrip_controller::hub::SensorSettings;
 use gelgrip_controller::registry::{OpenError, OpenRequest, TransportRegistry};
 use gelgrip_dynamixel::driver::DynamixelBus;
@@ -24,6 +26,7 @@ use crate::cdc_hub::CdcFactory;
 use crate::ch347_hub::Ch347Factory;
 use crate::cli::ClockArg;
 use crate::embedded;
+use crate::replay_hub::ReplayFactory;
 
 /// Every transport this build can open.
 pub fn registry() -> TransportRegistry {
@@ -31,6 +34,7 @@ pub fn registry() -> TransportRegistry {
     registry.register(Box::new(SimHubFactory::default()));
     registry.register(Box::new(Ch347Factory::default()));
     registry.register(Box::new(CdcFactory));
+    registry.register(Box::new(ReplayFactory));
     registry
 }
 
@@ -40,6 +44,7 @@ pub fn registry_with_world(world: SharedWorld) -> TransportRegistry {
     registry.register(Box::new(SimHubFactory::with_world(world.clone())));
     registry.register(Box::new(Ch347Factory::with_world(Some(world))));
     registry.register(Box::new(CdcFactory));
+    registry.register(Box::new(ReplayFactory));
     registry
 }
 
@@ -109,15 +114,43 @@ pub fn open_servos(
 
 /// Load `path`, or the embedded default configuration when `None`.
 pub fn load_config(path: Option<&Path>, registry: &TransportRegistry) -> anyhow::Result<AppConfig> {
-    let config = match path {
-        Some(p) => AppConfig::load(p, Arc::new(DiskFiles), registry)?,
-        None => AppConfig::load(
+    load_config_with_files(path, registry).map(|(config, _)| config)
+}
+
+/// [`load_config`], also returning every file it read (path, text), the config first: what a
+/// recording keeps so it can be replayed with the config it ran with.
+pub fn load_config_with_files(
+    path: Option<&Path>,
+    registry: &TransportRegistry,
+) -> anyhow::Result<(AppConfig, Vec<(String, String)>)> {
+    let (path, source): (&Path, Arc<dyn FileSource>) = match path {
+        Some(p) => (p, Arc::new(DiskFiles)),
+        None => (
             Path::new(embedded::DEFAULT_CONFIG),
             Arc::new(embedded::FILES),
-            registry,
-        )?,
+        ),
     };
+    let capture = Arc::new(CapturingFiles::new(source));
+    let config = AppConfig::load(path, capture.clone(), registry)?;
+    let files = capture.files();
+    let config = check_loaded(config)?;
+    Ok((config, files))
+}
+
+/// Load a config from files held in memory (a recording's), the config at `path`.
+pub fn load_config_from_memory(
+    path: &Path,
+    files: Vec<(String, String)>,
+    registry: &TransportRegistry,
+) -> anyhow::Result<AppConfig> {
+    let config = AppConfig::load(path, Arc::new(MemoryFiles(files)), registry)?;
+    check_loaded(config)
+}
+
+/// The checks beyond the config's own: the pipeline, the servo faults, the servo count.
+fn check_loaded(config: AppConfig) -> anyhow::Result<AppConfig> {
     gelgrip_plugins::config::PipelineConfig::from_section(&config.pipeline, &config.layout)?;
+    gelgrip_record::writer::RecorderOptions::from_section(&config.record)?;
     servo_faults(&config)?;
     check_servo_count(&config)?;
     Ok(config)

@@ -178,14 +178,14 @@ fn check_config_wants_one_servo_per_finger() {
 
 #[test]
 fn unbuilt_backends_get_a_clear_error_listing_what_exists() {
-    let out = gelgrip(&["check-config", &fixture("replay-unbuilt.toml")]);
+    let out = gelgrip(&["check-config", &fixture("unbuilt-transport.toml")]);
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
-        err.contains("hub.transport") && err.contains("replay"),
+        err.contains("hub.transport") && err.contains("ethernet"),
         "{err}"
     );
-    assert!(err.contains("available: sim, ch347, cdc"), "{err}");
+    assert!(err.contains("available: sim, ch347, cdc, replay"), "{err}");
     let out = gelgrip(&["check-config", &repo_file("configs/gelgripper-cdc.toml")]);
     assert_eq!(
         out.status.code(),

@@ -10,7 +10,7 @@ use std::sync::Arc;
 use crate::clock::Clock;
 use crate::config::{GatePolicy, GateSettings, Limit};
 use crate::frame::FrameSet;
-use crate::gate::{Gate, GateLimits};
+use crate::gate::{Gate, GateLimits, SetDecision};
 use crate::hub::{BusPrediction, HubError, HubEvent, HubTransport};
 
 /// Triggers kept queued on the hub.
@@ -43,6 +43,15 @@ pub fn make_gate(settings: &GateSettings, sensors: usize, prediction: &BusPredic
 /// CPU time this thread has used, in ns (for measuring the receive path alone).
 pub type CpuClock = fn() -> u64;
 
+/// What a recorder sees of the acquisition: every hub event with the host time the gate was
+/// given it at, and every decision the gate made on a set. It must not block.
+pub trait AcquisitionTap: Send {
+    /// A hub event, about to go to the gate at `gate_host_us`.
+    fn event(&mut self, event: &HubEvent, gate_host_us: u64);
+    /// A decision on a set, made at `host_us`.
+    fn decision(&mut self, decision: &SetDecision, host_us: u64);
+}
+
 /// Drives a hub and a gate.
 pub struct Acquisition {
     hub: Box<dyn HubTransport>,
@@ -52,6 +61,7 @@ pub struct Acquisition {
     outstanding: u32,
     cpu_clock: Option<CpuClock>,
     receive_cpu_ns: u64,
+    tap: Option<Box<dyn AcquisitionTap>>,
 }
 
 impl std::fmt::Debug for Acquisition {
@@ -80,7 +90,20 @@ impl Acquisition {
             outstanding: 0,
             cpu_clock: None,
             receive_cpu_ns: 0,
+            tap: None,
         }
+    }
+
+    /// Show every hub event and gate decision to `tap` (a recorder).
+    pub fn with_tap(mut self, tap: Box<dyn AcquisitionTap>) -> Self {
+        self.gate.log_decisions();
+        self.tap = Some(tap);
+        self
+    }
+
+    /// Take the tap back (to close a recorder at the end of a run).
+    pub fn take_tap(&mut self) -> Option<Box<dyn AcquisitionTap>> {
+        self.tap.take()
     }
 
     /// Measure the CPU time of the gate's work with `cpu_clock`.
@@ -123,9 +146,17 @@ impl Acquisition {
             self.outstanding = self.outstanding.saturating_sub(1);
         }
         let now = self.clock.now_us();
+        if let Some(tap) = self.tap.as_mut() {
+            tap.event(&event, now);
+        }
         let cpu_start = self.cpu_clock.map(|c| c());
         let emitted = self.gate.push(event, now);
         self.gate.tick(now);
+        if let Some(tap) = self.tap.as_mut() {
+            for d in self.gate.take_decisions() {
+                tap.decision(&d, now);
+            }
+        }
         if let (Some(c), Some(start)) = (self.cpu_clock, cpu_start) {
             self.receive_cpu_ns += c().saturating_sub(start);
         }

@@ -128,6 +128,12 @@ pub enum HubError {
         /// Why.
         detail: String,
     },
+    /// The source has nothing more to give (the end of a recording).
+    #[error("the hub's source is finished: {detail}")]
+    Finished {
+        /// What ended.
+        detail: String,
+    },
     /// Asked for an event with no trigger outstanding.
     #[error("no trigger is outstanding, so no event can arrive")]
     Idle,

@@ -12,5 +12,7 @@ pub mod depth;
 pub mod emulate;
 pub mod emulate_hub;
 pub mod plot;
+pub mod record_info;
+pub mod replay;
 pub mod run;
 pub mod servo;

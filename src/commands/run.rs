@@ -6,12 +6,15 @@ use std::sync::Arc;
 use gelgrip_controller::acquire::Acquisition;
 use gelgrip_controller::clock::{Clock, ClockKind};
 
+use gelgrip_controller::hub::HubError;
+
 use crate::cli::{ClockArg, RunArgs};
 use crate::dashboard::Dashboard;
 use crate::grasp_task::{GraspOptions, GraspTask};
 use crate::gripper_loop::GripperLoop;
 use crate::loop_control::LoopControl;
 use crate::output::{RunReport, ServoReport, latency_ms};
+use crate::recording::RunRecorder;
 use crate::scene_report::SceneReport;
 use crate::script_task::load_script;
 use crate::servo_loop::ServoLoop;
@@ -102,7 +105,7 @@ impl Progress {
 /// Run the command; returns the exit code.
 pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
     let registry = wiring::registry();
-    let config = wiring::load_config(args.config.as_deref(), &registry)?;
+    let (config, config_files) = wiring::load_config_with_files(args.config.as_deref(), &registry)?;
     let clock_arg = args.clock.unwrap_or(ClockArg::Real);
     let clock = wiring::make_clock(clock_arg);
     let world = wiring::open_world(&config, args.scene.as_deref())?;
@@ -116,6 +119,20 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
         .unwrap_or(false);
     let mut acq = wiring::open_acquisition(&config, &registry, clock.clone()).await?;
     let description = acq.hub().describe().clone();
+    let recorder = match &args.record {
+        Some(dir) => {
+            let r = RunRecorder::start(
+                dir,
+                &config,
+                config_files,
+                &description,
+                acq.gate().limits(),
+            )?;
+            acq = acq.with_tap(r.tap());
+            Some(r)
+        }
+        None => None,
+    };
     tracing::info!(
         transport = description.transport,
         sensors = description.sensors,
@@ -242,6 +259,10 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
             }
             step = acq.step() => {
                 match step {
+                    Err(HubError::Finished { detail }) => {
+                        tracing::info!("{detail}");
+                        break "done";
+                    }
                     Err(e) => {
                         tracing::error!("hub fault: {e}");
                         faults.push(e.to_string());
@@ -249,7 +270,11 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
                     }
                     Ok(Some(set)) => {
                         if let Some(t) = task.as_mut() {
-                            match t.on_set(&set, clock.now_us()) {
+                            let outcome = t.on_set(&set, clock.now_us());
+                            if let Some(r) = &recorder {
+                                r.snapshot(clock.now_us(), set.trigger_seq, Some(t));
+                            }
+                            match outcome {
                                 Ok(Some(reason)) => break reason,
                                 Ok(None) => {}
                                 Err(e) => {
@@ -316,8 +341,23 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
         let w = w.lock().ok()?;
         SceneReport::of(&w, &config.layout)
     });
+    drop(acq.take_tap());
+    let recording = recorder.map(|r| r.finish(clock.now_us()));
+    if let Some(r) = &recording {
+        if r.dropped_backpressure + r.dropped_io > 0 {
+            tracing::warn!(
+                backpressure = r.dropped_backpressure,
+                io = r.dropped_io,
+                "the recorder dropped records"
+            );
+        }
+        if let Some(e) = &r.error {
+            faults.push(format!("recording: {e}"));
+        }
+    }
     let stats = acq.gate().stats();
     let report = RunReport {
+        recording,
         sensors: description.sensors,
         sets: stats.sets,
         set_rate_hz: stats.set_rate_hz(),

@@ -44,6 +44,63 @@ impl FileSource for EmbeddedFiles {
     }
 }
 
+/// Files held in memory (a recording's copy of the config it ran with), by path.
+#[derive(Debug, Clone, Default)]
+pub struct MemoryFiles(pub Vec<(String, String)>);
+
+impl FileSource for MemoryFiles {
+    fn read(&self, path: &Path) -> Result<String, ConfigError> {
+        let wanted = normalize(path);
+        self.0
+            .iter()
+            .find(|(name, _)| normalize(Path::new(name)) == wanted)
+            .map(|(_, text)| text.clone())
+            .ok_or_else(|| ConfigError::Io {
+                file: path.display().to_string(),
+                source: std::io::Error::new(
+                    std::io::ErrorKind::NotFound,
+                    "not among the recording's files",
+                ),
+            })
+    }
+}
+
+/// Another source whose every successful read is kept (path, text), so a recording can
+/// carry the exact files its config was built from.
+#[derive(Debug)]
+pub struct CapturingFiles {
+    inner: std::sync::Arc<dyn FileSource>,
+    read: std::sync::Mutex<Vec<(String, String)>>,
+}
+
+impl CapturingFiles {
+    /// Capture what is read from `inner`.
+    pub fn new(inner: std::sync::Arc<dyn FileSource>) -> Self {
+        Self {
+            inner,
+            read: std::sync::Mutex::new(Vec::new()),
+        }
+    }
+
+    /// The files read so far, in order, each once.
+    pub fn files(&self) -> Vec<(String, String)> {
+        self.read.lock().map(|r| r.clone()).unwrap_or_default()
+    }
+}
+
+impl FileSource for CapturingFiles {
+    fn read(&self, path: &Path) -> Result<String, ConfigError> {
+        let text = self.inner.read(path)?;
+        if let Ok(mut read) = self.read.lock() {
+            let name = path.display().to_string();
+            if !read.iter().any(|(n, _)| *n == name) {
+                read.push((name, text.clone()));
+            }
+        }
+        Ok(text)
+    }
+}
+
 /// Drop `.` components and fold `..` so embedded paths compare plainly.
 fn normalize(path: &Path) -> PathBuf {
     let mut out = PathBuf::new();

@@ -15,7 +15,7 @@ use std::sync::Arc;
 use serde::Deserialize;
 
 pub use error::{ConfigError, FieldCheck};
-pub use files::{DiskFiles, EmbeddedFiles, FileSource};
+pub use files::{CapturingFiles, DiskFiles, EmbeddedFiles, FileSource, MemoryFiles};
 
 use crate::hub::TriggerMode;
 use crate::layout::HandLayout;
@@ -126,6 +126,9 @@ pub struct AppConfig {
     pub http: HttpSettings,
     /// `[pipeline]`: the tactile pipeline's stage choices, validated by the sensing plugins.
     pub pipeline: BackendSection,
+    /// `[record]`: how `--record` writes (segment size, flush and fsync policy), validated
+    /// by the recorder.
+    pub record: BackendSection,
 }
 
 #[derive(Deserialize)]
@@ -143,6 +146,8 @@ struct RawConfig {
     http: RawHttp,
     #[serde(default)]
     pipeline: toml::Table,
+    #[serde(default)]
+    record: toml::Table,
 }
 
 #[derive(Deserialize)]
@@ -274,6 +279,13 @@ impl AppConfig {
             base_dir: base_dir.to_path_buf(),
             files: files.clone(),
         };
+        let record = BackendSection {
+            check: check.clone(),
+            prefix: "record".into(),
+            table: raw.record,
+            base_dir: base_dir.to_path_buf(),
+            files: files.clone(),
+        };
         let hub = validate_hub(&check, raw.hub, base_dir, files, registry)?;
         registry.validate(&hub.transport, &hub.section, &layout)?;
         Ok(Self {
@@ -284,6 +296,7 @@ impl AppConfig {
             servos: validate_servos(&check, raw.servos)?,
             http: validate_http(&check, raw.http)?,
             pipeline,
+            record,
         })
     }
 }

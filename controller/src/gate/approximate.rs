@@ -71,6 +71,10 @@ impl ApproximateGate {
         }
     }
 
+    pub(crate) fn stats_mut(&mut self) -> &mut GateStats {
+        &mut self.stats
+    }
+
     /// The window in force.
     pub fn limits(&self) -> GateLimits {
         self.limits
@@ -226,7 +230,7 @@ impl ApproximateGate {
         let spread_us = u32::try_from(best.end_us - best.start_us).unwrap_or(u32::MAX);
         let age_us = now_us.saturating_sub(best.start_us);
         if age_us > self.limits.max_age_us {
-            self.stats.sets_rejected.add(Reason::Late, 1);
+            self.stats.reject(None, Reason::Late);
             self.stats.drops.add(Reason::Late, frames.len() as u64);
             return None;
         }

@@ -20,7 +20,7 @@ mod trigger;
 
 pub use approximate::ApproximateGate;
 pub use counts::{Reason, ReasonCounts};
-pub use stats::GateStats;
+pub use stats::{GateStats, Outcome, SetDecision};
 pub use trigger::TriggerGate;
 
 use crate::frame::FrameSet;
@@ -78,6 +78,29 @@ impl Gate {
             Self::Trigger(g) => g.stats(),
             Self::Approximate(g) => g.stats(),
         }
+    }
+
+    /// Keep a log of decisions on sets (for a recording), to be drained with
+    /// [`Gate::take_decisions`].
+    pub fn log_decisions(&mut self) {
+        let stats = match self {
+            Self::Trigger(g) => g.stats_mut(),
+            Self::Approximate(g) => g.stats_mut(),
+        };
+        stats.decisions.get_or_insert_with(Vec::new);
+    }
+
+    /// The decisions logged since the last call (empty when not logging).
+    pub fn take_decisions(&mut self) -> Vec<SetDecision> {
+        let stats = match self {
+            Self::Trigger(g) => g.stats_mut(),
+            Self::Approximate(g) => g.stats_mut(),
+        };
+        stats
+            .decisions
+            .as_mut()
+            .map(std::mem::take)
+            .unwrap_or_default()
     }
 
     /// Frames held, waiting to complete a set.

@@ -2,7 +2,7 @@
 
 use hdrhistogram::Histogram;
 
-use super::counts::ReasonCounts;
+use super::counts::{Reason, ReasonCounts};
 use crate::frame::FrameSet;
 
 /// Running statistics of a gate.
@@ -26,6 +26,37 @@ pub struct GateStats {
     pub frames_in: u64,
     /// Frames delivered inside emitted sets.
     pub frames_out: u64,
+    /// Decisions on sets since they were last taken, while logging (`None`: not logging).
+    pub decisions: Option<Vec<SetDecision>>,
+}
+
+/// What the gate decided about one set.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SetDecision {
+    /// The set's trigger sequence (`None` for an approximate-time set refused before it was
+    /// numbered).
+    pub trigger_seq: Option<u32>,
+    /// Emitted, or rejected for a reason.
+    pub outcome: Outcome,
+}
+
+/// A set's fate.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Outcome {
+    /// Passed the gate.
+    Emitted,
+    /// Refused.
+    Rejected(Reason),
+}
+
+impl Outcome {
+    /// `emitted`, or the reason's key.
+    pub fn key(self) -> &'static str {
+        match self {
+            Outcome::Emitted => "emitted",
+            Outcome::Rejected(r) => r.key(),
+        }
+    }
 }
 
 impl Default for GateStats {
@@ -40,6 +71,7 @@ impl Default for GateStats {
             sets_rejected: ReasonCounts::default(),
             frames_in: 0,
             frames_out: 0,
+            decisions: None,
         }
     }
 }
@@ -51,8 +83,25 @@ fn histogram() -> Histogram<u64> {
 }
 
 impl GateStats {
+    /// Record a rejected set (`seq` when it has one).
+    pub fn reject(&mut self, seq: Option<u32>, reason: Reason) {
+        self.sets_rejected.add(reason, 1);
+        if let Some(log) = self.decisions.as_mut() {
+            log.push(SetDecision {
+                trigger_seq: seq,
+                outcome: Outcome::Rejected(reason),
+            });
+        }
+    }
+
     /// Record an emitted set.
     pub fn record(&mut self, set: &FrameSet) {
+        if let Some(log) = self.decisions.as_mut() {
+            log.push(SetDecision {
+                trigger_seq: Some(set.trigger_seq),
+                outcome: Outcome::Emitted,
+            });
+        }
         self.sets += 1;
         self.frames_out += set.frames.len() as u64;
         self.first_emit_us.get_or_insert(set.emitted_host_us);

@@ -85,6 +85,10 @@ impl TriggerGate {
         }
     }
 
+    pub(crate) fn stats_mut(&mut self) -> &mut GateStats {
+        &mut self.stats
+    }
+
     /// The window in force.
     pub fn limits(&self) -> GateLimits {
         self.limits
@@ -124,7 +128,7 @@ impl TriggerGate {
     }
 
     fn reject(&mut self, set: PendingSet, reason: Reason) {
-        self.stats.sets_rejected.add(reason, 1);
+        self.stats.reject(Some(set.seq), reason);
         self.stats.drops.add(reason, set.present as u64);
         self.close(set.seq);
     }

@@ -1,0 +1,353 @@
+//! `gelgrip replay DIR [--speed FACTOR|max] [--config FILE | --compare A B] [--json]`: a
+//! recording's hub events go back through the same gate (its policy and the limits the run
+//! used) and the emitted sets through the tactile pipeline.
+//!
+//! With the recorded config (the default) or `--config`, it checks the replay against the
+//! recording: the gate's decisions set by set, and each sensor's fused reading (in contact,
+//! area, depth, volume, force) bit for bit wherever the run recorded one. With `--compare A
+//! B` it runs both configs' pipelines on the same sets and reports how their depth, contact
+//! area and force differ.
+
+use std::collections::HashMap;
+use std::path::Path;
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+use anyhow::Context;
+use serde::Serialize;
+
+use gelgrip_controller::acquire::{Acquisition, AcquisitionTap, make_gate};
+use gelgrip_controller::clock::{Clock, RealClock, VirtualClock};
+use gelgrip_controller::config::{AppConfig, GateSettings, Limit};
+use gelgrip_controller::fusion::SensorReading;
+use gelgrip_controller::gate::SetDecision;
+use gelgrip_controller::hub::{HubError, HubEvent, HubTransport};
+use gelgrip_record::format::{Meta, Record};
+use gelgrip_record::reader::Recording;
+use gelgrip_record::replay::{ReplayHub, Speed, prediction_for_limits};
+
+use crate::cli::{ReplayArgs, ReplaySpeed};
+use crate::tactile::Tactile;
+use crate::wiring;
+
+/// The replayed gate's decisions (set, outcome) and the hub events counted.
+type Seen = (Vec<(u32, &'static str)>, u64);
+
+/// Collects the replayed gate's decisions, and counts the hub events.
+struct Decisions(Arc<Mutex<Seen>>);
+
+impl AcquisitionTap for Decisions {
+    fn event(&mut self, _event: &HubEvent, _gate_host_us: u64) {
+        if let Ok(mut d) = self.0.lock() {
+            d.1 += 1;
+        }
+    }
+
+    fn decision(&mut self, decision: &SetDecision, _host_us: u64) {
+        if let (Some(seq), Ok(mut d)) = (decision.trigger_seq, self.0.lock()) {
+            d.0.push((seq, decision.outcome.key()));
+        }
+    }
+}
+
+/// What the recording says the run decided and sensed.
+#[derive(Default)]
+struct Recorded {
+    /// Records whose CRC failed (skipped).
+    crc_errors: u64,
+    decisions: Vec<(u32, String)>,
+    /// Per set, each sensor's (in contact, area, depth, volume, force).
+    readings: HashMap<u32, Vec<Option<[f64; 5]>>>,
+}
+
+fn as_array(r: &SensorReading) -> [f64; 5] {
+    [
+        f64::from(u8::from(r.in_contact)),
+        r.area_mm2,
+        r.max_depth_mm,
+        r.volume_mm3,
+        r.force_n,
+    ]
+}
+
+fn read_recorded(recording: &Recording) -> anyhow::Result<Recorded> {
+    let mut out = Recorded::default();
+    let summary = recording.scan(|r| match r {
+        Record::Meta(Meta::Decision {
+            trigger_seq,
+            outcome,
+            ..
+        }) => out.decisions.push((trigger_seq, outcome)),
+        Record::Meta(Meta::State { state, .. }) => {
+            let seq = state["trigger_seq"].as_u64().map(|s| s as u32);
+            if let (Some(seq), Some(sensors)) = (seq, state["sensors"].as_array()) {
+                let readings = sensors
+                    .iter()
+                    .map(|s| {
+                        s.is_object().then(|| {
+                            [
+                                f64::from(u8::from(s["in_contact"].as_bool().unwrap_or(false))),
+                                s["area_mm2"].as_f64().unwrap_or(f64::NAN),
+                                s["max_depth_mm"].as_f64().unwrap_or(f64::NAN),
+                                s["volume_mm3"].as_f64().unwrap_or(f64::NAN),
+                                s["force_n"].as_f64().unwrap_or(f64::NAN),
+                            ]
+                        })
+                    })
+                    .collect();
+                out.readings.insert(seq, readings);
+            }
+        }
+        _ => {}
+    })?;
+    out.crc_errors = summary.crc_errors;
+    Ok(out)
+}
+
+/// Differences between two pipelines over the same sets.
+#[derive(Debug, Default, Serialize)]
+struct Difference {
+    /// Sensor readings compared (both pipelines gave one).
+    readings: u64,
+    /// Mean and largest |A − B| of the deepest indentation, mm.
+    depth_mae_mm: f64,
+    depth_max_abs_mm: f64,
+    /// Mean and largest |A − B| of the contact area, mm².
+    area_mae_mm2: f64,
+    area_max_abs_mm2: f64,
+    /// Mean and largest |A − B| of the force proxy, N.
+    force_mae_n: f64,
+    force_max_abs_n: f64,
+    /// Readings where one pipeline saw contact and the other did not.
+    contact_disagreements: u64,
+}
+
+impl Difference {
+    fn add(&mut self, a: &SensorReading, b: &SensorReading) {
+        self.readings += 1;
+        let one = |sum: &mut f64, max: &mut f64, d: f64| {
+            *sum += d.abs();
+            *max = max.max(d.abs());
+        };
+        one(
+            &mut self.depth_mae_mm,
+            &mut self.depth_max_abs_mm,
+            a.max_depth_mm - b.max_depth_mm,
+        );
+        one(
+            &mut self.area_mae_mm2,
+            &mut self.area_max_abs_mm2,
+            a.area_mm2 - b.area_mm2,
+        );
+        one(
+            &mut self.force_mae_n,
+            &mut self.force_max_abs_n,
+            a.force_n - b.force_n,
+        );
+        if a.in_contact != b.in_contact {
+            self.contact_disagreements += 1;
+        }
+    }
+
+    fn finish(mut self) -> Self {
+        let n = self.readings.max(1) as f64;
+        self.depth_mae_mm /= n;
+        self.area_mae_mm2 /= n;
+        self.force_mae_n /= n;
+        self
+    }
+}
+
+/// The `--json` object.
+#[derive(Debug, Serialize)]
+struct ReplayReport {
+    /// Sets the replayed gate emitted.
+    sets: u64,
+    /// Hub events replayed.
+    events: u64,
+    /// Recorded time replayed, s; and the wall time it took, s.
+    duration_s: f64,
+    wall_s: f64,
+    /// Gate decisions in the recording and in the replay, and the positions where they
+    /// differ (set or outcome).
+    decisions_recorded: usize,
+    decisions_replayed: usize,
+    decision_mismatches: usize,
+    /// Sets whose fused readings the recording holds and the replay compared, and those
+    /// whose readings differ in any bit (the recorded config or `--config`).
+    fused_compared: u64,
+    fused_mismatches: u64,
+    /// `--compare A B`: how B's pipeline differs from A's.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    compare: Option<Difference>,
+    /// Records skipped for a failed CRC.
+    records_skipped: u64,
+}
+
+fn recorded_config(recording: &Recording) -> anyhow::Result<(AppConfig, u32, u64)> {
+    let Meta::Header {
+        config,
+        max_spread_us,
+        max_age_us,
+        ..
+    } = recording.header()?
+    else {
+        anyhow::bail!("the recording has no header");
+    };
+    let files: Vec<(String, String)> =
+        serde_json::from_str(&config).context("the recording's config files")?;
+    let first = files
+        .first()
+        .map(|(p, _)| p.clone())
+        .context("the recording holds no config file")?;
+    let registry = wiring::registry();
+    let config = wiring::load_config_from_memory(Path::new(&first), files, &registry)
+        .context("the recording's config")?;
+    Ok((config, max_spread_us, max_age_us))
+}
+
+fn pipelines(args: &ReplayArgs, recorded: &AppConfig) -> anyhow::Result<Vec<Tactile>> {
+    let registry = wiring::registry();
+    let configs: Vec<AppConfig> = match (&args.config, &args.compare) {
+        (Some(p), _) => vec![wiring::load_config(Some(p), &registry)?],
+        (None, Some(pair)) => pair
+            .iter()
+            .map(|p| wiring::load_config(Some(p), &registry))
+            .collect::<anyhow::Result<_>>()?,
+        (None, None) => vec![recorded.clone()],
+    };
+    for c in &configs {
+        if c.layout.sensors.len() != recorded.layout.sensors.len() {
+            anyhow::bail!(crate::cli::UsageError(format!(
+                "{}: {} sensors, the recording {}",
+                c.file,
+                c.layout.sensors.len(),
+                recorded.layout.sensors.len()
+            )));
+        }
+    }
+    configs.iter().map(Tactile::open).collect()
+}
+
+/// Run the command; returns the exit code.
+pub async fn run(args: ReplayArgs) -> anyhow::Result<u8> {
+    let recording = Recording::open(&args.dir)?;
+    let (config, max_spread_us, max_age_us) = recorded_config(&recording)?;
+    let recorded = read_recorded(&recording)?;
+    let mut tactiles = pipelines(&args, &config)?;
+    let (clock, speed): (Arc<dyn Clock>, Speed) = match args.speed {
+        ReplaySpeed::Max => (VirtualClock::new(), Speed::Max),
+        ReplaySpeed::Factor(f) => (Arc::new(RealClock::new()), Speed::Factor(f)),
+    };
+    let hub = ReplayHub::open(
+        &recording,
+        speed,
+        clock.clone(),
+        config.hub.trigger,
+        prediction_for_limits(max_spread_us, max_age_us),
+    )?;
+    let gate_settings = GateSettings {
+        max_spread_us: Limit::Fixed(max_spread_us),
+        max_age_us: Limit::Fixed(max_age_us),
+        ..config.gate.clone()
+    };
+    let gate = make_gate(
+        &gate_settings,
+        config.layout.sensors.len(),
+        &hub.describe().prediction,
+    );
+    let decisions = Arc::new(Mutex::new((Vec::new(), 0)));
+    let mut acq = Acquisition::new(Box::new(hub), gate, clock.clone(), 0)
+        .with_tap(Box::new(Decisions(decisions.clone())));
+    let wall = Instant::now();
+    let start_us = clock.now_us();
+    let (mut sets, mut fused_compared, mut fused_mismatches) = (0u64, 0u64, 0u64);
+    let mut difference = args.compare.as_ref().map(|_| Difference::default());
+    loop {
+        let set = match acq.step().await {
+            Ok(Some(set)) => set,
+            Ok(None) => continue,
+            Err(HubError::Finished { .. }) => break,
+            Err(e) => return Err(e).context("replaying"),
+        };
+        sets += 1;
+        let readings: Vec<Vec<Option<SensorReading>>> =
+            tactiles.iter_mut().map(|t| t.process(&set)).collect();
+        if let Some(diff) = difference.as_mut() {
+            for (a, b) in readings[0].iter().zip(&readings[1]) {
+                if let (Some(a), Some(b)) = (a, b) {
+                    diff.add(a, b);
+                }
+            }
+        } else if let Some(expected) = recorded.readings.get(&set.trigger_seq) {
+            fused_compared += 1;
+            let got: Vec<Option<[f64; 5]>> = readings[0]
+                .iter()
+                .map(|r| r.as_ref().map(as_array))
+                .collect();
+            let same = got.len() == expected.len()
+                && got.iter().zip(expected).all(|(g, e)| match (g, e) {
+                    (Some(g), Some(e)) => g.iter().zip(e).all(|(a, b)| a.to_bits() == b.to_bits()),
+                    (None, None) => true,
+                    _ => false,
+                });
+            if !same {
+                fused_mismatches += 1;
+            }
+        }
+    }
+    let (replayed, events) = decisions.lock().map(|d| d.clone()).unwrap_or_default();
+    let decision_mismatches = recorded
+        .decisions
+        .iter()
+        .zip(&replayed)
+        .filter(|((s1, o1), (s2, o2))| s1 != s2 || o1 != o2)
+        .count()
+        + recorded.decisions.len().abs_diff(replayed.len());
+    let report = ReplayReport {
+        sets,
+        events,
+        duration_s: clock.now_us().saturating_sub(start_us) as f64 / 1e6,
+        wall_s: wall.elapsed().as_secs_f64(),
+        decisions_recorded: recorded.decisions.len(),
+        decisions_replayed: replayed.len(),
+        decision_mismatches,
+        fused_compared,
+        fused_mismatches,
+        compare: difference.map(Difference::finish),
+        records_skipped: recorded.crc_errors,
+    };
+    if args.json {
+        println!("{}", serde_json::to_string(&report)?);
+    } else {
+        println!(
+            "replayed {} ({} sets, {:.2} s of recording in {:.2} s)",
+            args.dir.display(),
+            report.sets,
+            report.duration_s,
+            report.wall_s
+        );
+        println!(
+            "  gate decisions: {} recorded, {} replayed, {} differ",
+            report.decisions_recorded, report.decisions_replayed, report.decision_mismatches
+        );
+        match &report.compare {
+            Some(d) => println!(
+                "  B − A over {} readings: depth MAE {:.4} mm (max {:.4}), area MAE {:.3} mm² (max {:.3}), force MAE {:.4} N (max {:.4}), contact disagrees {}",
+                d.readings,
+                d.depth_mae_mm,
+                d.depth_max_abs_mm,
+                d.area_mae_mm2,
+                d.area_max_abs_mm2,
+                d.force_mae_n,
+                d.force_max_abs_n,
+                d.contact_disagreements
+            ),
+            None => println!(
+                "  fused readings: {} sets compared, {} differ",
+                report.fused_compared, report.fused_mismatches
+            ),
+        }
+    }
+    Ok(0)
+}

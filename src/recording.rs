@@ -1,0 +1,198 @@
+//! `run --record DIR`: the recorder's tap on the acquisition (every hub event with its gate
+//! time, every gate decision) and the per-set state snapshots (servos, fingers, each
+//! sensor's fused reading, the task's stage), all through one non-blocking recorder.
+
+use std::path::Path;
+use std::sync::Arc;
+
+use gelgrip_controller::acquire::AcquisitionTap;
+use gelgrip_controller::config::AppConfig;
+use gelgrip_controller::gate::{GateLimits, SetDecision};
+use gelgrip_controller::hub::{HubDescription, HubEvent};
+use gelgrip_record::format::{FrameRecord, Meta, Record};
+use gelgrip_record::writer::{HeaderInfo, Recorder, RecorderOptions, RecorderStats};
+use serde::Serialize;
+
+use crate::output::ServoReport;
+use crate::task_io::phase_name;
+use crate::tasks::Task;
+
+/// A run's recorder.
+#[derive(Debug, Clone)]
+pub struct RunRecorder {
+    recorder: Arc<Recorder>,
+}
+
+struct Tap(Arc<Recorder>);
+
+impl AcquisitionTap for Tap {
+    fn event(&mut self, event: &HubEvent, gate_host_us: u64) {
+        let record = match event {
+            HubEvent::Frame(f) => Record::Frame(FrameRecord {
+                sensor: f.frame.sensor.0,
+                exposure_us: f.frame.exposure_us,
+                trigger_seq: f.frame.trigger_seq,
+                capture_ts_us: f.frame.capture_ts_us,
+                capture_host_us: f.capture_host_us,
+                received_host_us: f.received_host_us,
+                gate_host_us,
+                jpeg: f.frame.jpeg.to_vec(),
+            }),
+            HubEvent::Corrupt {
+                sensor,
+                trigger_seq,
+                detail,
+            } => Record::Meta(Meta::Corrupt {
+                host_us: gate_host_us,
+                sensor: sensor.map(|s| s.0),
+                trigger_seq: *trigger_seq,
+                detail: detail.clone(),
+            }),
+            HubEvent::Disconnected {
+                sensor,
+                trigger_seq,
+            } => Record::Meta(Meta::Disconnected {
+                host_us: gate_host_us,
+                sensor: sensor.0,
+                trigger_seq: *trigger_seq,
+            }),
+            HubEvent::SetEnd {
+                trigger_seq,
+                frames_sent,
+            } => Record::Meta(Meta::SetEnd {
+                host_us: gate_host_us,
+                trigger_seq: *trigger_seq,
+                frames_sent: *frames_sent,
+            }),
+        };
+        self.0.record(record);
+    }
+
+    fn decision(&mut self, decision: &SetDecision, host_us: u64) {
+        if let Some(trigger_seq) = decision.trigger_seq {
+            self.0.record(Record::Meta(Meta::Decision {
+                host_us,
+                trigger_seq,
+                outcome: decision.outcome.key().into(),
+            }));
+        }
+    }
+}
+
+/// One sensor's fused reading in a snapshot.
+#[derive(Debug, Serialize)]
+pub struct SensorSnapshot {
+    /// In contact.
+    pub in_contact: bool,
+    /// Contact area, mm².
+    pub area_mm2: f64,
+    /// Deepest indentation, mm.
+    pub max_depth_mm: f64,
+    /// Indentation volume, mm³.
+    pub volume_mm3: f64,
+    /// Force proxy, N.
+    pub force_n: f64,
+}
+
+impl From<&gelgrip_controller::fusion::SensorReading> for SensorSnapshot {
+    fn from(r: &gelgrip_controller::fusion::SensorReading) -> Self {
+        Self {
+            in_contact: r.in_contact,
+            area_mm2: r.area_mm2,
+            max_depth_mm: r.max_depth_mm,
+            volume_mm3: r.volume_mm3,
+            force_n: r.force_n,
+        }
+    }
+}
+
+fn wall_ms() -> u64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_millis() as u64)
+}
+
+impl RunRecorder {
+    /// Start recording into `dir`: `files` are the config's files as read.
+    pub fn start(
+        dir: &Path,
+        config: &AppConfig,
+        files: Vec<(String, String)>,
+        hub: &HubDescription,
+        limits: GateLimits,
+    ) -> anyhow::Result<Self> {
+        let options = RecorderOptions::from_section(&config.record)?;
+        let header = HeaderInfo {
+            sensors: config
+                .layout
+                .sensors
+                .iter()
+                .map(|s| s.id.to_string())
+                .collect(),
+            transport: hub.transport.clone(),
+            config: serde_json::to_string(&files)?,
+            started_unix_ms: wall_ms(),
+            max_spread_us: limits.max_spread_us,
+            max_age_us: limits.max_age_us,
+        };
+        let recorder = Recorder::create(dir, header, options)?;
+        tracing::info!(dir = %dir.display(), "recording");
+        Ok(Self {
+            recorder: Arc::new(recorder),
+        })
+    }
+
+    /// The acquisition's tap.
+    pub fn tap(&self) -> Box<dyn AcquisitionTap> {
+        Box::new(Tap(self.recorder.clone()))
+    }
+
+    /// Record the state after set `trigger_seq` (servos, fingers, sensors, task stage).
+    pub fn snapshot(&self, host_us: u64, trigger_seq: u32, task: Option<&Task>) {
+        let Some(task) = task else { return };
+        let io = task.io();
+        // Only this set's readings: a set the task did not sense gets none.
+        let sensors: Option<Vec<Option<SensorSnapshot>>> = io
+            .last_fused()
+            .filter(|_| io.last_sensed_seq() == Some(trigger_seq))
+            .map(|f| {
+                f.sensors
+                    .iter()
+                    .map(|r| r.as_ref().map(SensorSnapshot::from))
+                    .collect()
+            });
+        let fingers: Vec<_> = task
+            .fingers()
+            .into_iter()
+            .map(|(phase, force_n, target_force_n)| {
+                serde_json::json!({
+                    "phase": phase_name(phase),
+                    "force_n": force_n,
+                    "target_force_n": target_force_n,
+                })
+            })
+            .collect();
+        let servos: Vec<ServoReport> = task.states().iter().map(ServoReport::from).collect();
+        let stage = task.view().map(|v| v.stage);
+        let state = serde_json::json!({
+            "trigger_seq": trigger_seq,
+            "sensors": sensors,
+            "fingers": fingers,
+            "servos": servos,
+            "stage": stage,
+        });
+        self.recorder
+            .record(Record::Meta(Meta::State { host_us, state }));
+    }
+
+    /// Close the recording (the acquisition's tap must be dropped first).
+    pub fn finish(self, host_us: u64) -> RecorderStats {
+        match Arc::try_unwrap(self.recorder) {
+            Ok(r) => r.finish(host_us),
+            Err(shared) => {
+                tracing::warn!("the recorder is still shared; flushing without an end record");
+                shared.stats()
+            }
+        }
+    }
+}
