@@ -398,6 +398,30 @@ pub enum BenchCommand {
     /// What serving the dashboard costs: MJPEG and SSE rates at the clients and the
     /// process's CPU with and without them (wall clock, Linux).
     Dashboard(BenchDashboardArgs),
+    /// The product under random faults (corrupt bytes, dropouts, slow sensors, hub
+    /// unplugs, servo overloads, HTTP bursts) with its invariants checked (wall clock).
+    Soak(BenchSoakArgs),
+}
+
+/// `gelgrip bench soak`.
+#[derive(Debug, Args)]
+pub struct BenchSoakArgs {
+    /// How long, in minutes.
+    #[arg(long, default_value = "10", value_parser = parse_minutes)]
+    pub minutes: f64,
+    /// Seed of the fault schedule.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Print one JSON object on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn parse_minutes(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if (0.1..=10_080.0).contains(&v) => Ok(v),
+        _ => Err(format!("`{s}`: expected minutes in [0.1, 10080]")),
+    }
 }
 
 /// `gelgrip bench dashboard`.

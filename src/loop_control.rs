@@ -3,11 +3,14 @@
 //! is answered at once: started, or a refusal that says why (unknown name, the gripper is
 //! busy, not a simulated run).
 
+use std::sync::Arc;
+
+use gelgrip_controller::clock::Clock;
 use gelgrip_controller::config::AppConfig;
 use gelgrip_sim::config::SensorFaults;
 use gelgrip_sim::scene_spec::SceneSpec;
 use gelgrip_sim::world::SharedWorld;
-use gelgrip_web::control::{LoopCommand, LoopRequest, Refusal, SimFaults};
+use gelgrip_web::control::{LoopCommand, LoopRequest, Refusal, ServoFaultName, SimFaults};
 use gelgrip_web::live::{SensorFaultView, SimView};
 use tokio::sync::mpsc;
 
@@ -27,6 +30,7 @@ pub struct LoopControl {
     world: Option<SharedWorld>,
     scene: String,
     faults: Vec<SimFaults>,
+    clock: Arc<dyn Clock>,
 }
 
 impl LoopControl {
@@ -35,6 +39,7 @@ impl LoopControl {
     pub fn new(
         config: &AppConfig,
         world: Option<SharedWorld>,
+        clock: Arc<dyn Clock>,
     ) -> (Self, mpsc::Sender<LoopCommand>) {
         let (tx, rx) = mpsc::channel(QUEUE);
         let scene = world
@@ -47,6 +52,7 @@ impl LoopControl {
             config: config.clone(),
             world,
             scene,
+            clock,
         };
         (control, tx)
     }
@@ -65,6 +71,8 @@ impl LoopControl {
             LoopRequest::Task { name } => self.start_task(&name, task),
             LoopRequest::SimFault { sensor, faults } => self.inject(sensor, faults),
             LoopRequest::SimScene { name } => self.switch_scene(&name, task),
+            LoopRequest::SimUnplug { ms } => self.unplug(ms),
+            LoopRequest::SimServoFault { finger, kind } => self.servo_fault(finger, kind),
         };
         if let Err(refusal) = &answer {
             tracing::warn!(?refusal, "dashboard request refused");
@@ -107,6 +115,37 @@ impl LoopControl {
                 self.config.hub.transport
             ))
         })
+    }
+
+    fn unplug(&mut self, ms: u32) -> Result<(), Refusal> {
+        let until = self.clock.now_us() + u64::from(ms) * 1000;
+        self.world()?
+            .lock()
+            .map_err(|_| Refusal::Unavailable("the simulator has failed".into()))?
+            .unplug_hub(until);
+        tracing::warn!(ms, "simulated hub unplugged");
+        Ok(())
+    }
+
+    fn servo_fault(&mut self, finger: usize, kind: ServoFaultName) -> Result<(), Refusal> {
+        if self.config.servos.bus != "sim" {
+            return Err(Refusal::Unavailable(
+                "servo faults are injected into simulated servos only".into(),
+            ));
+        }
+        let mut w = self
+            .world()?
+            .lock()
+            .map_err(|_| Refusal::Unavailable("the simulator has failed".into()))?;
+        if finger >= w.fingers() {
+            return Err(Refusal::Invalid(format!("no finger {finger}")));
+        }
+        w.change_motor(finger, |m| match kind {
+            ServoFaultName::Overload => m.overloaded(),
+            ServoFaultName::Overheating => m.with_temperature(95.0),
+        });
+        tracing::warn!(finger, ?kind, "simulated servo fault injected");
+        Ok(())
     }
 
     fn inject(&mut self, sensor: usize, faults: SimFaults) -> Result<(), Refusal> {

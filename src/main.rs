@@ -66,6 +66,7 @@ fn main() -> ExitCode {
             Command::Bench(BenchCommand::Pipeline(args)) => commands::bench_pipeline::run(args),
             Command::Bench(BenchCommand::Grasp(args)) => commands::bench_grasp::run(args),
             Command::Bench(BenchCommand::Sync(args)) => commands::bench_sync::run(args),
+            Command::Bench(BenchCommand::Soak(args)) => commands::bench_soak::run(args).await,
             Command::Bench(BenchCommand::Dashboard(args)) => {
                 commands::bench_dashboard::run(args).await
             }

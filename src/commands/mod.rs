@@ -4,6 +4,7 @@ pub mod bench_bus;
 pub mod bench_dashboard;
 pub mod bench_grasp;
 pub mod bench_pipeline;
+pub mod bench_soak;
 pub mod bench_sync;
 pub mod calibrate;
 pub mod calibrate_force;

@@ -217,7 +217,7 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
         None
     } else {
         let gripper = task.as_ref().map(Task::handle);
-        let (c, requests) = LoopControl::new(&config, world.clone());
+        let (c, requests) = LoopControl::new(&config, world.clone(), clock.clone());
         let bind = args.http.unwrap_or(config.http.bind);
         let mut d = Dashboard::start(
             &config,

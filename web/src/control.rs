@@ -70,7 +70,33 @@ pub enum LoopRequest {
         /// Its name.
         name: String,
     },
+    /// Unplug the simulated hub for this long, ms (its triggers reach no board meanwhile).
+    SimUnplug {
+        /// The outage, ms.
+        ms: u32,
+    },
+    /// Fault finger `finger`'s simulated servo: `overload` (a reboot clears it) or
+    /// `overheating` (every reboot raises it again).
+    SimServoFault {
+        /// Finger index.
+        finger: usize,
+        /// `overload` or `overheating`.
+        kind: ServoFaultName,
+    },
 }
+
+/// A simulated servo fault the page can inject.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ServoFaultName {
+    /// Torque off until a reboot.
+    Overload,
+    /// 95 °C: every reboot raises the fault again.
+    Overheating,
+}
+
+/// Longest simulated hub outage, ms.
+pub const MAX_UNPLUG_MS: u32 = 60_000;
 
 /// Why the run loop refused a request.
 #[derive(Debug, Clone, PartialEq)]

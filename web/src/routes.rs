@@ -20,7 +20,9 @@ use tokio::sync::{mpsc, oneshot};
 use gelgrip_controller::grasp::GraspRequest;
 use gelgrip_controller::gripper::{GripperError, GripperHandle};
 
-use crate::control::{LoopCommand, LoopRequest, Refusal, SimFaults, valid_name};
+use crate::control::{
+    LoopCommand, LoopRequest, MAX_UNPLUG_MS, Refusal, ServoFaultName, SimFaults, valid_name,
+};
 use crate::limits::{Auth, RateLimiter};
 use crate::live::{DepthImage, Live};
 
@@ -88,6 +90,8 @@ pub fn app(state: AppState) -> Router {
         .route("/api/task", post(task))
         .route("/api/sim/fault", post(sim_fault))
         .route("/api/sim/scene", post(sim_scene))
+        .route("/api/sim/unplug", post(sim_unplug))
+        .route("/api/sim/servo", post(sim_servo))
         .fallback(not_found)
         .with_state(state)
 }
@@ -574,6 +578,69 @@ async fn sim_scene(State(s): State<AppState>, headers: HeaderMap, body: Bytes) -
     };
     let ok = json!({ "ok": true, "scene": name });
     ask_loop(&s, LoopRequest::SimScene { name }, ok).await
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct UnplugBody {
+    ms: u32,
+}
+
+async fn sim_unplug(State(s): State<AppState>, headers: HeaderMap, body: Bytes) -> Response {
+    if let Err(e) = authorize(&s, &headers, false) {
+        return e.into_response();
+    }
+    let b: UnplugBody = match parse(&body) {
+        Ok(b) => b,
+        Err(e) => return e.into_response(),
+    };
+    if b.ms == 0 || b.ms > MAX_UNPLUG_MS {
+        return error(
+            StatusCode::BAD_REQUEST,
+            format!("ms = {}: expected 1 to {MAX_UNPLUG_MS}", b.ms),
+        );
+    }
+    let ok = json!({ "ok": true, "unplugged_ms": b.ms });
+    ask_loop(&s, LoopRequest::SimUnplug { ms: b.ms }, ok).await
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ServoFaultBody {
+    finger: String,
+    fault: String,
+}
+
+async fn sim_servo(State(s): State<AppState>, headers: HeaderMap, body: Bytes) -> Response {
+    if let Err(e) = authorize(&s, &headers, false) {
+        return e.into_response();
+    }
+    let b: ServoFaultBody = match parse(&body) {
+        Ok(b) => b,
+        Err(e) => return e.into_response(),
+    };
+    let kind = match b.fault.as_str() {
+        "overload" => ServoFaultName::Overload,
+        "overheating" => ServoFaultName::Overheating,
+        other => {
+            return error(
+                StatusCode::BAD_REQUEST,
+                format!("fault `{other}`: expected overload or overheating"),
+            );
+        }
+    };
+    let Some(finger) = s.fingers.iter().position(|f| *f == b.finger) else {
+        return error(
+            StatusCode::NOT_FOUND,
+            format!(
+                "no finger `{}`; fingers: {}",
+                b.finger,
+                s.fingers.join(", ")
+            ),
+        );
+    };
+    let ok = json!({ "ok": true, "finger": b.finger, "fault": kind });
+    ask_loop(&s, LoopRequest::SimServoFault { finger, kind }, ok).await
 }
 
 #[cfg(test)]

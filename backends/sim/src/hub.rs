@@ -318,7 +318,14 @@ impl HubTransport for SimHub {
         let unplugged = self.scene.as_ref().is_some_and(|s| s.hub_unplugged(now_us));
         let boards = self.board_inputs(seq, captured, unplugged);
         let inputs: Vec<BoardInput> = boards.iter().map(|(i, _, _)| *i).collect();
-        let times = schedule_set(&self.bus, start_ns, &inputs);
+        let mut times = schedule_set(&self.bus, start_ns, &inputs);
+        if unplugged {
+            // No board answers: the host learns it only when its wait for the set runs
+            // out, a set period after the trigger (so an outage costs a set per period).
+            let period_ns = (self.description.prediction.set_period_us * 1000.0) as u64;
+            times.set_end_ns = times.set_end_ns.max(start_ns + period_ns);
+            times.bus_free_ns = times.bus_free_ns.max(times.set_end_ns);
+        }
         let mut sent = 0u8;
         let mut silent_boards = Vec::new();
         for (b, ((_, wire, silent), t)) in boards.into_iter().zip(&times.boards).enumerate() {
