@@ -20,5 +20,7 @@ pub mod gripper;
 pub mod hub;
 pub mod hubtime;
 pub mod layout;
+#[cfg(test)]
+mod parser_fuzz;
 pub mod registry;
 pub mod task;
