@@ -139,3 +139,51 @@ fn tasks_faults_and_scenes_from_the_dashboard() {
     let (status, body) = post(&url, "/api/estop", "");
     assert_eq!(status, 200, "{body}");
 }
+
+#[test]
+fn the_simulated_hub_unplugs_and_a_servo_overloads_on_request() {
+    let (_run, url) = start_gelgrip(&[]);
+    wait_until(Duration::from_secs(30), "sets", || {
+        (state(&url)["sync"]["sets"].as_u64() > Some(10)).then_some(())
+    });
+    for bad in [r#"{"ms": 0}"#, r#"{"ms": 600000}"#, r#"{"seconds": 1}"#] {
+        let (status, body) = post(&url, "/api/sim/unplug", bad);
+        assert_eq!(status, 400, "{bad}: {body}");
+    }
+    let disconnected = |s: &Value| {
+        s["sync"]["sets_rejected"]["disconnected"]
+            .as_u64()
+            .unwrap_or(0)
+    };
+    let before = disconnected(&state(&url));
+    let (status, body) = post(&url, "/api/sim/unplug", r#"{"ms": 500}"#);
+    assert_eq!(status, 200, "{body}");
+    // About one set per period of the outage is lost, then sets flow again.
+    let after = wait_until(Duration::from_secs(10), "the outage counted", || {
+        let s = state(&url);
+        (disconnected(&s) >= before + 5).then_some(s)
+    });
+    let sets = after["sync"]["sets"].as_u64().unwrap_or(0);
+    wait_until(Duration::from_secs(10), "sets again", || {
+        (state(&url)["sync"]["sets"].as_u64() > Some(sets + 10)).then_some(())
+    });
+
+    let (status, body) = post(
+        &url,
+        "/api/sim/servo",
+        r#"{"finger": "f9", "fault": "overload"}"#,
+    );
+    assert_eq!(status, 404, "{body}");
+    let (status, body) = post(
+        &url,
+        "/api/sim/servo",
+        r#"{"finger": "f1", "fault": "melt"}"#,
+    );
+    assert_eq!(status, 400, "{body}");
+    let (status, body) = post(
+        &url,
+        "/api/sim/servo",
+        r#"{"finger": "f1", "fault": "overload"}"#,
+    );
+    assert_eq!(status, 200, "{body}");
+}
