@@ -58,6 +58,24 @@ pub enum Command {
 pub enum RecordCommand {
     /// Records, segments, frames, duration, a torn tail and CRC errors of a recording.
     Info(RecordInfoArgs),
+    /// A recording as files: frames as PNG, signals as CSV, depth maps as `.npy`.
+    Export(RecordExportArgs),
+}
+
+/// `gelgrip record export`.
+#[derive(Debug, Args)]
+pub struct RecordExportArgs {
+    /// The recording's directory.
+    pub dir: PathBuf,
+    /// Every frame as `OUT/<sensor>/<seq>.png`, indexed in `OUT/frames.csv`.
+    #[arg(long, value_name = "OUT")]
+    pub frames: Option<PathBuf>,
+    /// The recorded signals (one row per set: sensors, fingers, servos, stage).
+    #[arg(long, value_name = "FILE")]
+    pub csv: Option<PathBuf>,
+    /// Each sensor's depth map for every emitted set, `OUT/<sensor>/<seq>.npy` (mm).
+    #[arg(long, value_name = "OUT")]
+    pub npy: Option<PathBuf>,
 }
 
 /// `gelgrip record info`.

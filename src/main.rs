@@ -78,6 +78,9 @@ fn main() -> ExitCode {
             Command::Plot(args) => commands::plot::run(args),
             Command::Replay(args) => commands::replay::run(args).await,
             Command::Record(cli::RecordCommand::Info(args)) => commands::record_info::run(args),
+            Command::Record(cli::RecordCommand::Export(args)) => {
+                commands::record_export::run(args).await
+            }
         }
     });
     match result {

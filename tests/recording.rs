@@ -91,6 +91,43 @@ fn a_recorded_grasp_replays_bit_for_bit_and_another_calibration_shows() {
     assert_eq!(d["area_max_abs_mm2"], 0.0, "{d}");
     assert!(d["force_mae_n"].as_f64().unwrap_or(0.0) > 0.01, "{d}");
 
+    // Export: frames as PNG with an index, signals as CSV, depth maps as .npy.
+    let exported = dir.with_extension("export");
+    let _ = std::fs::remove_dir_all(&exported);
+    let out = common::gelgrip_cached(&[
+        "record",
+        "export",
+        dir.to_str().expect("path"),
+        "--frames",
+        exported.join("frames").to_str().expect("path"),
+        "--csv",
+        exported.join("signals.csv").to_str().expect("path"),
+        "--npy",
+        exported.join("depth").to_str().expect("path"),
+    ]);
+    common::ok(&out);
+    let lines = |p: PathBuf| {
+        std::fs::read_to_string(&p)
+            .unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+            .lines()
+            .count() as u64
+    };
+    let frames = run["frames_received"].as_u64().expect("frames");
+    assert_eq!(lines(exported.join("frames/frames.csv")), frames + 1);
+    assert_eq!(lines(exported.join("signals.csv")), sets + 1);
+    let files = |d: &str| std::fs::read_dir(exported.join(d)).map_or(0, |r| r.count() as u64);
+    assert_eq!(files("frames/palm"), sets, "one PNG per set and sensor");
+    assert_eq!(
+        files("depth/palm"),
+        sets,
+        "one depth map per emitted set and sensor"
+    );
+    let png = std::fs::read(exported.join("frames/palm/00000010.png")).expect("a PNG");
+    assert!(png.starts_with(b"\x89PNG"), "a PNG file");
+    let npy = std::fs::read(exported.join("depth/palm/00000010.npy")).expect("an npy");
+    assert!(npy.starts_with(b"\x93NUMPY"), "an npy file");
+    let _ = std::fs::remove_dir_all(&exported);
+
     // The replay transport: the same sets through `run`.
     let config = dir.with_extension("toml");
     std::fs::write(

@@ -34,6 +34,14 @@ pub enum ImageError {
         /// The decoder's message.
         detail: String,
     },
+    /// JPEG decoding failed.
+    #[error("{name}: not a readable JPEG: {detail}")]
+    Jpeg {
+        /// What was decoded.
+        name: String,
+        /// The decoder's message.
+        detail: String,
+    },
     /// PNG with a layout this reader does not take.
     #[error("{path}: PNG is {actual}, expected 8-bit RGB or RGBA")]
     Format {
@@ -93,6 +101,35 @@ impl RgbImage {
         Ok(Self {
             width: w,
             height: h,
+            data,
+        })
+    }
+
+    /// Decode a JPEG (`name` for errors) at its own size.
+    pub fn from_jpeg(name: &str, jpeg: &[u8]) -> Result<Self, ImageError> {
+        use zune_jpeg::JpegDecoder;
+        use zune_jpeg::zune_core::bytestream::ZCursor;
+        use zune_jpeg::zune_core::colorspace::ColorSpace;
+        use zune_jpeg::zune_core::options::DecoderOptions;
+        let options = DecoderOptions::default().jpeg_set_out_colorspace(ColorSpace::RGB);
+        let mut dec = JpegDecoder::new_with_options(ZCursor::new(jpeg), options);
+        let bad = |detail: String| ImageError::Jpeg {
+            name: name.to_string(),
+            detail,
+        };
+        let data = dec.decode().map_err(|e| bad(format!("{e:?}")))?;
+        let (width, height) = dec
+            .dimensions()
+            .ok_or_else(|| bad("no dimensions".into()))?;
+        if data.len() != width * height * 3 {
+            return Err(bad(format!(
+                "{} bytes for {width}x{height} RGB",
+                data.len()
+            )));
+        }
+        Ok(Self {
+            width,
+            height,
             data,
         })
     }

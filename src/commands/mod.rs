@@ -13,6 +13,7 @@ pub mod depth;
 pub mod emulate;
 pub mod emulate_hub;
 pub mod plot;
+pub mod record_export;
 pub mod record_info;
 pub mod replay;
 pub mod run;

@@ -19,6 +19,7 @@ use serde::Serialize;
 use gelgrip_controller::acquire::{Acquisition, AcquisitionTap, make_gate};
 use gelgrip_controller::clock::{Clock, RealClock, VirtualClock};
 use gelgrip_controller::config::{AppConfig, GateSettings, Limit};
+use gelgrip_controller::frame::FrameSet;
 use gelgrip_controller::fusion::SensorReading;
 use gelgrip_controller::gate::SetDecision;
 use gelgrip_controller::hub::{HubError, HubEvent, HubTransport};
@@ -31,7 +32,7 @@ use crate::tactile::Tactile;
 use crate::wiring;
 
 /// The replayed gate's decisions (set, outcome) and the hub events counted.
-type Seen = (Vec<(u32, &'static str)>, u64);
+pub type Seen = (Vec<(u32, &'static str)>, u64);
 
 /// Collects the replayed gate's decisions, and counts the hub events.
 struct Decisions(Arc<Mutex<Seen>>);
@@ -184,7 +185,71 @@ struct ReplayReport {
     records_skipped: u64,
 }
 
-fn recorded_config(recording: &Recording) -> anyhow::Result<(AppConfig, u32, u64)> {
+/// A recording's hub events through the gate the run used (its policy and limits).
+pub struct ReplayedGate {
+    acq: Acquisition,
+    /// The replay's clock.
+    pub clock: Arc<dyn Clock>,
+    seen: Arc<Mutex<Seen>>,
+}
+
+impl ReplayedGate {
+    /// Replay `recording` (whose config is `config`, gate limits as recorded) at `speed`.
+    pub fn open(
+        recording: &Recording,
+        config: &AppConfig,
+        speed: ReplaySpeed,
+        max_spread_us: u32,
+        max_age_us: u64,
+    ) -> anyhow::Result<Self> {
+        let (clock, speed): (Arc<dyn Clock>, Speed) = match speed {
+            ReplaySpeed::Max => (VirtualClock::new(), Speed::Max),
+            ReplaySpeed::Factor(f) => (Arc::new(RealClock::new()), Speed::Factor(f)),
+        };
+        let hub = ReplayHub::open(
+            recording,
+            speed,
+            clock.clone(),
+            config.hub.trigger,
+            prediction_for_limits(max_spread_us, max_age_us),
+        )?;
+        let gate_settings = GateSettings {
+            max_spread_us: Limit::Fixed(max_spread_us),
+            max_age_us: Limit::Fixed(max_age_us),
+            ..config.gate.clone()
+        };
+        let gate = make_gate(
+            &gate_settings,
+            config.layout.sensors.len(),
+            &hub.describe().prediction,
+        );
+        let seen = Arc::new(Mutex::new((Vec::new(), 0)));
+        let acq = Acquisition::new(Box::new(hub), gate, clock.clone(), 0)
+            .with_tap(Box::new(Decisions(seen.clone())));
+        Ok(Self { acq, clock, seen })
+    }
+
+    /// The next set the gate emits; `None` at the end of the recording.
+    pub async fn next_set(&mut self) -> anyhow::Result<Option<FrameSet>> {
+        loop {
+            match self.acq.step().await {
+                Ok(Some(set)) => return Ok(Some(set)),
+                Ok(None) => {}
+                Err(HubError::Finished { .. }) => return Ok(None),
+                Err(e) => return Err(e).context("replaying"),
+            }
+        }
+    }
+
+    /// The gate's decisions so far and the hub events replayed.
+    pub fn seen(&self) -> Seen {
+        self.seen.lock().map(|d| d.clone()).unwrap_or_default()
+    }
+}
+
+/// The recorded config (rebuilt from the files the recording carries) and the gate limits
+/// the run used.
+pub fn recorded_config(recording: &Recording) -> anyhow::Result<(AppConfig, u32, u64)> {
     let Meta::Header {
         config,
         max_spread_us,
@@ -235,40 +300,15 @@ pub async fn run(args: ReplayArgs) -> anyhow::Result<u8> {
     let (config, max_spread_us, max_age_us) = recorded_config(&recording)?;
     let recorded = read_recorded(&recording)?;
     let mut tactiles = pipelines(&args, &config)?;
-    let (clock, speed): (Arc<dyn Clock>, Speed) = match args.speed {
-        ReplaySpeed::Max => (VirtualClock::new(), Speed::Max),
-        ReplaySpeed::Factor(f) => (Arc::new(RealClock::new()), Speed::Factor(f)),
-    };
-    let hub = ReplayHub::open(
-        &recording,
-        speed,
-        clock.clone(),
-        config.hub.trigger,
-        prediction_for_limits(max_spread_us, max_age_us),
-    )?;
-    let gate_settings = GateSettings {
-        max_spread_us: Limit::Fixed(max_spread_us),
-        max_age_us: Limit::Fixed(max_age_us),
-        ..config.gate.clone()
-    };
-    let gate = make_gate(
-        &gate_settings,
-        config.layout.sensors.len(),
-        &hub.describe().prediction,
-    );
-    let decisions = Arc::new(Mutex::new((Vec::new(), 0)));
-    let mut acq = Acquisition::new(Box::new(hub), gate, clock.clone(), 0)
-        .with_tap(Box::new(Decisions(decisions.clone())));
+    let mut replayed =
+        ReplayedGate::open(&recording, &config, args.speed, max_spread_us, max_age_us)?;
     let wall = Instant::now();
-    let start_us = clock.now_us();
+    let start_us = replayed.clock.now_us();
     let (mut sets, mut fused_compared, mut fused_mismatches) = (0u64, 0u64, 0u64);
     let mut difference = args.compare.as_ref().map(|_| Difference::default());
     loop {
-        let set = match acq.step().await {
-            Ok(Some(set)) => set,
-            Ok(None) => continue,
-            Err(HubError::Finished { .. }) => break,
-            Err(e) => return Err(e).context("replaying"),
+        let Some(set) = replayed.next_set().await? else {
+            break;
         };
         sets += 1;
         let readings: Vec<Vec<Option<SensorReading>>> =
@@ -296,21 +336,21 @@ pub async fn run(args: ReplayArgs) -> anyhow::Result<u8> {
             }
         }
     }
-    let (replayed, events) = decisions.lock().map(|d| d.clone()).unwrap_or_default();
+    let (replayed_decisions, events) = replayed.seen();
     let decision_mismatches = recorded
         .decisions
         .iter()
-        .zip(&replayed)
+        .zip(&replayed_decisions)
         .filter(|((s1, o1), (s2, o2))| s1 != s2 || o1 != o2)
         .count()
-        + recorded.decisions.len().abs_diff(replayed.len());
+        + recorded.decisions.len().abs_diff(replayed_decisions.len());
     let report = ReplayReport {
         sets,
         events,
-        duration_s: clock.now_us().saturating_sub(start_us) as f64 / 1e6,
+        duration_s: replayed.clock.now_us().saturating_sub(start_us) as f64 / 1e6,
         wall_s: wall.elapsed().as_secs_f64(),
         decisions_recorded: recorded.decisions.len(),
-        decisions_replayed: replayed.len(),
+        decisions_replayed: replayed_decisions.len(),
         decision_mismatches,
         fused_compared,
         fused_mismatches,
