@@ -173,12 +173,29 @@ impl RunRecorder {
             })
             .collect();
         let servos: Vec<ServoReport> = task.states().iter().map(ServoReport::from).collect();
+        // The goals written for this set (none when the controller left the servos alone).
+        let commands: Option<Vec<serde_json::Value>> = io
+            .last_goals()
+            .filter(|(seq, _)| *seq == Some(trigger_seq))
+            .map(|(_, goals)| {
+                goals
+                    .iter()
+                    .map(|g| {
+                        serde_json::json!({
+                            "position_deg": g.position_deg,
+                            "goal_current_ma": g.goal_current_ma,
+                            "profile_velocity_rpm": g.profile_velocity_rpm,
+                        })
+                    })
+                    .collect()
+            });
         let stage = task.view().map(|v| v.stage);
         let state = serde_json::json!({
             "trigger_seq": trigger_seq,
             "sensors": sensors,
             "fingers": fingers,
             "servos": servos,
+            "commands": commands,
             "stage": stage,
         });
         self.recorder

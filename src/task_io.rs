@@ -96,6 +96,8 @@ pub struct TaskIo {
     last_set_us: Option<u64>,
     /// The trigger sequence of the last set sensed.
     last_sensed_seq: Option<u32>,
+    /// The goals last written, and the set they answered (`None` for a stop or e-stop).
+    last_goals: Option<(Option<u32>, Vec<FingerGoal>)>,
     loop_ms: Vec<f64>,
     capture_ms: Vec<f64>,
     pipeline_ms: Vec<f64>,
@@ -135,6 +137,7 @@ impl TaskIo {
             states: Vec::new(),
             last_set_us: None,
             last_sensed_seq: None,
+            last_goals: None,
             loop_ms: Vec::new(),
             capture_ms: Vec::new(),
             pipeline_ms: Vec::new(),
@@ -172,6 +175,11 @@ impl TaskIo {
         self.last = Some(fused);
     }
 
+    /// The goals last written and the set they answered (`None`: a stop or e-stop).
+    pub fn last_goals(&self) -> Option<&(Option<u32>, Vec<FingerGoal>)> {
+        self.last_goals.as_ref()
+    }
+
     /// The trigger sequence of the last set sensed.
     pub fn last_sensed_seq(&self) -> Option<u32> {
         self.last_sensed_seq
@@ -202,6 +210,7 @@ impl TaskIo {
     pub fn command(&mut self, sensed: &Sensed, goals: Option<&[FingerGoal]>) -> anyhow::Result<()> {
         if let Some(goals) = goals {
             tracing::debug!(?goals, "goals");
+            self.last_goals = Some((self.last_sensed_seq, goals.to_vec()));
             self.bus
                 .write_goals(goals)
                 .map_err(|e| anyhow::anyhow!("servo fault: {e}"))?;
@@ -231,6 +240,7 @@ impl TaskIo {
     /// Write hold goals at once (stop, e-stop, watchdog); a failure is logged, since the
     /// caller is already on its way to a safe state.
     pub fn write_now(&mut self, goals: &[FingerGoal]) {
+        self.last_goals = Some((None, goals.to_vec()));
         if let Err(e) = self.bus.write_goals(goals) {
             tracing::error!("could not write the hold goals: {e}");
         }

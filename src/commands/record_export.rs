@@ -6,7 +6,7 @@
 //!   (sensor, trigger sequence, capture and receipt host µs, the gate's decision on its set).
 //! - `--csv FILE`: the recorded signals, one row per state record: time, set, stage, each
 //!   sensor's contact, area, depth, volume and force, each finger's phase, force and target,
-//!   each servo's position and current.
+//!   each servo's position and current, and the goal written for the set (empty if none).
 //! - `--npy OUT`: the depth map of every sensor for every set the gate emits, through the
 //!   recorded config's pipeline, as `OUT/<sensor>/<seq>.npy` (float32, rows × columns, mm).
 
@@ -140,7 +140,12 @@ fn export_csv(recording: &Recording, file: &Path) -> anyhow::Result<u64> {
         }
     }
     for s in 0..servos {
-        for k in ["position_deg", "current_ma"] {
+        for k in [
+            "position_deg",
+            "current_ma",
+            "goal_position_deg",
+            "goal_current_ma",
+        ] {
             header.push(format!("servo{}_{k}", s + 1));
         }
     }
@@ -177,6 +182,10 @@ fn export_csv(recording: &Recording, file: &Path) -> anyhow::Result<u64> {
         for v in 0..servos {
             for k in ["position_deg", "current_ma"] {
                 row.push(text(&s["servos"][v][k]));
+            }
+            // Empty when no goal was written for this set.
+            for k in ["position_deg", "goal_current_ma"] {
+                row.push(text(&s["commands"][v][k]));
             }
         }
         w.write_record(&row)?;
