@@ -276,6 +276,11 @@ impl GraspTask {
     }
 
     /// The grasp API's handle (the dashboard's commands reach this task through it).
+    /// The grasp-API service (to log its events for a recording).
+    pub fn service_mut(&mut self) -> &mut GripperService {
+        &mut self.gripper
+    }
+
     pub fn handle(&self) -> GripperHandle {
         self.handle.clone()
     }

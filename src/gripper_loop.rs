@@ -79,6 +79,11 @@ impl GripperLoop {
     }
 
     /// The grasp API's handle.
+    /// The grasp-API service (to log its events for a recording).
+    pub fn service_mut(&mut self) -> &mut GripperService {
+        &mut self.gripper
+    }
+
     pub fn handle(&self) -> GripperHandle {
         self.handle.clone()
     }

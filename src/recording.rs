@@ -8,6 +8,7 @@ use std::sync::Arc;
 use gelgrip_controller::acquire::AcquisitionTap;
 use gelgrip_controller::config::AppConfig;
 use gelgrip_controller::gate::{GateLimits, SetDecision};
+use gelgrip_controller::gripper::ServiceEvent;
 use gelgrip_controller::hub::{HubDescription, HubEvent};
 use gelgrip_record::format::{FrameRecord, Meta, Record};
 use gelgrip_record::writer::{HeaderInfo, Recorder, RecorderOptions, RecorderStats};
@@ -147,8 +148,16 @@ impl RunRecorder {
         Box::new(Tap(self.recorder.clone()))
     }
 
-    /// Record the state after set `trigger_seq` (servos, fingers, sensors, task stage).
-    pub fn snapshot(&self, host_us: u64, trigger_seq: u32, task: Option<&Task>) {
+    /// Record the state after set `trigger_seq` (servos, fingers, sensors, task stage) and
+    /// the grasp-API service's `controller` events since the last set (its commands and
+    /// steps, with their inputs and goals).
+    pub fn snapshot(
+        &self,
+        host_us: u64,
+        trigger_seq: u32,
+        task: Option<&Task>,
+        controller: Vec<ServiceEvent>,
+    ) {
         let Some(task) = task else { return };
         let io = task.io();
         // Only this set's readings: a set the task did not sense gets none.
@@ -196,6 +205,7 @@ impl RunRecorder {
             "fingers": fingers,
             "servos": servos,
             "commands": commands,
+            "controller": controller,
             "stage": stage,
         });
         self.recorder

@@ -168,6 +168,23 @@ impl Task {
         }
     }
 
+    fn service_mut(&mut self) -> &mut gelgrip_controller::gripper::GripperService {
+        match self {
+            Self::Grasp(t) => t.service_mut(),
+            Self::Gripper { gripper, .. } => gripper.service_mut(),
+        }
+    }
+
+    /// Log the grasp-API service's commands and steps (for a recording).
+    pub fn log_controller(&mut self) {
+        self.service_mut().log_events();
+    }
+
+    /// The service's commands and steps since the last call (empty when not logging).
+    pub fn take_controller_events(&mut self) -> Vec<gelgrip_controller::gripper::ServiceEvent> {
+        self.service_mut().take_events()
+    }
+
     /// The grasp API's handle.
     pub fn handle(&self) -> gelgrip_controller::gripper::GripperHandle {
         match self {

@@ -75,6 +75,32 @@ fn a_recorded_grasp_replays_bit_for_bit_and_another_calibration_shows() {
     assert_eq!(replay["decision_mismatches"], 0, "{replay}");
     assert_eq!(replay["fused_compared"].as_u64(), Some(sets), "{replay}");
     assert_eq!(replay["fused_mismatches"], 0, "bit for bit: {replay}");
+    // The controller, on the recorded commands and servo states and the replayed sets,
+    // decides exactly as it did.
+    assert_eq!(
+        replay["controller_steps_compared"].as_u64(),
+        Some(sets),
+        "{replay}"
+    );
+    assert_eq!(replay["controller_mismatches"], 0, "bit for bit: {replay}");
+
+    // Another force calibration: other readings, other decisions.
+    let other = common::json(&common::gelgrip_cached(&[
+        "replay",
+        dir.to_str().expect("path"),
+        "--config",
+        &repo("tests/configs/other-force-calibration.toml"),
+        "--json",
+    ]));
+    assert!(
+        other["fused_mismatches"].as_u64() > Some(sets / 2),
+        "{other}"
+    );
+    assert!(other["controller_mismatches"].as_u64() > Some(0), "{other}");
+    assert_eq!(
+        other["decision_mismatches"], 0,
+        "the gate does not depend on it"
+    );
 
     let compare = common::json(&common::gelgrip_cached(&[
         "replay",

@@ -5,10 +5,11 @@
 //! (dynamixel2 is); the run loop calls it from a blocking task. Every call returns within a
 //! deadline the implementation documents.
 
+use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 /// A goal for one finger's servo.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct FingerGoal {
     /// Goal position, degrees of servo shaft rotation.
     pub position_deg: f64,
@@ -19,7 +20,7 @@ pub struct FingerGoal {
 }
 
 /// What one finger's servo reports.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct ServoState {
     /// Present position, degrees.
     pub position_deg: f64,

@@ -26,7 +26,7 @@
 //! - **Stale**: a finger whose sensor is missing from the set holds where it is.
 //! - **Release**: back to the open position at the approach current.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::actuator::{FingerGoal, ServoState};
 use crate::fusion::FusedSet;
@@ -66,7 +66,7 @@ pub enum FingerStatus {
 }
 
 /// What the caller asks for.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct GraspRequest {
     /// Force per finger to regulate to, N.
     pub target_force_n: f64,

@@ -12,6 +12,7 @@
 
 use std::sync::{Arc, Mutex};
 
+use serde::{Deserialize, Serialize};
 use thiserror::Error;
 use tokio::sync::{mpsc, oneshot};
 
@@ -62,6 +63,52 @@ enum Command {
     Release,
     Stop,
     Estop,
+}
+
+/// A command as the service applied it: what a recording keeps, and a replay applies again.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum AppliedCommand {
+    /// A grasp started.
+    Grasp {
+        /// As requested.
+        request: GraspRequest,
+    },
+    /// Release.
+    Release,
+    /// Stop, holding at these positions, degrees.
+    Stop {
+        /// The servos' positions then.
+        positions_deg: Vec<f64>,
+    },
+    /// E-stop, holding at these positions, degrees.
+    Estop {
+        /// The servos' positions then.
+        positions_deg: Vec<f64>,
+    },
+}
+
+/// What the service did, in order (while logging): its inputs and its decisions.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "event", rename_all = "snake_case")]
+pub enum ServiceEvent {
+    /// A command applied.
+    Applied {
+        /// The command.
+        command: AppliedCommand,
+    },
+    /// A control step: its inputs (time, whether a fused set came, the servo states) and
+    /// its decision (the goals, `None` before any command).
+    Step {
+        /// Time, s.
+        t_s: f64,
+        /// A fused set was given.
+        with_set: bool,
+        /// The servo states given.
+        servos: Vec<ServoState>,
+        /// The goals returned.
+        goals: Option<Vec<FingerGoal>>,
+    },
 }
 
 /// A grasp in progress: its outcome arrives when it ends.
@@ -220,6 +267,8 @@ pub struct GripperService {
     waiting: Option<oneshot::Sender<GraspOutcome>>,
     commands_applied: u64,
     last_command: Option<CommandKind>,
+    /// The events since they were last taken, while logging.
+    log: Option<Vec<ServiceEvent>>,
 }
 
 impl GripperService {
@@ -247,8 +296,33 @@ impl GripperService {
             waiting: None,
             commands_applied: 0,
             last_command: None,
+            log: None,
         };
         (service, handle)
+    }
+
+    /// Keep a log of commands applied and steps taken (for a recording).
+    pub fn log_events(&mut self) {
+        self.log.get_or_insert_with(Vec::new);
+    }
+
+    /// The events logged since the last call (empty when not logging).
+    pub fn take_events(&mut self) -> Vec<ServiceEvent> {
+        self.log.as_mut().map(std::mem::take).unwrap_or_default()
+    }
+
+    /// Apply a recorded command again (a replay): as if it had come through a handle.
+    pub fn replay(&mut self, command: &AppliedCommand) -> bool {
+        let (command, positions) = match command {
+            AppliedCommand::Grasp { request } => {
+                let (reply, _) = oneshot::channel();
+                (Command::Grasp(request.clone(), reply), Vec::new())
+            }
+            AppliedCommand::Release => (Command::Release, Vec::new()),
+            AppliedCommand::Stop { positions_deg } => (Command::Stop, positions_deg.clone()),
+            AppliedCommand::Estop { positions_deg } => (Command::Estop, positions_deg.clone()),
+        };
+        self.apply(command, &positions)
     }
 
     /// The controller of the current (or last) grasp.
@@ -303,44 +377,66 @@ impl GripperService {
     pub fn apply_commands(&mut self, positions: &[f64]) -> bool {
         let mut urgent = false;
         while let Ok(command) = self.rx.try_recv() {
-            self.commands_applied += 1;
-            self.last_command = Some(match &command {
-                Command::Grasp(..) => CommandKind::Grasp,
-                Command::Release => CommandKind::Release,
-                Command::Stop => CommandKind::Stop,
-                Command::Estop => CommandKind::Estop,
-            });
-            match command {
-                Command::Grasp(request, reply) => {
-                    self.end_waiting("preempted");
-                    self.ctl = Some(GraspController::new(
-                        request,
-                        self.tuning.clone(),
-                        self.close_deg.clone(),
-                        self.open_deg.clone(),
-                    ));
-                    self.waiting = Some(reply);
-                }
-                Command::Release => {
-                    self.end_waiting("released");
-                    let idle = self.idle_controller();
-                    self.ctl.get_or_insert(idle).release();
-                }
-                Command::Stop => {
-                    self.end_waiting("stopped");
-                    let idle = self.idle_controller();
-                    self.ctl.get_or_insert(idle).stop(positions);
-                    urgent = true;
-                }
-                Command::Estop => {
-                    self.end_waiting("estop");
-                    let idle = self.idle_controller();
-                    self.ctl.get_or_insert(idle).estop(positions);
-                    urgent = true;
-                }
-            }
+            urgent |= self.apply(command, positions);
         }
         urgent
+    }
+
+    /// Apply one command; true when it must reach the servos at once.
+    fn apply(&mut self, command: Command, positions: &[f64]) -> bool {
+        self.commands_applied += 1;
+        self.last_command = Some(match &command {
+            Command::Grasp(..) => CommandKind::Grasp,
+            Command::Release => CommandKind::Release,
+            Command::Stop => CommandKind::Stop,
+            Command::Estop => CommandKind::Estop,
+        });
+        if let Some(log) = self.log.as_mut() {
+            let command = match &command {
+                Command::Grasp(request, _) => AppliedCommand::Grasp {
+                    request: request.clone(),
+                },
+                Command::Release => AppliedCommand::Release,
+                Command::Stop => AppliedCommand::Stop {
+                    positions_deg: positions.to_vec(),
+                },
+                Command::Estop => AppliedCommand::Estop {
+                    positions_deg: positions.to_vec(),
+                },
+            };
+            log.push(ServiceEvent::Applied { command });
+        }
+        match command {
+            Command::Grasp(request, reply) => {
+                self.end_waiting("preempted");
+                self.ctl = Some(GraspController::new(
+                    request,
+                    self.tuning.clone(),
+                    self.close_deg.clone(),
+                    self.open_deg.clone(),
+                ));
+                self.waiting = Some(reply);
+                false
+            }
+            Command::Release => {
+                self.end_waiting("released");
+                let idle = self.idle_controller();
+                self.ctl.get_or_insert(idle).release();
+                false
+            }
+            Command::Stop => {
+                self.end_waiting("stopped");
+                let idle = self.idle_controller();
+                self.ctl.get_or_insert(idle).stop(positions);
+                true
+            }
+            Command::Estop => {
+                self.end_waiting("estop");
+                let idle = self.idle_controller();
+                self.ctl.get_or_insert(idle).estop(positions);
+                true
+            }
+        }
     }
 
     /// Commands applied so far (a task that owns the gripper watches it: any command
@@ -369,14 +465,27 @@ impl GripperService {
         set: Option<&FusedSet>,
         servos: &[ServoState],
     ) -> Option<Vec<FingerGoal>> {
-        let ctl = self.ctl.as_mut()?;
-        let out = ctl.step(t_s, set, servos);
-        if let Some(outcome) = out.done
-            && let Some(reply) = self.waiting.take()
-        {
-            let _ = reply.send(outcome);
+        let goals = self.ctl.as_mut().map(|ctl| {
+            let out = ctl.step(t_s, set, servos);
+            (out.done, out.goals)
+        });
+        let goals = goals.map(|(done, goals)| {
+            if let Some(outcome) = done
+                && let Some(reply) = self.waiting.take()
+            {
+                let _ = reply.send(outcome);
+            }
+            goals
+        });
+        if let Some(log) = self.log.as_mut() {
+            log.push(ServiceEvent::Step {
+                t_s,
+                with_set: set.is_some(),
+                servos: servos.to_vec(),
+                goals: goals.clone(),
+            });
         }
-        Some(out.goals)
+        goals
     }
 }
 

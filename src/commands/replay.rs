@@ -17,11 +17,14 @@ use anyhow::Context;
 use serde::Serialize;
 
 use gelgrip_controller::acquire::{Acquisition, AcquisitionTap, make_gate};
+use gelgrip_controller::actuator::FingerGoal;
 use gelgrip_controller::clock::{Clock, RealClock, VirtualClock};
 use gelgrip_controller::config::{AppConfig, GateSettings, Limit};
 use gelgrip_controller::frame::FrameSet;
-use gelgrip_controller::fusion::SensorReading;
+use gelgrip_controller::fusion::{FusedSet, SensorReading, fuse};
 use gelgrip_controller::gate::SetDecision;
+use gelgrip_controller::grasp::Tuning;
+use gelgrip_controller::gripper::{GripperService, ServiceEvent};
 use gelgrip_controller::hub::{HubError, HubEvent, HubTransport};
 use gelgrip_record::format::{Meta, Record};
 use gelgrip_record::reader::Recording;
@@ -59,6 +62,8 @@ struct Recorded {
     decisions: Vec<(u32, String)>,
     /// Per set, each sensor's (in contact, area, depth, volume, force).
     readings: HashMap<u32, Vec<Option<[f64; 5]>>>,
+    /// Per set, the grasp-API service's commands and steps since the set before.
+    controller: HashMap<u32, Vec<ServiceEvent>>,
 }
 
 fn as_array(r: &SensorReading) -> [f64; 5] {
@@ -81,6 +86,13 @@ fn read_recorded(recording: &Recording) -> anyhow::Result<Recorded> {
         }) => out.decisions.push((trigger_seq, outcome)),
         Record::Meta(Meta::State { state, .. }) => {
             let seq = state["trigger_seq"].as_u64().map(|s| s as u32);
+            if let (Some(seq), Ok(events)) = (
+                seq,
+                serde_json::from_value::<Vec<ServiceEvent>>(state["controller"].clone()),
+            ) && !events.is_empty()
+            {
+                out.controller.insert(seq, events);
+            }
             if let (Some(seq), Some(sensors)) = (seq, state["sensors"].as_array()) {
                 let readings = sensors
                     .iter()
@@ -159,6 +171,77 @@ impl Difference {
     }
 }
 
+/// The grasp-API service run again on the recorded commands and servo states, with the
+/// replayed fused sets; its goals compared with the recorded ones bit for bit.
+struct ControllerReplay {
+    service: GripperService,
+    compared: u64,
+    mismatches: u64,
+}
+
+fn same_goals(a: &Option<Vec<FingerGoal>>, b: &Option<Vec<FingerGoal>>) -> bool {
+    let bits = |g: &FingerGoal| {
+        [
+            g.position_deg.to_bits(),
+            g.goal_current_ma.to_bits(),
+            g.profile_velocity_rpm.to_bits(),
+        ]
+    };
+    match (a, b) {
+        (Some(a), Some(b)) => {
+            a.len() == b.len() && a.iter().zip(b).all(|(x, y)| bits(x) == bits(y))
+        }
+        (None, None) => true,
+        _ => false,
+    }
+}
+
+impl ControllerReplay {
+    /// A service as the run built it for `config` (the task's, and the dashboard's).
+    fn new(config: &AppConfig) -> Self {
+        let close: Vec<f64> = config
+            .layout
+            .fingers
+            .iter()
+            .map(|f| f.servo_range_deg)
+            .collect();
+        let n = close.len();
+        let (service, _handle) = GripperService::new(
+            Tuning::default(),
+            close,
+            vec![0.0; n],
+            config.servos.current_limit_ma,
+        );
+        Self {
+            service,
+            compared: 0,
+            mismatches: 0,
+        }
+    }
+
+    fn replay(&mut self, events: &[ServiceEvent], fused: &FusedSet) {
+        for event in events {
+            match event {
+                ServiceEvent::Applied { command } => {
+                    self.service.replay(command);
+                }
+                ServiceEvent::Step {
+                    t_s,
+                    with_set,
+                    servos,
+                    goals,
+                } => {
+                    let got = self.service.step(*t_s, with_set.then_some(fused), servos);
+                    self.compared += 1;
+                    if !same_goals(&got, goals) {
+                        self.mismatches += 1;
+                    }
+                }
+            }
+        }
+    }
+}
+
 /// The `--json` object.
 #[derive(Debug, Serialize)]
 struct ReplayReport {
@@ -178,6 +261,11 @@ struct ReplayReport {
     /// whose readings differ in any bit (the recorded config or `--config`).
     fused_compared: u64,
     fused_mismatches: u64,
+    /// Control steps the recording holds and the replay repeated (the recorded servo
+    /// states and commands, the replayed fused set), and those whose goals differ in any
+    /// bit (the recorded config or `--config`).
+    controller_steps_compared: u64,
+    controller_mismatches: u64,
     /// `--compare A B`: how B's pipeline differs from A's.
     #[serde(skip_serializing_if = "Option::is_none")]
     compare: Option<Difference>,
@@ -306,6 +394,7 @@ pub async fn run(args: ReplayArgs) -> anyhow::Result<u8> {
     let start_us = replayed.clock.now_us();
     let (mut sets, mut fused_compared, mut fused_mismatches) = (0u64, 0u64, 0u64);
     let mut difference = args.compare.as_ref().map(|_| Difference::default());
+    let mut controller = ControllerReplay::new(&config);
     loop {
         let Some(set) = replayed.next_set().await? else {
             break;
@@ -319,7 +408,13 @@ pub async fn run(args: ReplayArgs) -> anyhow::Result<u8> {
                     diff.add(a, b);
                 }
             }
-        } else if let Some(expected) = recorded.readings.get(&set.trigger_seq) {
+        } else if let Some(events) = recorded.controller.get(&set.trigger_seq) {
+            let fused = fuse(&config.layout, &readings[0]);
+            controller.replay(events, &fused);
+        }
+        if difference.is_none()
+            && let Some(expected) = recorded.readings.get(&set.trigger_seq)
+        {
             fused_compared += 1;
             let got: Vec<Option<[f64; 5]>> = readings[0]
                 .iter()
@@ -354,6 +449,8 @@ pub async fn run(args: ReplayArgs) -> anyhow::Result<u8> {
         decision_mismatches,
         fused_compared,
         fused_mismatches,
+        controller_steps_compared: controller.compared,
+        controller_mismatches: controller.mismatches,
         compare: difference.map(Difference::finish),
         records_skipped: recorded.crc_errors,
     };

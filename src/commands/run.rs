@@ -212,6 +212,11 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
         }
         (None, None) => {}
     }
+    if recorder.is_some()
+        && let Some(t) = task.as_mut()
+    {
+        t.log_controller();
+    }
     let mut control = None;
     let mut dashboard = if args.headless {
         None
@@ -272,7 +277,8 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
                         if let Some(t) = task.as_mut() {
                             let outcome = t.on_set(&set, clock.now_us());
                             if let Some(r) = &recorder {
-                                r.snapshot(clock.now_us(), set.trigger_seq, Some(t));
+                                let events = t.take_controller_events();
+                                r.snapshot(clock.now_us(), set.trigger_seq, Some(t), events);
                             }
                             match outcome {
                                 Ok(Some(reason)) => break reason,
