@@ -19,7 +19,7 @@ use serde::Serialize;
 use gelgrip_controller::actuator::ServoBus;
 use gelgrip_controller::config::AppConfig;
 use gelgrip_controller::frame::FrameSet;
-use gelgrip_controller::grasp::{FingerStatus, GraspOutcome, GraspRequest, Tuning};
+use gelgrip_controller::grasp::{FingerStatus, GraspOutcome, GraspRequest};
 use gelgrip_controller::gripper::{CommandKind, GripperHandle, GripperService, PendingGrasp};
 use gelgrip_sim::world::SharedWorld;
 
@@ -137,13 +137,7 @@ impl GraspTask {
             fingers: (0..layout.fingers.len()).collect(),
             timeout_s: options.timeout_s,
         };
-        let close: Vec<f64> = layout.fingers.iter().map(|f| f.servo_range_deg).collect();
-        let (gripper, handle) = GripperService::new(
-            Tuning::default(),
-            close,
-            vec![0.0; layout.fingers.len()],
-            config.servos.current_limit_ma,
-        );
+        let (gripper, handle) = GripperService::for_hand(layout, config.servos.current_limit_ma);
         let pending = handle
             .start_grasp(request)
             .map_err(|e| crate::cli::UsageError(e.to_string()))?;

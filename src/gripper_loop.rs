@@ -11,7 +11,7 @@
 use gelgrip_controller::actuator::ServoBus;
 use gelgrip_controller::config::AppConfig;
 use gelgrip_controller::frame::FrameSet;
-use gelgrip_controller::grasp::{Phase, Tuning};
+use gelgrip_controller::grasp::Phase;
 use gelgrip_controller::gripper::{CommandKind, GripperHandle, GripperService};
 use gelgrip_controller::task::TaskScript;
 use gelgrip_sim::world::SharedWorld;
@@ -54,19 +54,8 @@ impl GripperLoop {
         log: Option<&std::path::Path>,
     ) -> anyhow::Result<Self> {
         let io = TaskIo::open(config, bus, world, log)?;
-        let close: Vec<f64> = io
-            .layout
-            .fingers
-            .iter()
-            .map(|f| f.servo_range_deg)
-            .collect();
-        let n = close.len();
-        let (gripper, handle) = GripperService::new(
-            Tuning::default(),
-            close,
-            vec![0.0; n],
-            config.servos.current_limit_ma,
-        );
+        let (gripper, handle) =
+            GripperService::for_hand(&io.layout, config.servos.current_limit_ma);
         Ok(Self {
             io,
             gripper,

@@ -301,6 +301,17 @@ impl GripperService {
         (service, handle)
     }
 
+    /// The service for `layout`'s fingers (closing toward each finger's servo range, open
+    /// at 0°) with the default tuning and `current_limit_ma` as the cap.
+    pub fn for_hand(
+        layout: &crate::layout::HandLayout,
+        current_limit_ma: f64,
+    ) -> (Self, GripperHandle) {
+        let close: Vec<f64> = layout.fingers.iter().map(|f| f.servo_range_deg).collect();
+        let n = close.len();
+        Self::new(Tuning::default(), close, vec![0.0; n], current_limit_ma)
+    }
+
     /// Keep a log of commands applied and steps taken (for a recording).
     pub fn log_events(&mut self) {
         self.log.get_or_insert_with(Vec::new);

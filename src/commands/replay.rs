@@ -23,7 +23,6 @@ use gelgrip_controller::config::{AppConfig, GateSettings, Limit};
 use gelgrip_controller::frame::FrameSet;
 use gelgrip_controller::fusion::{FusedSet, SensorReading, fuse};
 use gelgrip_controller::gate::SetDecision;
-use gelgrip_controller::grasp::Tuning;
 use gelgrip_controller::gripper::{GripperService, ServiceEvent};
 use gelgrip_controller::hub::{HubError, HubEvent, HubTransport};
 use gelgrip_record::format::{Meta, Record};
@@ -199,19 +198,8 @@ fn same_goals(a: &Option<Vec<FingerGoal>>, b: &Option<Vec<FingerGoal>>) -> bool 
 impl ControllerReplay {
     /// A service as the run built it for `config` (the task's, and the dashboard's).
     fn new(config: &AppConfig) -> Self {
-        let close: Vec<f64> = config
-            .layout
-            .fingers
-            .iter()
-            .map(|f| f.servo_range_deg)
-            .collect();
-        let n = close.len();
-        let (service, _handle) = GripperService::new(
-            Tuning::default(),
-            close,
-            vec![0.0; n],
-            config.servos.current_limit_ma,
-        );
+        let (service, _handle) =
+            GripperService::for_hand(&config.layout, config.servos.current_limit_ma);
         Self {
             service,
             compared: 0,
