@@ -125,6 +125,27 @@ fn late_delivery_makes_sets_too_old() {
     let late = v["sets_rejected"]["late"].as_u64().unwrap_or(0);
     assert!(late >= 90, "{v}");
     assert_eq!(total(&v, "sets_rejected"), late, "{v}");
+    // The run says why nothing passes, and what to check.
+    let out = gelgrip(&[
+        "run",
+        "--duration",
+        "3",
+        "--headless",
+        "--clock",
+        "virtual",
+        "--config",
+        &fixture("late-delivery.toml"),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("older than the gate's max age") && err.contains("max_age_ms"),
+        "{err}"
+    );
+    assert_eq!(
+        err.matches("older than the gate's max age").count(),
+        1,
+        "said once: {err}"
+    );
 }
 
 #[test]

@@ -79,7 +79,12 @@ async fn next_request(control: Option<&mut LoopControl>) -> gelgrip_web::control
 struct Progress {
     last_log_us: u64,
     last_sets: u64,
+    /// The "every set is too old" hint was given.
+    hinted_late: bool,
 }
+
+/// Rejected-late sets, with none emitted, before the run says why.
+const LATE_HINT_SETS: u64 = 20;
 
 impl Progress {
     fn log(&mut self, acq: &Acquisition, now_us: u64) {
@@ -99,6 +104,16 @@ impl Progress {
         );
         self.last_log_us = now_us;
         self.last_sets = stats.sets;
+        if !self.hinted_late && stats.sets == 0 && stats.sets_rejected.late >= LATE_HINT_SETS {
+            self.hinted_late = true;
+            tracing::warn!(
+                rejected_late = stats.sets_rejected.late,
+                max_age_ms = acq.gate().limits().max_age_us as f64 / 1e3,
+                "every set so far arrived older than the gate's max age: the bus model \
+                 underestimates the latency. Check the hub's section (a full-speed CDC hub \
+                 needs [hub.cdc] usb = \"fs\") or set [gate] max_age_ms"
+            );
+        }
     }
 }
 
@@ -146,6 +161,7 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
     let mut progress = Progress {
         last_log_us: start,
         last_sets: 0,
+        hinted_late: false,
     };
     let mut faults = Vec::new();
     let bus = wiring::open_servos(&config, world.as_ref(), clock.clone())?;
