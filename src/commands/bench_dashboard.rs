@@ -5,8 +5,6 @@
 //! client, each counting what it receives. Wall-clock, on this host: CPU comes from
 //! `/proc/<pid>/stat` (Linux).
 
-use std::io::{BufRead, BufReader};
-use std::process::{Command, Stdio};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
@@ -16,6 +14,7 @@ use serde::Serialize;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 
 use crate::cli::BenchDashboardArgs;
+use crate::commands::dashboard_child::DashboardChild;
 
 /// The bench's result.
 #[derive(Debug, Serialize)]
@@ -101,28 +100,10 @@ async fn count_stream(
 
 /// Run the bench; returns the exit code.
 pub async fn run(args: BenchDashboardArgs) -> anyhow::Result<u8> {
-    let exe = std::env::current_exe().context("locating the gelgrip binary")?;
-    let mut child = Command::new(exe)
-        .args(["run", "--http", "127.0.0.1:0"])
-        .env("RUST_LOG", "warn")
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .context("starting gelgrip run")?;
-    let stderr = child.stderr.take().context("stderr")?;
-    let (tx, rx) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
-            if let Some(url) = line.strip_prefix("dashboard: ") {
-                let _ = tx.send(url.trim().to_string());
-            }
-        }
-    });
-    let result = measure(&args, child.id(), rx).await;
-    let _ = Command::new("kill")
-        .args(["-TERM", &child.id().to_string()])
-        .status();
-    let _ = child.wait();
+    let mut run = DashboardChild::start(&[], false).await?;
+    let result = measure(&args, run.pid(), run.addr.clone()).await;
+    run.terminate();
+    let _ = run.child.wait();
     let r = result?;
     if args.json {
         println!("{}", serde_json::to_string(&r)?);
@@ -150,15 +131,8 @@ pub async fn run(args: BenchDashboardArgs) -> anyhow::Result<u8> {
 async fn measure(
     args: &BenchDashboardArgs,
     pid: u32,
-    url: std::sync::mpsc::Receiver<String>,
+    addr: String,
 ) -> anyhow::Result<DashboardBench> {
-    let url = tokio::task::spawn_blocking(move || url.recv_timeout(Duration::from_secs(300)))
-        .await?
-        .context("gelgrip run did not print its dashboard URL")?;
-    let addr = url
-        .trim_start_matches("http://")
-        .trim_end_matches('/')
-        .to_string();
     let state: serde_json::Value = {
         // Wait for the first sets, then read the sensor ids.
         tokio::time::sleep(Duration::from_secs(2)).await;

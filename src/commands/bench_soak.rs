@@ -11,8 +11,7 @@
 //! answer. The exit code is 1 when an invariant fails.
 
 use std::collections::BTreeMap;
-use std::io::{BufRead, BufReader, Read};
-use std::process::{Command, Stdio};
+use std::io::Read;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
@@ -22,6 +21,7 @@ use serde::Serialize;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 
 use crate::cli::BenchSoakArgs;
+use crate::commands::dashboard_child::DashboardChild;
 
 /// The controller phases docs/control.md documents.
 const PHASES: [&str; 7] = [
@@ -212,37 +212,9 @@ impl Soak {
 
 /// Run the bench; returns the exit code.
 pub async fn run(args: BenchSoakArgs) -> anyhow::Result<u8> {
-    let exe = std::env::current_exe().context("locating the gelgrip binary")?;
-    let mut child = Command::new(exe)
-        .args(["run", "--http", "127.0.0.1:0", "--json"])
-        .env("RUST_LOG", "warn")
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .context("starting gelgrip run")?;
-    let pid = child.id();
-    let stderr = child.stderr.take().context("stderr")?;
-    let (tx, rx) = std::sync::mpsc::channel();
-    let panics = std::sync::Arc::new(std::sync::atomic::AtomicU64::new(0));
-    let seen_panics = panics.clone();
-    std::thread::spawn(move || {
-        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
-            if let Some(url) = line.strip_prefix("dashboard: ") {
-                let _ = tx.send(url.trim().to_string());
-            }
-            if line.contains("panicked") {
-                eprintln!("gelgrip run: {line}");
-                seen_panics.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-            }
-        }
-    });
-    let url = tokio::task::spawn_blocking(move || rx.recv_timeout(Duration::from_secs(300)))
-        .await?
-        .context("gelgrip run did not print its dashboard URL")?;
-    let addr = url
-        .trim_start_matches("http://")
-        .trim_end_matches('/')
-        .to_string();
+    let mut child = DashboardChild::start(&["--json"], true).await?;
+    let pid = child.pid();
+    let addr = child.addr.clone();
     let mut soak = Soak {
         addr,
         rng: Pcg64Mcg::seed_from_u64(args.seed),
@@ -308,14 +280,12 @@ pub async fn run(args: BenchSoakArgs) -> anyhow::Result<u8> {
     }
     while soak.bursts.join_next().await.is_some() {}
     let http_status = soak.status.lock().map(|s| s.clone()).unwrap_or_default();
-    let _ = Command::new("kill")
-        .args(["-TERM", &pid.to_string()])
-        .status();
+    child.terminate();
     let mut out = String::new();
-    if let Some(mut stdout) = child.stdout.take() {
+    if let Some(mut stdout) = child.child.stdout.take() {
         stdout.read_to_string(&mut out).ok();
     }
-    let status = child.wait().context("waiting for gelgrip run")?;
+    let status = child.child.wait().context("waiting for gelgrip run")?;
     let run: serde_json::Value = serde_json::from_str(out.trim())
         .with_context(|| format!("gelgrip run's report: {out:?}"))?;
     let count = |key: &str| -> u64 {
@@ -334,8 +304,7 @@ pub async fn run(args: BenchSoakArgs) -> anyhow::Result<u8> {
     } else {
         0.0
     };
-    let panics =
-        panics.load(std::sync::atomic::Ordering::Relaxed) + u64::from(status.code() == Some(101));
+    let panics = child.panics() + u64::from(status.code() == Some(101));
     let five_xx = http_status.get("5xx").copied().unwrap_or(0);
     let unanswered = http_status.get("none").copied().unwrap_or(0);
     let passed = panics == 0

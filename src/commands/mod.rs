@@ -9,6 +9,7 @@ pub mod bench_sync;
 pub mod calibrate;
 pub mod calibrate_force;
 pub mod check_config;
+pub mod dashboard_child;
 pub mod depth;
 pub mod emulate;
 pub mod emulate_hub;

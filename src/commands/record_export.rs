@@ -24,6 +24,15 @@ use crate::cli::{RecordExportArgs, ReplaySpeed};
 use crate::commands::replay::{ReplayedGate, recorded_config};
 use crate::tactile::Tactile;
 
+/// Each sensor's fields in a state record, as CSV columns.
+const SENSOR_FIELDS: [&str; 5] = [
+    "in_contact",
+    "area_mm2",
+    "max_depth_mm",
+    "volume_mm3",
+    "force_n",
+];
+
 fn sensor_ids(recording: &Recording) -> anyhow::Result<Vec<String>> {
     match recording.header()? {
         Meta::Header { sensors, .. } => Ok(sensors),
@@ -124,13 +133,7 @@ fn export_csv(recording: &Recording, file: &Path) -> anyhow::Result<u64> {
         csv::Writer::from_path(file).with_context(|| format!("creating {}", file.display()))?;
     let mut header = vec!["t_s".to_string(), "trigger_seq".into(), "stage".into()];
     for id in &ids {
-        for k in [
-            "in_contact",
-            "area_mm2",
-            "max_depth_mm",
-            "volume_mm3",
-            "force_n",
-        ] {
+        for k in SENSOR_FIELDS {
             header.push(format!("{id}_{k}"));
         }
     }
@@ -164,13 +167,7 @@ fn export_csv(recording: &Recording, file: &Path) -> anyhow::Result<u64> {
         ];
         for i in 0..ids.len() {
             let r = &s["sensors"][i];
-            for k in [
-                "in_contact",
-                "area_mm2",
-                "max_depth_mm",
-                "volume_mm3",
-                "force_n",
-            ] {
+            for k in SENSOR_FIELDS {
                 row.push(text(&r[k]));
             }
         }

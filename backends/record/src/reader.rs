@@ -9,7 +9,9 @@ use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
-use crate::format::{FORMAT_VERSION, Framed, MAGIC, Meta, Record, RecordError, frame};
+use crate::format::{
+    FORMAT_VERSION, Framed, MAGIC, MAX_RECORD_BYTES, Meta, Record, RecordError, frame,
+};
 
 /// What reading a whole recording found.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
@@ -81,20 +83,36 @@ impl Recording {
         &self.segments
     }
 
-    /// The first segment's header.
+    /// The first segment's header, reading that record alone (its magic, version and CRC
+    /// checked).
     pub fn header(&self) -> Result<Meta, RecordError> {
-        let mut found = None;
-        self.read_segment(0, &mut |r| {
-            if found.is_none()
-                && let Record::Meta(m @ Meta::Header { .. }) = r
-            {
-                found = Some(m);
-            }
+        use std::io::Read;
+        let path = &self.segments[0];
+        let name = path.display().to_string();
+        let no_header = |detail: &str| RecordError::Format {
+            path: name.clone(),
+            detail: detail.into(),
+        };
+        let mut file = std::fs::File::open(path).map_err(|e| io(path, e))?;
+        let mut bytes = vec![0u8; MAGIC.len() + 4];
+        file.read_exact(&mut bytes)
+            .map_err(|_| no_header("shorter than a segment's magic and first record"))?;
+        let at = MAGIC.len();
+        let len = u32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]);
+        if len > MAX_RECORD_BYTES {
+            return Err(no_header("the first record's length is not a header's"));
+        }
+        bytes.resize(at + 4 + len as usize + 4, 0);
+        file.read_exact(&mut bytes[at + 4..])
+            .map_err(|_| no_header("the header record is cut short"))?;
+        let mut first = None;
+        read_records(&bytes, &name, &mut Summary::default(), &mut |r| {
+            first.get_or_insert(r);
         })?;
-        found.ok_or_else(|| RecordError::Format {
-            path: self.segments[0].display().to_string(),
-            detail: "no header record".into(),
-        })
+        match first {
+            Some(Record::Meta(m @ Meta::Header { .. })) => Ok(m),
+            _ => Err(no_header("no whole header record (its CRC fails)")),
+        }
     }
 
     /// Call `each` with every whole, CRC-checked record in order; the summary at the end.

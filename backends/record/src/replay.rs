@@ -55,6 +55,12 @@ impl RecordStream {
             path: path.display().to_string(),
             source: e,
         })?;
+        if self.bytes.len() >= MAGIC.len() && self.bytes[..MAGIC.len()] != MAGIC {
+            return Err(RecordError::Format {
+                path: path.display().to_string(),
+                detail: "not a gelgrip recording segment".into(),
+            });
+        }
         self.at = MAGIC.len().min(self.bytes.len());
         Ok(true)
     }
@@ -145,7 +151,10 @@ impl ReplayHub {
         prediction: BusPrediction,
     ) -> Result<Self, RecordError> {
         let Meta::Header { sensors, .. } = recording.header()? else {
-            unreachable!("header() returns a header");
+            return Err(RecordError::Format {
+                path: recording.dir().display().to_string(),
+                detail: "no header record".into(),
+            });
         };
         let (factor, max) = match speed {
             Speed::Factor(f) => (f, false),
