@@ -254,6 +254,11 @@ pub enum CalibrateCommand {
     Train(TrainArgs),
     /// Evaluate a gradient model on a press dataset: gx_mae, gy_mae, depth_mae_mm.
     Eval(EvalArgs),
+    /// Zero-shot transfer of an MLP to another sensor: fit a per-channel offset (and
+    /// optionally a gain) on the first press of that sensor's dataset.
+    Transfer(TransferArgs),
+    /// Bake a difference-input MLP into a (tiled) LUT for table-speed inference.
+    Bake(BakeArgs),
     /// Fit the force proxy (indentation volume × stiffness) against known forces: on the
     /// simulator, its ground-truth force of ball presses.
     Force(ForceArgs),
@@ -298,7 +303,7 @@ pub struct CollectArgs {
 pub enum ModelKind {
     /// Binned colour → mean gradient.
     Lut,
-    /// Multi-layer perceptron (arrives with the MLP calibration issue).
+    /// Multi-layer perceptron: RGB + x, y → (Gx, Gy), three tanh hidden layers.
     Mlp,
 }
 
@@ -320,6 +325,85 @@ pub struct TrainArgs {
     /// Output model file (.safetensors).
     #[arg(long)]
     pub out: PathBuf,
+    /// MLP: hidden layer width.
+    #[arg(long, default_value = "32", value_parser = clap::value_parser!(u16).range(1..=1024))]
+    pub hidden: u16,
+    /// MLP: passes over the training pixels.
+    #[arg(long, default_value_t = DEFAULT_EPOCHS, value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    pub epochs: u32,
+    /// MLP: dropout after each hidden layer while training.
+    #[arg(long, default_value_t = 0.05, value_parser = parse_dropout)]
+    pub dropout: f64,
+    /// MLP: initial learning rate (Adam; cosine decay to 5 % of it).
+    #[arg(long, default_value_t = 2e-3, value_parser = parse_learning_rate)]
+    pub learning_rate: f64,
+    /// MLP: seed of initialisation, shuffling and dropout.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Print one JSON object (the MAEs) on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Default MLP training epochs (about a minute for 50 presses at 320×240 on 2 cores;
+/// docs/calibration.md).
+pub const DEFAULT_EPOCHS: u32 = 40;
+
+fn parse_dropout(s: &str) -> Result<f64, String> {
+    parse_within(s, "a dropout probability", "", 0.0..=0.9)
+}
+
+fn parse_learning_rate(s: &str) -> Result<f64, String> {
+    parse_within(s, "a learning rate", "", 1e-6..=1.0)
+}
+
+/// `gelgrip calibrate transfer`.
+#[derive(Debug, Args)]
+pub struct TransferArgs {
+    /// The source sensor's MLP model file.
+    #[arg(long)]
+    pub model: PathBuf,
+    /// The target sensor's press dataset (its first press is used).
+    #[arg(long)]
+    pub data: PathBuf,
+    /// Output model file.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// What to fit: the paper's per-channel offset, or a gain as well.
+    #[arg(long, default_value = "offset", value_parser = ["offset", "offset-gain"])]
+    pub fit: String,
+    /// Print one JSON object on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `gelgrip calibrate bake`.
+#[derive(Debug, Args)]
+pub struct BakeArgs {
+    /// A difference-input MLP model file.
+    #[arg(long)]
+    pub model: PathBuf,
+    /// Output LUT model file.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Bins per colour channel.
+    #[arg(long, default_value = "64", value_parser = clap::value_parser!(u16).range(2..=128))]
+    pub bins: u16,
+    /// Spatial tiles, ACROSSxDOWN (each its own colour table, interpolated).
+    #[arg(long, default_value = "4x3", value_parser = parse_tiles)]
+    pub tiles: [usize; 2],
+}
+
+fn parse_tiles(s: &str) -> Result<[usize; 2], String> {
+    let bad = || format!("`{s}` is not tiles ACROSSxDOWN with each in 1..=16, such as 4x3");
+    let (a, d) = s.split_once('x').ok_or_else(bad)?;
+    let n = |v: &str| {
+        v.trim()
+            .parse::<usize>()
+            .ok()
+            .filter(|n| (1..=16).contains(n))
+    };
+    Ok([n(a).ok_or_else(bad)?, n(d).ok_or_else(bad)?])
 }
 
 /// `gelgrip calibrate eval`.
@@ -359,9 +443,17 @@ pub struct BenchPipelineArgs {
     /// Sensors per set.
     #[arg(long, default_value = "7", value_parser = clap::value_parser!(u8).range(1..=32))]
     pub sensors: u8,
-    /// Gradient model kind (lut; mlp arrives with its issue).
+    /// Gradient model kind. `mlp` trains an MLP on the first sensor and transfers it to the
+    /// others from one press each (the paper's deployment).
     #[arg(long, value_enum, default_value = "lut")]
     pub model: ModelKind,
+    /// How the MLP runs: `contact` (pixels above the noise), `dense`, or `baked` (into a
+    /// tiled LUT).
+    #[arg(long, default_value = "contact", value_parser = ["contact", "dense", "baked"])]
+    pub mlp_mode: String,
+    /// MLP training epochs.
+    #[arg(long, default_value_t = DEFAULT_EPOCHS, value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    pub epochs: u32,
     /// Use this trained model for every sensor instead of calibrating each one.
     #[arg(long)]
     pub model_file: Option<PathBuf>,
@@ -419,6 +511,49 @@ pub enum BenchCommand {
     /// The product under random faults (corrupt bytes, dropouts, slow sensors, hub
     /// unplugs, servo overloads, HTTP bursts) with its invariants checked (wall clock).
     Soak(BenchSoakArgs),
+    /// The paper's Table II on seven simulated sensors: individual LUT and MLPs against
+    /// zero-shot transfer, Gx and Gy MAE on held-out presses.
+    Calibration(BenchCalibrationArgs),
+    /// The speed/accuracy trade: resolution × gradient model × depth solver, time per set
+    /// of 7 sensors against the errors, with the Pareto front.
+    Tradeoff(BenchTradeoffArgs),
+}
+
+/// `gelgrip bench calibration`.
+#[derive(Debug, Args)]
+pub struct BenchCalibrationArgs {
+    /// Presses per sensor (the last 10% held out).
+    #[arg(long, default_value = "50", value_parser = clap::value_parser!(u32).range(4..=2000))]
+    pub presses: u32,
+    /// MLP training epochs.
+    #[arg(long, default_value_t = DEFAULT_EPOCHS, value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    pub epochs: u32,
+    /// MLP hidden layer width.
+    #[arg(long, default_value = "32", value_parser = clap::value_parser!(u16).range(1..=1024))]
+    pub hidden: u16,
+    /// Print one JSON object on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `gelgrip bench tradeoff`.
+#[derive(Debug, Args)]
+pub struct BenchTradeoffArgs {
+    /// Timed sets per configuration.
+    #[arg(long, default_value = "30", value_parser = clap::value_parser!(u32).range(1..=10_000))]
+    pub sets: u32,
+    /// Presses per sensor for calibration.
+    #[arg(long, default_value = "50", value_parser = clap::value_parser!(u32).range(4..=2000))]
+    pub presses: u32,
+    /// MLP training epochs (the source sensor's MLP; the others are transferred).
+    #[arg(long, default_value_t = DEFAULT_EPOCHS, value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    pub epochs: u32,
+    /// Write the Pareto plot here (.svg or .png).
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+    /// Print a JSON array of rows on stdout.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// `gelgrip bench soak`.
@@ -615,9 +750,14 @@ fn parse_within(
     unit: &str,
     range: std::ops::RangeInclusive<f64>,
 ) -> Result<f64, String> {
+    let in_unit = if unit.is_empty() {
+        String::new()
+    } else {
+        format!(" in {unit}")
+    };
     let v: f64 = s
         .parse()
-        .map_err(|_| format!("`{s}` is not {what} in {unit}"))?;
+        .map_err(|_| format!("`{s}` is not {what}{in_unit}"))?;
     if range.contains(&v) {
         Ok(v)
     } else {

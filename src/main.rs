@@ -14,10 +14,12 @@ mod gripper_loop;
 mod loop_control;
 mod output;
 mod plot;
+mod progress;
 mod recording;
 mod replay_hub;
 mod scene_report;
 mod script_task;
+mod sensor_models;
 mod servo_loop;
 mod simcam;
 mod tactile;
@@ -66,6 +68,10 @@ fn main() -> ExitCode {
             Command::Bench(BenchCommand::Pipeline(args)) => commands::bench_pipeline::run(args),
             Command::Bench(BenchCommand::Grasp(args)) => commands::bench_grasp::run(args),
             Command::Bench(BenchCommand::Sync(args)) => commands::bench_sync::run(args),
+            Command::Bench(BenchCommand::Calibration(args)) => {
+                commands::bench_calibration::run(args)
+            }
+            Command::Bench(BenchCommand::Tradeoff(args)) => commands::bench_tradeoff::run(args),
             Command::Bench(BenchCommand::Soak(args)) => commands::bench_soak::run(args).await,
             Command::Bench(BenchCommand::Dashboard(args)) => {
                 commands::bench_dashboard::run(args).await

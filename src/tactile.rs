@@ -9,7 +9,6 @@
 //! as the controller's per-sensor readings (`None` for a sensor whose frame failed).
 
 use std::path::PathBuf;
-use std::sync::Arc;
 
 use anyhow::Context;
 
@@ -20,6 +19,7 @@ use gelgrip_plugins::calibrate;
 use gelgrip_plugins::config::PipelineConfig;
 use gelgrip_plugins::contact::ContactSummary;
 use gelgrip_plugins::dataset::PressDataset;
+use gelgrip_plugins::gradient::{GradientModel, MlpMode};
 use gelgrip_plugins::lut::Input;
 use gelgrip_plugins::lut::LutModel;
 use gelgrip_plugins::pipeline::{Needs, SensorPipeline, StageChoice, process_set};
@@ -100,12 +100,7 @@ impl Tactile {
         if frames.len() != self.pipes.len() {
             return vec![None; self.pipes.len()];
         }
-        process_set(
-            &mut self.pipes,
-            &frames,
-            Needs { depth: true },
-            &mut self.results,
-        );
+        process_set(&mut self.pipes, &frames, Needs::DEPTH, &mut self.results);
         self.results
             .iter()
             .zip(&self.geometry)
@@ -214,12 +209,25 @@ pub fn sensor_pipeline(
             "sensor {id}: live tactile processing needs the simulated hub for its reference frames"
         )
     })?;
-    let lut = sensor_model(&id, stages.model.as_deref(), &cam, &sim)?;
+    let model = match (&stages.model, stages.mlp) {
+        (Some(path), mode) => {
+            let model = GradientModel::load(path, mode.unwrap_or(MlpMode::ContactOnly))
+                .with_context(|| format!("sensor {id}: model {}", path.display()))?;
+            let is_mlp = matches!(model, GradientModel::Mlp { .. });
+            if is_mlp != mode.is_some() {
+                anyhow::bail!(
+                    "sensor {id}: model {} is a {} model but the sensor's gradient stage is `{}`",
+                    path.display(),
+                    if is_mlp { "mlp" } else { "lut" },
+                    if mode.is_some() { "mlp" } else { "lut" }
+                );
+            }
+            model
+        }
+        (None, _) => GradientModel::lut(sensor_model(&id, None, &cam, &sim)?),
+    };
     let mut pipe = SensorPipeline::new(
-        StageChoice {
-            stages,
-            lut: Arc::new(lut),
-        },
+        StageChoice { stages, model },
         cam.width,
         cam.height,
         cam.mm_per_px,

@@ -109,7 +109,117 @@ fn bad_inputs_are_clear_errors() {
         "--out",
         s(&dir.join("m")),
     ]);
-    assert_eq!(out.status.code(), Some(2));
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("dataset.toml"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// MLP training, zero-shot transfer to another sensor, baking, and evaluation of all three;
+/// then model files with unknown versions or missing metadata are refused by name.
+#[test]
+fn mlp_train_transfer_bake_eval() {
+    let dir = scratch("mlp");
+    let collect = |sensor: &str, out: &Path| {
+        ok(&gelgrip(&[
+            "calibrate",
+            "collect",
+            "--sensor",
+            sensor,
+            "--presses",
+            "12",
+            "--out",
+            s(out),
+        ]))
+    };
+    let (a, b) = (dir.join("a"), dir.join("b"));
+    collect("f1.tip", &a);
+    collect("f2.middle", &b);
+    let mlp = dir.join("mlp.safetensors");
+    let train = json(&gelgrip(&[
+        "calibrate",
+        "train",
+        "--model",
+        "mlp",
+        "--data",
+        s(&a),
+        "--epochs",
+        "4",
+        "--out",
+        s(&mlp),
+        "--json",
+    ]));
+    assert_eq!(train["model"], "mlp", "{train}");
+    assert_eq!(train["hidden"], 32, "{train}");
+    let test_gx = train["test_gx_mae"].as_f64().expect("test_gx_mae");
+    assert!(test_gx > 0.0 && test_gx < 0.2, "{train}");
+    let moved = dir.join("moved.safetensors");
+    let tr = json(&gelgrip(&[
+        "calibrate",
+        "transfer",
+        "--model",
+        s(&mlp),
+        "--data",
+        s(&b),
+        "--out",
+        s(&moved),
+        "--json",
+    ]));
+    assert!(
+        tr["press_mae_after"].as_f64() <= tr["press_mae_before"].as_f64(),
+        "{tr}"
+    );
+    let baked = dir.join("baked.safetensors");
+    ok(&gelgrip(&[
+        "calibrate",
+        "bake",
+        "--model",
+        s(&moved),
+        "--out",
+        s(&baked),
+        "--bins",
+        "32",
+        "--tiles",
+        "2x2",
+    ]));
+    for model in [&mlp, &moved, &baked] {
+        let eval = json(&gelgrip(&[
+            "calibrate",
+            "eval",
+            "--model",
+            s(model),
+            "--data",
+            s(&b),
+            "--json",
+        ]));
+        let gx = eval["gx_mae"].as_f64().expect("gx_mae");
+        let depth = eval["depth_mae_mm"].as_f64().expect("depth");
+        assert!(
+            gx.is_finite() && gx < 0.2 && depth.is_finite(),
+            "{model:?}: {eval}"
+        );
+    }
+    // A file from a future version, and one without metadata, are refused by key.
+    let file = gelgrip_plugins::model_file::ModelFile::read(&mlp).expect("reads");
+    let future = dir.join("future.safetensors");
+    let mut f = file.clone();
+    f.metadata.insert("version".into(), "99".into());
+    f.write(&future).expect("writes");
+    let bare = dir.join("bare.safetensors");
+    let mut f = file;
+    f.metadata.clear();
+    f.write(&bare).expect("writes");
+    for (path, expect) in [
+        (&future, "metadata `version` is Some(\"99\"), expected 1"),
+        (&bare, "metadata `format` is None"),
+    ] {
+        let out = gelgrip(&["calibrate", "eval", "--model", s(path), "--data", s(&b)]);
+        assert_eq!(out.status.code(), Some(1));
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(expect) && err.contains(s(path)), "{err}");
+    }
 }
 
 #[test]

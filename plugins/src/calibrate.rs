@@ -1,11 +1,28 @@
-//! Calibration from a press dataset: train a LUT gradient model and evaluate any model with
-//! the contract's metrics (`gx_mae`, `gy_mae` over inside pixels of all presses,
-//! `depth_mae_mm` from the ball geometry).
+//! Calibration from a press dataset: train a LUT or MLP gradient model, gather a press for
+//! zero-shot transfer, and evaluate any model with the contract's metrics (`gx_mae`,
+//! `gy_mae` over inside pixels of all presses, `depth_mae_mm` from the ball geometry).
+
+use thiserror::Error;
 
 use crate::dataset::{DatasetError, PressDataset, PressTruth};
+use crate::gradient::{GradientModel, background_key};
 use crate::image::RgbImage;
 use crate::lut::{Input, LutModel, LutTrainer};
+use crate::mlp::train::{EpochReport, Samples, TrainOptions};
+use crate::mlp::transfer::PressPixels;
+use crate::mlp::{MlpError, MlpModel};
 use crate::poisson::{PoissonPlan, Solver};
+
+/// Calibration failed: reading the dataset, or the network.
+#[derive(Debug, Error)]
+pub enum CalibrateError {
+    /// The dataset.
+    #[error(transparent)]
+    Dataset(#[from] DatasetError),
+    /// The MLP.
+    #[error(transparent)]
+    Mlp(#[from] MlpError),
+}
 
 /// Share of `presses.csv` rows (the last ones) held out for the test MAE.
 pub const TEST_SHARE: f64 = 0.1;
@@ -40,24 +57,9 @@ pub fn train_lut_on(
     input: Input,
     bins: usize,
 ) -> Result<LutModel, DatasetError> {
-    let Some(first) = datasets.first() else {
-        return Err(DatasetError::Format {
-            path: String::new(),
-            detail: "no dataset to train on".into(),
-        });
-    };
-    let (w, h) = (first.background.width, first.background.height);
+    let (w, h) = same_size(datasets)?;
     let mut trainer = LutTrainer::new(input, bins);
     for ds in datasets {
-        if (ds.background.width, ds.background.height) != (w, h) {
-            return Err(DatasetError::Format {
-                path: ds.dir.display().to_string(),
-                detail: format!(
-                    "images are {}x{}, the first dataset's are {w}x{h}",
-                    ds.background.width, ds.background.height
-                ),
-            });
-        }
         let r = ds.ball_radius_px();
         for press in &ds.presses[..split_index(ds.presses.len())] {
             let img = ds.press_image(press)?;
@@ -82,6 +84,123 @@ pub fn train_lut_on(
     Ok(trainer.finish(w, h))
 }
 
+/// The labelled pixels of the training rows of `datasets` as MLP samples (transfer not
+/// applied): every inside pixel, and background pixels with zero target, one in five of the
+/// inside count, as for the LUT.
+pub fn mlp_samples(
+    datasets: &[&PressDataset],
+    input: Input,
+) -> Result<(Samples, (usize, usize)), CalibrateError> {
+    let size = same_size(datasets)?;
+    let (w, h) = size;
+    let shape = MlpModel {
+        input,
+        width: w,
+        height: h,
+        hidden: 0,
+        layers: Vec::new(),
+        offset_rgb: [0.0; 3],
+        gain_rgb: [1.0; 3],
+    };
+    let mut samples = Samples::default();
+    for ds in datasets {
+        let r = ds.ball_radius_px();
+        for press in &ds.presses[..split_index(ds.presses.len())] {
+            let img = ds.press_image(press)?;
+            let truth = PressTruth::new(press, r, w, h);
+            let (gx, gy) = truth.gradients(w, h);
+            let inside = truth.inside.iter().filter(|v| **v).count().max(1);
+            let stride = ((w * h - inside).max(1) * 5 / inside).max(1);
+            for p in 0..w * h {
+                let label = if truth.inside[p] {
+                    Some((gx[p] as f32, gy[p] as f32))
+                } else if p % stride == 0 && truth.depth_px[p] == 0.0 {
+                    Some((0.0, 0.0))
+                } else {
+                    None
+                };
+                if let Some((a, b)) = label.filter(|(a, b)| a.is_finite() && b.is_finite()) {
+                    let k = key(&img, &ds.background, p, input);
+                    samples.push(shape.features(k, p % w, p / w), a, b);
+                }
+            }
+        }
+    }
+    Ok((samples, size))
+}
+
+fn same_size(datasets: &[&PressDataset]) -> Result<(usize, usize), DatasetError> {
+    let Some(first) = datasets.first() else {
+        return Err(DatasetError::Format {
+            path: String::new(),
+            detail: "no dataset to train on".into(),
+        });
+    };
+    let (w, h) = (first.background.width, first.background.height);
+    for ds in datasets {
+        if (ds.background.width, ds.background.height) != (w, h) {
+            return Err(DatasetError::Format {
+                path: ds.dir.display().to_string(),
+                detail: format!(
+                    "images are {}x{}, the first dataset's are {w}x{h}",
+                    ds.background.width, ds.background.height
+                ),
+            });
+        }
+    }
+    Ok((w, h))
+}
+
+/// Train an MLP on the training rows of `datasets` (the last 10% of each held out).
+pub fn train_mlp_on(
+    datasets: &[&PressDataset],
+    input: Input,
+    opts: &TrainOptions,
+    progress: impl FnMut(&EpochReport),
+) -> Result<MlpModel, CalibrateError> {
+    let (samples, size) = mlp_samples(datasets, input)?;
+    Ok(crate::mlp::train::train(
+        &samples, input, size, opts, progress,
+    )?)
+}
+
+/// Press `index` of `ds` as transfer input: its inside pixels, and background pixels (one
+/// in five of the inside count) with zero target.
+pub fn press_pixels(
+    ds: &PressDataset,
+    index: usize,
+    input: Input,
+) -> Result<PressPixels, CalibrateError> {
+    let press = ds.presses.get(index).ok_or_else(|| DatasetError::Format {
+        path: ds.dir.display().to_string(),
+        detail: format!("no press {index} (the dataset has {})", ds.presses.len()),
+    })?;
+    let (w, h) = (ds.background.width, ds.background.height);
+    let img = ds.press_image(press)?;
+    let truth = PressTruth::new(press, ds.ball_radius_px(), w, h);
+    let (gx, gy) = truth.gradients(w, h);
+    let inside = truth.inside.iter().filter(|v| **v).count().max(1);
+    let stride = ((w * h - inside).max(1) * 5 / inside).max(1);
+    let mut out = PressPixels::default();
+    for p in 0..w * h {
+        let target = if truth.inside[p] {
+            [gx[p] as f32, gy[p] as f32]
+        } else if p % stride == 0 && truth.depth_px[p] == 0.0 {
+            [0.0, 0.0]
+        } else {
+            continue;
+        };
+        if target.iter().all(|v| v.is_finite()) {
+            out.keys.push(key(&img, &ds.background, p, input));
+            out.background_keys
+                .push(background_key(&ds.background, p, input));
+            out.positions.push((p % w, p / w));
+            out.targets.push(target);
+        }
+    }
+    Ok(out)
+}
+
 /// Metrics of a model on some presses.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct EvalReport {
@@ -99,11 +218,11 @@ pub struct EvalReport {
 
 /// Evaluate `model` on `rows` of the dataset; depth uses `solver` over the whole frame.
 pub fn evaluate(
-    model: &LutModel,
+    model: &GradientModel,
     ds: &PressDataset,
     rows: std::ops::Range<usize>,
     solver: Option<Solver>,
-) -> Result<EvalReport, DatasetError> {
+) -> Result<EvalReport, CalibrateError> {
     let (w, h) = (ds.background.width, ds.background.height);
     let r = ds.ball_radius_px();
     let mut plan = solver.map(|s| PoissonPlan::<f64>::new(s, h, w));
@@ -113,11 +232,7 @@ pub fn evaluate(
         let img = ds.press_image(press)?;
         let truth = PressTruth::new(press, r, w, h);
         let (gx, gy) = truth.gradients(w, h);
-        for p in 0..w * h {
-            let [a, b] = model.predict(key(&img, &ds.background, p, model.input));
-            px[p] = f64::from(a);
-            py[p] = f64::from(b);
-        }
+        model.predict_frame(&img, &ds.background, &mut px, &mut py)?;
         if let Some(plan) = plan.as_mut() {
             plan.solve(&px, &py, &mut z);
             if plan.solver() == Solver::Dct {

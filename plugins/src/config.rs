@@ -8,8 +8,9 @@
 //! reference = "static"       # static | drift
 //! reference_alpha = 0.02     # drift: refresh rate per no-contact frame
 //! diff = "diff"
-//! gradient = "lut"           # lut (mlp arrives with its issue)
-//! model = "models/lut.safetensors"   # optional; relative to this file
+//! gradient = "lut"           # lut | mlp (mlp needs `model`)
+//! model = "models/lut.safetensors"   # optional for lut; relative to this file
+//! mlp_mode = "contact"       # mlp: contact (pixels above the noise) | dense
 //! depth = "dct"              # dst | dct | none
 //! contact = "threshold"
 //! stiffness_n_per_mm3 = 0.1
@@ -27,6 +28,7 @@ use gelgrip_controller::config::{BackendSection, ConfigError, FieldCheck};
 use gelgrip_controller::layout::HandLayout;
 
 use crate::contact::DEFAULT_STIFFNESS_N_PER_MM3;
+use crate::gradient::MlpMode;
 use crate::pipeline::STAGES;
 use crate::poisson::Solver;
 use crate::undistort::Fisheye;
@@ -42,6 +44,8 @@ pub struct SensorStages {
     pub reference_alpha: f32,
     /// Model file for the gradient stage, if configured.
     pub model: Option<PathBuf>,
+    /// Gradient `mlp` and where it runs (`None` = gradient `lut`).
+    pub mlp: Option<MlpMode>,
     /// Depth solver (`None` = stage `none`).
     pub solver: Option<Solver>,
     /// Force-proxy stiffness, N/mm³.
@@ -66,6 +70,7 @@ struct RawStages {
     diff: Option<String>,
     gradient: Option<String>,
     model: Option<String>,
+    mlp_mode: Option<String>,
     depth: Option<String>,
     contact: Option<String>,
     stiffness_n_per_mm3: Option<f64>,
@@ -111,6 +116,7 @@ fn merge(base: &RawStages, over: &RawStages) -> RawStages {
         diff: pick(&base.diff, &over.diff),
         gradient: pick(&base.gradient, &over.gradient),
         model: pick(&base.model, &over.model),
+        mlp_mode: pick(&base.mlp_mode, &over.mlp_mode),
         depth: pick(&base.depth, &over.depth),
         contact: pick(&base.contact, &over.contact),
         stiffness_n_per_mm3: over.stiffness_n_per_mm3.or(base.stiffness_n_per_mm3),
@@ -132,9 +138,6 @@ fn choose<'a>(
         .unwrap_or(&[]);
     if names.contains(&v) {
         return Ok(v);
-    }
-    if slot == "gradient" && v == "mlp" {
-        return Err(check.unavailable(field, v, Some("the MLP calibration issue"), names));
     }
     Err(check.invalid(field, v, &names.join(" | ")))
 }
@@ -183,7 +186,23 @@ fn stages(
     let f = |k: &str| format!("{p}.{k}");
     choose(check, &f("decode"), "decode", &r.decode, "jpeg")?;
     choose(check, &f("diff"), "diff", &r.diff, "diff")?;
-    choose(check, &f("gradient"), "gradient", &r.gradient, "lut")?;
+    let mlp = match choose(check, &f("gradient"), "gradient", &r.gradient, "lut")? {
+        "mlp" => {
+            if r.model.is_none() {
+                return Err(check.invalid(
+                    &f("gradient"),
+                    "mlp",
+                    "`model` set as well (a file from `gelgrip calibrate train --model mlp`)",
+                ));
+            }
+            let mode = r.mlp_mode.as_deref().unwrap_or("contact");
+            Some(
+                MlpMode::parse(mode)
+                    .ok_or_else(|| check.invalid(&f("mlp_mode"), mode, "contact | dense"))?,
+            )
+        }
+        _ => None,
+    };
     choose(check, &f("contact"), "contact", &r.contact, "threshold")?;
     let scale = r.decode_scale.unwrap_or(1);
     if ![1, 2, 4].contains(&scale) {
@@ -221,6 +240,7 @@ fn stages(
         undistort,
         reference_alpha,
         model: r.model.as_ref().map(|m| base.join(m)),
+        mlp,
         solver,
         stiffness_n_per_mm3: stiffness,
     })
@@ -277,7 +297,19 @@ mod tests {
         assert!(err.to_string().contains("dst | dct | none"), "{err}");
         let err =
             PipelineConfig::from_section(&section("gradient = \"mlp\""), &layout).expect_err("mlp");
-        assert!(err.to_string().contains("arrives with"), "{err}");
+        assert!(err.to_string().contains("`model` set as well"), "{err}");
+        let err = PipelineConfig::from_section(
+            &section("gradient = \"mlp\"\nmodel = \"m.safetensors\"\nmlp_mode = \"sparse\""),
+            &layout,
+        )
+        .expect_err("mode");
+        assert!(err.to_string().contains("contact | dense"), "{err}");
+        let ok = PipelineConfig::from_section(
+            &section("gradient = \"mlp\"\nmodel = \"m.safetensors\""),
+            &layout,
+        )
+        .expect("mlp");
+        assert_eq!(ok.sensors[0].mlp, Some(MlpMode::ContactOnly));
         let err = PipelineConfig::from_section(&section("undistort = \"fisheye\""), &layout)
             .expect_err("no table");
         assert!(err.to_string().contains("[pipeline.fisheye]"), "{err}");

@@ -2,7 +2,8 @@
 //! gradients, depth in mm and contact.
 //!
 //! - [`pipeline`]: the stages wired per sensor, with their buffers;
-//! - [`decode`], [`undistort`], [`lut`], [`poisson`], [`contact`]: the stages;
+//! - [`decode`], [`undistort`], [`lut`], [`mlp`], [`poisson`], [`contact`]: the stages
+//!   ([`gradient`] holds whichever gradient model a sensor uses);
 //! - [`dataset`], [`image`], [`model_file`]: the press dataset and model file formats;
 //! - [`npy`]: NumPy `.npy` gradients and depth maps.
 
@@ -11,8 +12,10 @@ pub mod config;
 pub mod contact;
 pub mod dataset;
 pub mod decode;
+pub mod gradient;
 pub mod image;
 pub mod lut;
+pub mod mlp;
 pub mod model_file;
 pub mod npy;
 pub mod pipeline;

@@ -5,8 +5,12 @@
 //! averages the labelled gradients that fall in each bin. Empty bins take the value of the
 //! nearest filled bin (multi-source breadth-first fill over the 6-neighbour grid), so every
 //! colour maps to a gradient. Lookup is one table read per pixel.
+//!
+//! A LUT may also be split into spatial tiles (`tiles = "tx,ty"`): one colour table per
+//! tile, interpolated bilinearly between tile centres. Trained LUTs have one tile; an MLP
+//! baked into a LUT ([`crate::mlp::bake`]) keeps its dependence on position that way.
 
-use std::collections::{HashMap, VecDeque};
+use std::collections::VecDeque;
 use std::path::Path;
 
 use crate::model_file::{self, ModelFile, ModelFileError};
@@ -55,7 +59,11 @@ pub struct LutModel {
     pub height: usize,
     /// Per-channel offset added to the key before binning (zero-shot transfer).
     pub offset_rgb: [f32; 3],
-    /// `bins³` entries of (gx, gy).
+    /// Spatial tiles `[across, down]` (`[1, 1]` for a trained LUT).
+    pub tiles: [usize; 2],
+    /// What it was made from: `presses` (trained) or `mlp` (baked).
+    pub source: String,
+    /// `tiles × bins³` entries of (gx, gy), tile-major.
     table: Vec<[f32; 2]>,
 }
 
@@ -147,52 +155,133 @@ impl LutTrainer {
             width,
             height,
             offset_rgb: [0.0; 3],
+            tiles: [1, 1],
+            source: "presses".into(),
             table,
         }
     }
 }
 
+/// Bin `i`'s centre value for a key kind (the colour a baked table is evaluated at).
+pub fn bin_centre(i: usize, input: Input, bins: usize) -> f32 {
+    let unit = (i as f32 + 0.5) / bins as f32;
+    match input {
+        Input::Diff => unit * 256.0 - 128.0,
+        Input::Raw => unit * 256.0,
+    }
+}
+
+/// The pixel at the centre of tile `t` of `n` along an axis of `size` px (where a baked
+/// table is evaluated, and where [`LutModel::predict_at`] returns it unblended).
+pub fn tile_centre(t: usize, n: usize, size: usize) -> usize {
+    ((t as f32 + 0.5) * size as f32 / n.max(1) as f32) as usize
+}
+
 impl LutModel {
-    /// (gx, gy) for a key colour (difference or raw, per `input`).
-    #[inline]
-    pub fn predict(&self, rgb: [f32; 3]) -> [f32; 2] {
+    /// A LUT from a ready table of `tiles[0] × tiles[1] × bins³` entries (tile-major, then
+    /// red, green, blue bins); `None` if the sizes disagree or a value is not finite.
+    pub fn from_table(
+        input: Input,
+        bins: usize,
+        (width, height): (usize, usize),
+        tiles: [usize; 2],
+        source: &str,
+        table: Vec<[f32; 2]>,
+    ) -> Option<Self> {
+        let ok = (2..=256).contains(&bins)
+            && tiles.iter().all(|t| (1..=64).contains(t))
+            && table.len() == tiles[0] * tiles[1] * bins * bins * bins
+            && table.iter().flatten().all(|v| v.is_finite());
+        ok.then(|| Self {
+            input,
+            bins,
+            width,
+            height,
+            offset_rgb: [0.0; 3],
+            tiles,
+            source: source.into(),
+            table,
+        })
+    }
+
+    fn shifted(&self, rgb: [f32; 3]) -> usize {
         let key = [
             rgb[0] + self.offset_rgb[0],
             rgb[1] + self.offset_rgb[1],
             rgb[2] + self.offset_rgb[2],
         ];
-        self.table[index(key, self.input, self.bins)]
+        index(key, self.input, self.bins)
+    }
+
+    /// (gx, gy) for a key colour (difference or raw, per `input`), ignoring tiles (the
+    /// first tile's table).
+    #[inline]
+    pub fn predict(&self, rgb: [f32; 3]) -> [f32; 2] {
+        self.table[self.shifted(rgb)]
+    }
+
+    /// (gx, gy) for a key colour at pixel `(x, y)`: with tiles, interpolated bilinearly
+    /// between the four nearest tile centres.
+    #[inline]
+    pub fn predict_at(&self, rgb: [f32; 3], x: usize, y: usize) -> [f32; 2] {
+        let i = self.shifted(rgb);
+        if self.tiles == [1, 1] {
+            return self.table[i];
+        }
+        let cube = self.bins * self.bins * self.bins;
+        let [tx, ty] = self.tiles;
+        // Position in tile units, relative to the first tile's centre.
+        let along = |p: usize, n: usize, size: usize| {
+            let step = size.max(1) as f32 / n as f32;
+            ((p as f32 - tile_centre(0, n, size) as f32) / step).clamp(0.0, (n - 1) as f32)
+        };
+        let (u, v) = (along(x, tx, self.width), along(y, ty, self.height));
+        let (u0, v0) = (u as usize, v as usize);
+        let (u1, v1) = ((u0 + 1).min(tx - 1), (v0 + 1).min(ty - 1));
+        let (fu, fv) = (u - u0 as f32, v - v0 as f32);
+        let at = |a: usize, b: usize| self.table[(b * tx + a) * cube + i];
+        let (p00, p10, p01, p11) = (at(u0, v0), at(u1, v0), at(u0, v1), at(u1, v1));
+        [0, 1].map(|c| {
+            let top = p00[c] + (p10[c] - p00[c]) * fu;
+            let bottom = p01[c] + (p11[c] - p01[c]) * fu;
+            top + (bottom - top) * fv
+        })
     }
 
     /// Save as a model file.
     pub fn save(&self, path: &Path) -> Result<(), ModelFileError> {
-        let o = self.offset_rgb;
-        let metadata = HashMap::from([
-            ("format".to_string(), model_file::FORMAT.to_string()),
-            ("version".to_string(), model_file::VERSION.to_string()),
-            ("kind".to_string(), "lut".to_string()),
-            ("input".to_string(), self.input.as_str().to_string()),
-            ("width".to_string(), self.width.to_string()),
-            ("height".to_string(), self.height.to_string()),
-            (
-                "offset_rgb".to_string(),
-                format!("{},{},{}", o[0], o[1], o[2]),
-            ),
+        let mut metadata = model_file::base_metadata(
+            "lut",
+            self.input.as_str(),
+            (self.width, self.height),
+            self.offset_rgb,
+        );
+        metadata.extend([
             ("bins".to_string(), self.bins.to_string()),
+            (
+                "tiles".to_string(),
+                format!("{},{}", self.tiles[0], self.tiles[1]),
+            ),
+            ("source".to_string(), self.source.clone()),
         ]);
         let n = self.bins;
         let values = self.table.iter().flat_map(|g| *g).collect();
+        let t = self.tiles[0] * self.tiles[1];
         ModelFile {
             metadata,
-            tensors: vec![("lut".to_string(), vec![n, n, n, 2], values)],
+            tensors: vec![("lut".to_string(), vec![t, n, n, n, 2], values)],
         }
         .write(path)
     }
 
     /// Load a `kind = lut` model file.
     pub fn load(path: &Path) -> Result<Self, ModelFileError> {
-        let p = path.display().to_string();
-        let file = ModelFile::read(path)?;
+        Self::from_file(&ModelFile::read(path)?, &path.display().to_string())
+    }
+
+    /// The LUT in an already read file (`p` names it in errors).
+    pub fn from_file(file: &ModelFile, p: &str) -> Result<Self, ModelFileError> {
+        let p = p.to_string();
         file.expect_key(&p, "kind", &["lut"])?;
         let input =
             Input::parse(file.expect_key(&p, "input", &["diff", "raw"])?).unwrap_or(Input::Diff);
@@ -214,46 +303,66 @@ impl LutModel {
                 expected: "an integer in [2, 256]".into(),
             });
         }
-        let offset_rgb = parse_offset(file.metadata.get("offset_rgb").map(String::as_str))
+        let offset_rgb = model_file::parse_rgb(file.metadata.get("offset_rgb").map(String::as_str))
             .ok_or_else(|| ModelFileError::Metadata {
                 path: p.clone(),
                 key: "offset_rgb".into(),
                 actual: file.metadata.get("offset_rgb").cloned(),
                 expected: "three comma-separated numbers".into(),
             })?;
+        let tiles_text = file.metadata.get("tiles").map(String::as_str);
+        let tiles = match tiles_text.map(|t| {
+            t.split(',')
+                .map(|v| {
+                    v.trim()
+                        .parse::<usize>()
+                        .ok()
+                        .filter(|n| (1..=64).contains(n))
+                })
+                .collect::<Option<Vec<_>>>()
+        }) {
+            None => [1, 1],
+            Some(Some(v)) if v.len() == 2 => [v[0], v[1]],
+            Some(_) => {
+                return Err(ModelFileError::Metadata {
+                    path: p,
+                    key: "tiles".into(),
+                    actual: tiles_text.map(str::to_string),
+                    expected: "two integers in [1, 64], comma-separated".into(),
+                });
+            }
+        };
+        let t = tiles[0] * tiles[1];
         let Some((shape, values)) = file.tensor("lut") else {
             return Err(ModelFileError::Format {
                 path: p,
                 detail: "no tensor `lut`".into(),
             });
         };
-        if shape != [bins, bins, bins, 2] || values.iter().any(|v| !v.is_finite()) {
+        let shape_ok =
+            shape == [t, bins, bins, bins, 2] || (t == 1 && shape == [bins, bins, bins, 2]);
+        if !shape_ok || values.iter().any(|v| !v.is_finite()) {
             return Err(ModelFileError::Format {
                 path: p,
                 detail: format!(
-                    "tensor `lut` has shape {shape:?} (expected [{bins}, {bins}, {bins}, 2]) or non-finite values"
+                    "tensor `lut` has shape {shape:?} (expected [{t}, {bins}, {bins}, {bins}, 2]) or non-finite values"
                 ),
             });
         }
         let table = values.chunks_exact(2).map(|c| [c[0], c[1]]).collect();
-        Ok(Self {
-            input,
-            bins,
-            width,
-            height,
-            offset_rgb,
-            table,
-        })
+        let source = file
+            .metadata
+            .get("source")
+            .cloned()
+            .unwrap_or_else(|| "presses".into());
+        let mut model = Self::from_table(input, bins, (width, height), tiles, &source, table)
+            .ok_or_else(|| ModelFileError::Format {
+                path: p.clone(),
+                detail: "table size disagrees with bins and tiles".into(),
+            })?;
+        model.offset_rgb = offset_rgb;
+        Ok(model)
     }
-}
-
-fn parse_offset(s: Option<&str>) -> Option<[f32; 3]> {
-    let v: Vec<f32> = s?
-        .split(',')
-        .map(|x| x.trim().parse::<f32>())
-        .collect::<Result<_, _>>()
-        .ok()?;
-    (v.len() == 3 && v.iter().all(|x| x.is_finite())).then(|| [v[0], v[1], v[2]])
 }
 
 #[cfg(test)]

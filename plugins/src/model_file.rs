@@ -13,6 +13,40 @@ pub const FORMAT: &str = "gelgrip-gradient-model";
 /// Model file version written.
 pub const VERSION: &str = "1";
 
+/// The metadata every model file carries (CONTRACTS.md), for a model of `kind` and `input`
+/// trained at `width × height`, with its zero-shot `offset_rgb`.
+pub fn base_metadata(
+    kind: &str,
+    input: &str,
+    (width, height): (usize, usize),
+    offset_rgb: [f32; 3],
+) -> HashMap<String, String> {
+    HashMap::from([
+        ("format".to_string(), FORMAT.to_string()),
+        ("version".to_string(), VERSION.to_string()),
+        ("kind".to_string(), kind.to_string()),
+        ("input".to_string(), input.to_string()),
+        ("width".to_string(), width.to_string()),
+        ("height".to_string(), height.to_string()),
+        ("offset_rgb".to_string(), rgb_string(offset_rgb)),
+    ])
+}
+
+/// Three numbers as metadata: `r,g,b`.
+pub fn rgb_string(v: [f32; 3]) -> String {
+    format!("{},{},{}", v[0], v[1], v[2])
+}
+
+/// Metadata `r,g,b`: three comma-separated finite numbers.
+pub fn parse_rgb(s: Option<&str>) -> Option<[f32; 3]> {
+    let v: Vec<f32> = s?
+        .split(',')
+        .map(|x| x.trim().parse::<f32>())
+        .collect::<Result<_, _>>()
+        .ok()?;
+    (v.len() == 3 && v.iter().all(|x| x.is_finite())).then(|| [v[0], v[1], v[2]])
+}
+
 /// A model file could not be read or written.
 #[derive(Debug, Error)]
 pub enum ModelFileError {
@@ -87,7 +121,8 @@ impl ModelFile {
         std::fs::write(path, out).map_err(|source| ModelFileError::Io { path: p, source })
     }
 
-    /// Read `path`, checking `format`.
+    /// Read `path`, checking `format` and `version` (a file from a newer gelgrip, or one
+    /// without metadata, is refused with the key and what was found).
     pub fn read(path: &Path) -> Result<Self, ModelFileError> {
         let p = path.display().to_string();
         let bytes = std::fs::read(path).map_err(|source| ModelFileError::Io {
@@ -120,6 +155,7 @@ impl ModelFile {
         }
         let file = Self { metadata, tensors };
         file.expect_key(&p, "format", &[FORMAT])?;
+        file.expect_key(&p, "version", &[VERSION])?;
         Ok(file)
     }
 

@@ -10,14 +10,15 @@
 //! window size appears (sizes are rounded up to multiples of 16 px, so there are few).
 
 use std::collections::HashMap;
-use std::sync::Arc;
 
 use thiserror::Error;
 
 use crate::config::SensorStages;
 use crate::contact::{self, BLOCK_PX, ContactSummary, NoiseModel};
 use crate::decode::{DecodeError, JpegStage};
-use crate::lut::{Input, LutModel};
+use crate::gradient::{GradientModel, MlpMode};
+use crate::lut::Input;
+use crate::mlp::INPUTS;
 use crate::poisson::{PoissonPlan, Solver};
 use crate::undistort::Remap;
 
@@ -27,7 +28,7 @@ pub const STAGES: [(&str, &[&str]); 7] = [
     ("undistort", &["none", "fisheye"]),
     ("reference", &["static", "drift"]),
     ("diff", &["diff"]),
-    ("gradient", &["lut"]),
+    ("gradient", &["lut", "mlp"]),
     ("depth", &["dst", "dct", "none"]),
     ("contact", &["threshold"]),
 ];
@@ -38,7 +39,7 @@ pub struct StageChoice {
     /// Stage names and parameters (see [`crate::config`]).
     pub stages: SensorStages,
     /// The gradient model.
-    pub lut: Arc<LutModel>,
+    pub model: GradientModel,
 }
 
 /// What the consumer reads.
@@ -46,6 +47,22 @@ pub struct StageChoice {
 pub struct Needs {
     /// Depth, volume and force (otherwise only presence and area).
     pub depth: bool,
+    /// The gradients of the contact window ([`SensorPipeline::last_gradients`]), even
+    /// with depth solver `none` (benchmarks that score them).
+    pub gradients: bool,
+}
+
+impl Needs {
+    /// Presence and area only.
+    pub const AREA: Needs = Needs {
+        depth: false,
+        gradients: false,
+    };
+    /// Depth, volume and force.
+    pub const DEPTH: Needs = Needs {
+        depth: true,
+        gradients: false,
+    };
 }
 
 /// A frame the pipeline could not process.
@@ -54,10 +71,16 @@ pub enum PipelineError {
     /// Decoding failed.
     #[error(transparent)]
     Decode(#[from] DecodeError),
+    /// The MLP gradient model failed to run (tensor allocation or shapes).
+    #[error("gradient model: {0}")]
+    Model(String),
     /// Asked to process before a reference frame was captured.
     #[error("no reference frame yet: capture one with nothing touching the sensor")]
     NoReference,
 }
+
+/// A window of the image: `(x, y, width, height)` in px.
+pub type Window = (usize, usize, usize, usize);
 
 /// Margin around the active blocks for the depth window, px (the depth must have fallen to
 /// zero inside it; the blocks next to active ones are already integrated, so one block).
@@ -89,6 +112,17 @@ pub struct SensorPipeline {
     scratch: Vec<f32>,
     noise: Option<NoiseModel>,
     last_window: (usize, usize, usize, usize),
+    /// MLP only: the network's output for the background at each pixel (subtracted from
+    /// every prediction, so a pixel like the background has zero gradient).
+    background_prediction: Vec<[f32; 2]>,
+    /// MLP contact-only: a pixel is evaluated when the sum over channels of
+    /// |frame − reference| exceeds this (the no-contact frames' 99.9th percentile).
+    pixel_threshold: f32,
+    /// MLP: the rows evaluated and their window positions.
+    features: Vec<f32>,
+    feature_pixels: Vec<usize>,
+    /// The last frame was solved for depth (its window holds depth in mm).
+    last_has_depth: bool,
 }
 
 impl std::fmt::Debug for SensorPipeline {
@@ -132,6 +166,11 @@ impl SensorPipeline {
             scratch: Vec::new(),
             noise: None,
             last_window: (0, 0, 0, 0),
+            background_prediction: Vec::new(),
+            pixel_threshold: 0.0,
+            features: Vec::new(),
+            feature_pixels: Vec::new(),
+            last_has_depth: false,
             choice,
         }
     }
@@ -173,20 +212,61 @@ impl SensorPipeline {
         let n = no_contact.len().max(1) as f32;
         sum.iter_mut().for_each(|s| *s /= n);
         self.reference = Some(sum);
+        self.predict_background()?;
+        let mut pixel_activity = Vec::new();
         let (mut activity, mut depth) = (Vec::new(), Vec::new());
         let window = self.central_window();
         let mm = self.mm_per_px as f32;
         for jpeg in no_contact {
             self.load(jpeg)?;
+            if let Some(reference) = &self.reference {
+                pixel_activity.extend(
+                    self.rgb
+                        .chunks_exact(3)
+                        .zip(reference.chunks_exact(3))
+                        .map(|(p, r)| pixel_difference(p, r)),
+                );
+            }
             self.block_activity();
             self.mark_near_active(None);
             activity.extend_from_slice(&self.blocks);
             if self.choice.stages.solver.is_some() {
-                let d = self.solve_window(window, true);
+                let d = self.solve_window(window, true)?;
                 depth.extend(d.iter().map(|v| (v * mm).abs()));
             }
         }
+        self.pixel_threshold = if pixel_activity.is_empty() {
+            0.0
+        } else {
+            let k = (pixel_activity.len() * 999 / 1000).min(pixel_activity.len() - 1);
+            *pixel_activity.select_nth_unstable_by(k, f32::total_cmp).1
+        };
         self.noise = Some(NoiseModel::measure(&activity, &depth));
+        Ok(())
+    }
+
+    /// MLP: the network's output for the background key at every pixel.
+    fn predict_background(&mut self) -> Result<(), PipelineError> {
+        let GradientModel::Mlp { model, net, .. } = &self.choice.model else {
+            return Ok(());
+        };
+        let Some(reference) = &self.reference else {
+            return Ok(());
+        };
+        let (w, h) = (self.width, self.height);
+        let s = self.choice.stages.decode_scale.max(1);
+        let mut f = Vec::with_capacity(w * h * INPUTS);
+        for p in 0..w * h {
+            let key = match model.input {
+                Input::Diff => [0.0; 3],
+                Input::Raw => [reference[p * 3], reference[p * 3 + 1], reference[p * 3 + 2]],
+            };
+            f.extend_from_slice(&model.features(key, (p % w) * s, (p / w) * s));
+        }
+        let out = net
+            .forward(&f)
+            .map_err(|e| PipelineError::Model(e.to_string()))?;
+        self.background_prediction = out.chunks_exact(2).map(|g| [g[0], g[1]]).collect();
         Ok(())
     }
 
@@ -278,43 +358,98 @@ impl SensorPipeline {
         }
     }
 
-    /// Gradients and depth (px) over window `(x, y, w, h)`; returns the window's depth.
+    /// Gradients over window `(x0, y0, w, h)` into `gx`, `gy` (window-sized, row-major).
     /// Pixels away from any active block get zero gradient: only the contact is integrated.
+    fn window_gradients(
+        &mut self,
+        (x0, y0, w, h): (usize, usize, usize, usize),
+    ) -> Result<(), PipelineError> {
+        let width = self.width;
+        let bw = self.width.div_ceil(BLOCK_PX);
+        let Some(reference) = &self.reference else {
+            return Ok(());
+        };
+        let input = self.choice.model.input();
+        let key = |p: usize| match input {
+            Input::Diff => [0, 1, 2].map(|c| f32::from(self.rgb[p * 3 + c]) - reference[p * 3 + c]),
+            Input::Raw => [0, 1, 2].map(|c| f32::from(self.rgb[p * 3 + c])),
+        };
+        let near = |x: usize, y: usize| self.near_active[(y / BLOCK_PX) * bw + x / BLOCK_PX];
+        // Models take positions at the full camera resolution they were trained at.
+        let s = self.choice.stages.decode_scale.max(1);
+        match &self.choice.model {
+            GradientModel::Lut(lut) => {
+                for y in 0..h {
+                    for x in 0..w {
+                        let (fx, fy) = (x0 + x, y0 + y);
+                        let [gx, gy] = if near(fx, fy) {
+                            lut.predict_at(key(fy * width + fx), fx * s, fy * s)
+                        } else {
+                            [0.0, 0.0]
+                        };
+                        self.gx[y * w + x] = gx;
+                        self.gy[y * w + x] = gy;
+                    }
+                }
+            }
+            GradientModel::Mlp { model, net, mode } => {
+                self.features.clear();
+                self.feature_pixels.clear();
+                self.gx[..w * h].fill(0.0);
+                self.gy[..w * h].fill(0.0);
+                for y in 0..h {
+                    for x in 0..w {
+                        let (fx, fy) = (x0 + x, y0 + y);
+                        let p = fy * width + fx;
+                        let evaluate = match mode {
+                            MlpMode::Dense => true,
+                            MlpMode::ContactOnly => {
+                                near(fx, fy)
+                                    && pixel_difference(
+                                        &self.rgb[p * 3..p * 3 + 3],
+                                        &reference[p * 3..p * 3 + 3],
+                                    ) > self.pixel_threshold
+                            }
+                        };
+                        if evaluate {
+                            self.features.extend_from_slice(&model.features(
+                                key(p),
+                                fx * s,
+                                fy * s,
+                            ));
+                            self.feature_pixels.push(y * w + x);
+                        }
+                    }
+                }
+                let out = net
+                    .forward(&self.features)
+                    .map_err(|e| PipelineError::Model(e.to_string()))?;
+                for (k, &q) in self.feature_pixels.iter().enumerate() {
+                    let (fx, fy) = (x0 + q % w, y0 + q / w);
+                    let bg = self
+                        .background_prediction
+                        .get(fy * width + fx)
+                        .copied()
+                        .unwrap_or([0.0; 2]);
+                    self.gx[q] = out[2 * k] - bg[0];
+                    self.gy[q] = out[2 * k + 1] - bg[1];
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Gradients and depth (px) over window `(x, y, w, h)`; returns the window's depth.
     /// `no_contact` marks the noise calibration's frames.
     fn solve_window(
         &mut self,
         (x0, y0, w, h): (usize, usize, usize, usize),
         no_contact: bool,
-    ) -> &[f32] {
-        let lut = &self.choice.lut;
-        let width = self.width;
-        let bw = self.width.div_ceil(BLOCK_PX);
-        let Some(reference) = &self.reference else {
-            return &[];
-        };
-        for y in 0..h {
-            for x in 0..w {
-                let p = (y0 + y) * width + x0 + x;
-                if !self.near_active[((y0 + y) / BLOCK_PX) * bw + (x0 + x) / BLOCK_PX] {
-                    self.gx[y * w + x] = 0.0;
-                    self.gy[y * w + x] = 0.0;
-                    continue;
-                }
-                let key = match lut.input {
-                    Input::Diff => {
-                        [0, 1, 2].map(|c| f32::from(self.rgb[p * 3 + c]) - reference[p * 3 + c])
-                    }
-                    Input::Raw => [
-                        f32::from(self.rgb[p * 3]),
-                        f32::from(self.rgb[p * 3 + 1]),
-                        f32::from(self.rgb[p * 3 + 2]),
-                    ],
-                };
-                let [gx, gy] = lut.predict(key);
-                self.gx[y * w + x] = gx;
-                self.gy[y * w + x] = gy;
-            }
+    ) -> Result<&[f32], PipelineError> {
+        if self.reference.is_none() {
+            return Ok(&[]);
         }
+        self.window_gradients((x0, y0, w, h))?;
         let solver = self.choice.stages.solver.unwrap_or(Solver::Dst);
         let plan = self
             .plans
@@ -339,12 +474,13 @@ impl SensorPipeline {
             depth.iter_mut().for_each(|d| *d -= zero);
         }
         self.last_window = (x0, y0, w, h);
-        &self.depth_px[..w * h]
+        Ok(&self.depth_px[..w * h])
     }
 
     /// Process one frame.
     pub fn process(&mut self, jpeg: &[u8], needs: Needs) -> Result<ContactSummary, PipelineError> {
         let noise = self.noise.ok_or(PipelineError::NoReference)?;
+        self.last_has_depth = false;
         self.load(jpeg)?;
         self.block_activity();
         let window = self.active_window(noise.block_threshold);
@@ -352,9 +488,15 @@ impl SensorPipeline {
             self.refresh_reference();
         }
         let Some(window) = window else {
+            self.last_window = (0, 0, 0, 0);
             return Ok(ContactSummary::default());
         };
         let scale = self.jpeg_scale();
+        if needs.gradients && (!needs.depth || self.choice.stages.solver.is_none()) {
+            self.mark_near_active(Some(noise.block_threshold));
+            self.window_gradients(window)?;
+            self.last_window = window;
+        }
         if !needs.depth || self.choice.stages.solver.is_none() {
             let active = self
                 .blocks
@@ -371,10 +513,11 @@ impl SensorPipeline {
         let (x0, y0, w, _) = window;
         let mm = self.mm_per_px as f32;
         self.mark_near_active(Some(noise.block_threshold));
-        self.solve_window(window, false);
+        self.solve_window(window, false)?;
         let (_, _, ww, wh) = self.last_window;
         let depth = &mut self.depth_px[..ww * wh];
         depth.iter_mut().for_each(|d| *d *= mm);
+        self.last_has_depth = true;
         Ok(contact::summarize(
             depth,
             w,
@@ -395,6 +538,40 @@ impl SensorPipeline {
         if let Some(reference) = &mut self.reference {
             for (r, v) in reference.iter_mut().zip(&self.rgb) {
                 *r += a * (f32::from(*v) - *r);
+            }
+        }
+    }
+
+    /// Gradients (gx, gy; px per px) of the last window processed with depth or
+    /// [`Needs::gradients`], and its `(x, y, w, h)`.
+    pub fn last_gradients(&self) -> (&[f32], &[f32], Window) {
+        let (_, _, w, h) = self.last_window;
+        (&self.gx[..w * h], &self.gy[..w * h], self.last_window)
+    }
+
+    /// The last frame's contact mask over the whole (decoded) image: with depth, the pixels
+    /// deeper than the noise threshold (the contact stage's own test); without, the pixels
+    /// of blocks whose activity exceeds the noise.
+    pub fn last_contact_mask(&self, out: &mut Vec<bool>) {
+        let (w, h) = (self.width, self.height);
+        out.clear();
+        out.resize(w * h, false);
+        let Some(noise) = self.noise else {
+            return;
+        };
+        if self.last_has_depth {
+            let (x0, y0, ww, wh) = self.last_window;
+            for y in 0..wh {
+                for x in 0..ww {
+                    let d = self.depth_px[y * ww + x];
+                    out[(y0 + y) * w + x0 + x] = d.is_finite() && d > noise.depth_threshold_mm;
+                }
+            }
+        } else {
+            let bw = w.div_ceil(BLOCK_PX);
+            for (p, m) in out.iter_mut().enumerate() {
+                *m = self.blocks[((p / w) / BLOCK_PX) * bw + (p % w) / BLOCK_PX]
+                    > noise.block_threshold;
             }
         }
     }
@@ -420,6 +597,15 @@ pub fn process_set(
         .zip(frames.par_iter())
         .zip(out.par_iter_mut())
         .for_each(|((pipe, frame), slot)| *slot = pipe.process(frame, needs));
+}
+
+/// Sum over channels of |frame − reference| at one pixel.
+#[inline]
+fn pixel_difference(rgb: &[u8], reference: &[f32]) -> f32 {
+    rgb.iter()
+        .zip(reference)
+        .map(|(v, r)| (f32::from(*v) - r).abs())
+        .sum()
 }
 
 /// The 2nd percentile of `d` (finite values), using `scratch`; 0 when none is finite.

@@ -10,22 +10,23 @@
 //! the sensors of each set in parallel (`process_set`: rayon, one task per sensor) and
 //! measures wall-clock time per set.
 
-use std::sync::Arc;
 use std::time::Instant;
 
 use serde::Serialize;
 
 use gelgrip_controller::layout::HandLayout;
-use gelgrip_plugins::calibrate;
 use gelgrip_plugins::config::{PipelineConfig, SensorStages};
 use gelgrip_plugins::contact::ContactSummary;
-use gelgrip_plugins::lut::{Input, LutModel};
+use gelgrip_plugins::gradient::{GradientModel, MlpMode};
+use gelgrip_plugins::mlp::bake::{BakeOptions, bake};
+use gelgrip_plugins::mlp::train::TrainOptions;
+use gelgrip_plugins::mlp::transfer::Fit;
 use gelgrip_plugins::pipeline::{Needs, SensorPipeline, StageChoice, process_set};
 use gelgrip_plugins::poisson::{PoissonPlan, Solver};
 use gelgrip_sim::scene::HeightMap;
 
-use crate::cli::BenchPipelineArgs;
-use crate::{simcam, wiring};
+use crate::cli::{BenchPipelineArgs, ModelKind};
+use crate::{sensor_models, simcam, wiring};
 
 /// Presses collected to calibrate each sensor.
 const CALIBRATION_PRESSES: usize = 50;
@@ -113,38 +114,43 @@ pub fn run(args: BenchPipelineArgs) -> anyhow::Result<u8> {
         "press_depth_mm".into(),
         toml::Value::Float(args.press_depth_mm),
     );
-    if args.model == crate::cli::ModelKind::Mlp {
-        anyhow::bail!(crate::cli::UsageError(
-            "--model mlp arrives with the calibration issue (MLP); available: lut".into()
-        ));
-    }
     let solver = Solver::parse(&args.solver).unwrap_or(Solver::Dst);
     // The embedded default [pipeline] section, with the bench's solver and scale on top.
     let pipeline_config = PipelineConfig::from_section(&config.pipeline, &config.layout)?;
     let tmp = std::env::temp_dir().join(format!("gelgrip-bench-pipeline-{}", std::process::id()));
+    let mlp_mode = args.mlp_mode.as_str();
+    let mode = MlpMode::parse(mlp_mode).unwrap_or(MlpMode::ContactOnly);
+    let fixed = match &args.model_file {
+        Some(path) => Some(GradientModel::load(path, mode)?),
+        None => None,
+    };
+    let opts = TrainOptions {
+        epochs: args.epochs as usize,
+        ..TrainOptions::default()
+    };
+    let mlp = (args.model == ModelKind::Mlp).then_some((&opts, Fit::Offset));
+    let hand = sensor_models::calibrate_hand(&config, CALIBRATION_PRESSES, &tmp, mlp)?;
+    let mut model_name = "lut";
     let mut pipes = Vec::new();
     let mut frames = Vec::new();
     let mut truths = Vec::new();
-    for spec in &config.layout.sensors {
-        let id = spec.id.to_string();
-        let (cam, sim) = simcam::camera(&config, &id)?;
-        let lut = match &args.model_file {
-            Some(path) => LutModel::load(path)?,
-            None => {
-                eprintln!("calibrating {id}: {CALIBRATION_PRESSES} presses, LUT training");
-                let ds = simcam::collect(&cam, &sim, CALIBRATION_PRESSES, &tmp.join(&id), |_| {})?;
-                calibrate::train_lut(&ds, Input::Diff, gelgrip_plugins::lut::DEFAULT_BINS)?
+    for sensor in hand {
+        let (id, cam, sim) = (sensor.id, sensor.cam, sensor.sim);
+        let model = match (&fixed, sensor.mlp) {
+            (Some(m), _) => m.clone(),
+            (None, Some(m)) if mlp_mode == "baked" => {
+                GradientModel::lut(bake(&m, BakeOptions::default())?)
             }
+            (None, Some(m)) => GradientModel::mlp(m, mode)?,
+            (None, None) => GradientModel::lut(sensor.lut),
         };
+        model_name = model.name();
         let stages = SensorStages {
             decode_scale: args.scale(),
             solver: Some(solver),
             ..pipeline_config.sensors[0].clone()
         };
-        let choice = StageChoice {
-            stages,
-            lut: Arc::new(lut),
-        };
+        let choice = StageChoice { stages, model };
         let mut pipe = SensorPipeline::new(choice, cam.width, cam.height, cam.mm_per_px);
         let quiet = simcam::no_contact_frames(&cam, 3_000_000, NOISE_FRAMES)?;
         let quiet: Vec<&[u8]> = quiet.iter().map(Vec::as_slice).collect();
@@ -159,7 +165,7 @@ pub fn run(args: BenchPipelineArgs) -> anyhow::Result<u8> {
         pipes.push(pipe);
     }
     let _ = std::fs::remove_dir_all(&tmp);
-    let needs = Needs { depth: true };
+    let needs = Needs::DEPTH;
     let mut results = vec![Ok(ContactSummary::default()); pipes.len()];
     let sets = args.sets as usize;
     let mut times = Vec::with_capacity(sets);
@@ -191,7 +197,7 @@ pub fn run(args: BenchPipelineArgs) -> anyhow::Result<u8> {
         .collect();
     let report = Report {
         sensors: pipes.len(),
-        model: "lut",
+        model: model_name,
         solver: solver.as_str(),
         decode_scale: args.scale(),
         threads: rayon::current_num_threads(),
@@ -212,8 +218,8 @@ pub fn run(args: BenchPipelineArgs) -> anyhow::Result<u8> {
 
 fn print_table(r: &Report) {
     println!(
-        "bench pipeline: {} sensors, lut + {} (bounding-box solve), decode scale {}, {} threads, {} sets (wall clock)",
-        r.sensors, r.solver, r.decode_scale, r.threads, r.sets
+        "bench pipeline: {} sensors, {} + {} (bounding-box solve), decode scale {}, {} threads, {} sets (wall clock)",
+        r.sensors, r.model, r.solver, r.decode_scale, r.threads, r.sets
     );
     println!(
         "  ms per set: median {:.3}, p99 {:.3}",

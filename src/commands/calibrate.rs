@@ -1,15 +1,22 @@
-//! `gelgrip calibrate collect|train|eval`: press datasets, LUT training and evaluation with
-//! the contract's metrics.
+//! `gelgrip calibrate collect|train|eval|transfer|bake`: press datasets, LUT and MLP
+//! training, zero-shot transfer, baking and evaluation with the contract's metrics.
 
 use serde::Serialize;
 
 use gelgrip_plugins::calibrate::{self, EvalReport};
 use gelgrip_plugins::dataset::PressDataset;
-use gelgrip_plugins::lut::{Input, LutModel};
+use gelgrip_plugins::gradient::{GradientModel, MlpMode};
+use gelgrip_plugins::lut::Input;
+use gelgrip_plugins::mlp::MlpModel;
+use gelgrip_plugins::mlp::bake::{BakeOptions, bake};
+use gelgrip_plugins::mlp::train::TrainOptions;
+use gelgrip_plugins::mlp::transfer::{Fit, transfer};
 use gelgrip_plugins::poisson::Solver;
 
-use crate::cli::{CalibrateCommand, CollectArgs, EvalArgs, ModelKind, TrainArgs};
-use crate::{simcam, wiring};
+use crate::cli::{
+    BakeArgs, CalibrateCommand, CollectArgs, EvalArgs, ModelKind, TrainArgs, TransferArgs,
+};
+use crate::{progress, simcam, wiring};
 
 /// Run a calibrate subcommand; returns the exit code.
 pub fn run(cmd: CalibrateCommand) -> anyhow::Result<u8> {
@@ -17,6 +24,8 @@ pub fn run(cmd: CalibrateCommand) -> anyhow::Result<u8> {
         CalibrateCommand::Collect(a) => collect(a),
         CalibrateCommand::Train(a) => train(a),
         CalibrateCommand::Eval(a) => eval(a),
+        CalibrateCommand::Transfer(a) => transfer_cmd(a),
+        CalibrateCommand::Bake(a) => bake_cmd(a),
         CalibrateCommand::Force(a) => crate::commands::calibrate_force::run(a),
     }
 }
@@ -50,12 +59,23 @@ fn collect(args: CollectArgs) -> anyhow::Result<u8> {
     Ok(0)
 }
 
+#[derive(Serialize)]
+struct TrainJson {
+    model: &'static str,
+    input: &'static str,
+    hidden: Option<usize>,
+    parameters: Option<usize>,
+    epochs: Option<u32>,
+    train_presses: usize,
+    test_presses: usize,
+    train_gx_mae: f64,
+    train_gy_mae: f64,
+    test_gx_mae: f64,
+    test_gy_mae: f64,
+    train_s: f64,
+}
+
 fn train(args: TrainArgs) -> anyhow::Result<u8> {
-    if args.model == ModelKind::Mlp {
-        anyhow::bail!(crate::cli::UsageError(
-            "--model mlp arrives with the calibration issue (MLP); available: lut".into()
-        ));
-    }
     let input = if args.input == "raw" {
         Input::Raw
     } else {
@@ -63,23 +83,87 @@ fn train(args: TrainArgs) -> anyhow::Result<u8> {
     };
     let ds = PressDataset::load(&args.data)?;
     let split = calibrate::split_index(ds.presses.len());
-    eprintln!(
-        "training lut ({} input, {} bins) on {} presses, testing on {}",
-        input.as_str(),
-        args.bins,
-        split,
-        ds.presses.len() - split
-    );
-    let model = calibrate::train_lut(&ds, input, usize::from(args.bins))?;
-    model.save(&args.out)?;
+    let started = std::time::Instant::now();
+    let (model, name, hidden, parameters) = match args.model {
+        ModelKind::Lut => {
+            eprintln!(
+                "training lut ({} input, {} bins) on {} presses, testing on {}",
+                input.as_str(),
+                args.bins,
+                split,
+                ds.presses.len() - split
+            );
+            let lut = calibrate::train_lut(&ds, input, usize::from(args.bins))?;
+            lut.save(&args.out)?;
+            (GradientModel::lut(lut), "lut", None, None)
+        }
+        ModelKind::Mlp => {
+            let opts = TrainOptions {
+                hidden: usize::from(args.hidden),
+                dropout: args.dropout as f32,
+                learning_rate: args.learning_rate,
+                epochs: args.epochs as usize,
+                seed: args.seed,
+                ..TrainOptions::default()
+            };
+            eprintln!(
+                "training mlp 5-{h}-{h}-{h}-2 (tanh, dropout {}, {} input) on {} presses, testing on {}, {} epochs",
+                args.dropout,
+                input.as_str(),
+                split,
+                ds.presses.len() - split,
+                args.epochs,
+                h = args.hidden
+            );
+            let bar = progress::epochs(args.epochs as u64);
+            let mlp =
+                calibrate::train_mlp_on(&[&ds], input, &opts, progress::epoch_reporter(&bar))?;
+            bar.finish();
+            mlp.save(&args.out)?;
+            let (h, n) = (mlp.hidden, mlp.parameters());
+            (
+                GradientModel::mlp(mlp, MlpMode::Dense)?,
+                "mlp",
+                Some(h),
+                Some(n),
+            )
+        }
+    };
+    let train_s = started.elapsed().as_secs_f64();
     let train = calibrate::evaluate(&model, &ds, 0..split, None)?;
     let test = calibrate::evaluate(&model, &ds, split..ds.presses.len(), None)?;
-    println!(
-        "{}: lut, {} input, {} bins",
-        args.out.display(),
-        input.as_str(),
-        model.bins
-    );
+    let out = TrainJson {
+        model: name,
+        input: input.as_str(),
+        hidden,
+        parameters,
+        epochs: (args.model == ModelKind::Mlp).then_some(args.epochs),
+        train_presses: train.presses,
+        test_presses: test.presses,
+        train_gx_mae: train.gx_mae,
+        train_gy_mae: train.gy_mae,
+        test_gx_mae: test.gx_mae,
+        test_gy_mae: test.gy_mae,
+        train_s,
+    };
+    if args.json {
+        println!("{}", serde_json::to_string(&out)?);
+        return Ok(0);
+    }
+    match (hidden, parameters) {
+        (Some(h), Some(n)) => println!(
+            "{}: mlp 5-{h}-{h}-{h}-2 ({n} parameters), {} input, {} epochs in {train_s:.1} s",
+            args.out.display(),
+            input.as_str(),
+            args.epochs
+        ),
+        _ => println!(
+            "{}: lut, {} input, {} bins",
+            args.out.display(),
+            input.as_str(),
+            args.bins
+        ),
+    }
     println!(
         "  train MAE gx {:.4} gy {:.4} ({} presses)",
         train.gx_mae, train.gy_mae, train.presses
@@ -87,6 +171,83 @@ fn train(args: TrainArgs) -> anyhow::Result<u8> {
     println!(
         "  test  MAE gx {:.4} gy {:.4} ({} presses)",
         test.gx_mae, test.gy_mae, test.presses
+    );
+    Ok(0)
+}
+
+#[derive(Serialize)]
+struct TransferJson {
+    fit: &'static str,
+    offset_rgb: [f32; 3],
+    gain_rgb: [f32; 3],
+    press_mae_before: f64,
+    press_mae_after: f64,
+    pixels: usize,
+}
+
+fn transfer_cmd(args: TransferArgs) -> anyhow::Result<u8> {
+    let model = MlpModel::load(&args.model)?;
+    let ds = PressDataset::load(&args.data)?;
+    let fit = if args.fit == "offset-gain" {
+        Fit::OffsetGain
+    } else {
+        Fit::Offset
+    };
+    let press = calibrate::press_pixels(&ds, 0, model.input)?;
+    let (out_model, r) = transfer(&model, &press, fit)?;
+    out_model.save(&args.out)?;
+    let out = TransferJson {
+        fit: fit.as_str(),
+        offset_rgb: r.offset_rgb,
+        gain_rgb: r.gain_rgb,
+        press_mae_before: r.mae_before,
+        press_mae_after: r.mae_after,
+        pixels: r.pixels,
+    };
+    if args.json {
+        println!("{}", serde_json::to_string(&out)?);
+    } else {
+        let f = |v: [f32; 3]| format!("{:.3}, {:.3}, {:.3}", v[0], v[1], v[2]);
+        println!(
+            "{}: {} transferred with `{}` from the first press of {} ({} px)",
+            args.out.display(),
+            args.model.display(),
+            out.fit,
+            args.data.display(),
+            out.pixels
+        );
+        println!(
+            "  offset_rgb {}  gain_rgb {}",
+            f(out.offset_rgb),
+            f(out.gain_rgb)
+        );
+        println!(
+            "  that press's mean |gradient error|: {:.4} before, {:.4} after",
+            out.press_mae_before, out.press_mae_after
+        );
+    }
+    Ok(0)
+}
+
+fn bake_cmd(args: BakeArgs) -> anyhow::Result<u8> {
+    let model = MlpModel::load(&args.model)?;
+    let started = std::time::Instant::now();
+    let lut = bake(
+        &model,
+        BakeOptions {
+            bins: usize::from(args.bins),
+            tiles: args.tiles,
+        },
+    )?;
+    lut.save(&args.out)?;
+    println!(
+        "{}: {} baked into a {}x{}-tile LUT of {} bins per channel in {:.1} s",
+        args.out.display(),
+        args.model.display(),
+        args.tiles[0],
+        args.tiles[1],
+        args.bins,
+        started.elapsed().as_secs_f64()
     );
     Ok(0)
 }
@@ -102,7 +263,7 @@ struct EvalJson {
 }
 
 fn eval(args: EvalArgs) -> anyhow::Result<u8> {
-    let model = LutModel::load(&args.model)?;
+    let model = GradientModel::load(&args.model, MlpMode::Dense)?;
     let ds = PressDataset::load(&args.data)?;
     let solver = Solver::parse(&args.solver);
     let r: EvalReport = calibrate::evaluate(&model, &ds, 0..ds.presses.len(), solver)?;

@@ -84,7 +84,7 @@ pub fn run(args: ForceArgs) -> anyhow::Result<u8> {
             .map(|d| pressure_n_per_mm2(f64::from(*d)) * px_mm2)
             .sum();
         let jpeg = cam.jpeg(&map, 9_000_000 + i as u64)?;
-        let summary = pipe.process(&jpeg, Needs { depth: true })?;
+        let summary = pipe.process(&jpeg, Needs::DEPTH)?;
         let volume = summary.volume_mm3.unwrap_or(0.0);
         pairs.push((volume, truth));
         if !args.json && (i + 1) % 10 == 0 {

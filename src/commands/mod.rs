@@ -1,11 +1,13 @@
 //! One module per subcommand.
 
 pub mod bench_bus;
+pub mod bench_calibration;
 pub mod bench_dashboard;
 pub mod bench_grasp;
 pub mod bench_pipeline;
 pub mod bench_soak;
 pub mod bench_sync;
+pub mod bench_tradeoff;
 pub mod calibrate;
 pub mod calibrate_force;
 pub mod check_config;

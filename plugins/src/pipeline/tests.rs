@@ -8,7 +8,7 @@ use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 
 use super::*;
-use crate::lut::LutTrainer;
+use crate::lut::{LutModel, LutTrainer};
 
 fn jpeg(w: usize, h: usize, pixel: impl Fn(usize, usize, usize) -> u8) -> Vec<u8> {
     let rgb: Vec<u8> = (0..w * h * 3)
@@ -36,10 +36,11 @@ fn pipeline(w: usize, h: usize, solver: Option<Solver>) -> SensorPipeline {
             undistort: None,
             reference_alpha: 0.05,
             model: None,
+            mlp: None,
             solver,
             stiffness_n_per_mm3: 0.1,
         },
-        lut: extreme_lut(),
+        model: GradientModel::Lut(extreme_lut()),
     };
     SensorPipeline::new(choice, w, h, 0.0625)
 }
@@ -73,7 +74,15 @@ fn extreme_frames_give_finite_results() {
             p.calibrate(&[reference, reference]).expect("calibrates");
             for frame in &frames {
                 for depth in [true, false] {
-                    let s = p.process(frame, Needs { depth }).expect("processes");
+                    let s = p
+                        .process(
+                            frame,
+                            Needs {
+                                depth,
+                                gradients: false,
+                            },
+                        )
+                        .expect("processes");
                     assert!(finite(&s), "{solver:?} {s:?}");
                 }
             }
@@ -89,7 +98,7 @@ fn tiny_and_large_images_work() {
         for solver in [Solver::Dst, Solver::Dct] {
             let mut p = pipeline(w, h, Some(solver));
             p.calibrate(&[&flat]).expect("calibrates");
-            let s = p.process(&frame, Needs { depth: true }).expect("processes");
+            let s = p.process(&frame, Needs::DEPTH).expect("processes");
             assert!(finite(&s), "{w}x{h} {solver:?} {s:?}");
         }
     }
@@ -100,21 +109,21 @@ fn bad_input_is_a_typed_error() {
     let mut p = pipeline(64, 48, Some(Solver::Dct));
     let frame = jpeg(64, 48, |_, _, _| 9);
     assert_eq!(
-        p.process(&frame, Needs { depth: true }),
+        p.process(&frame, Needs::DEPTH),
         Err(PipelineError::NoReference)
     );
     p.calibrate(&[&frame]).expect("calibrates");
     assert!(matches!(
-        p.process(b"not a jpeg", Needs { depth: true }),
+        p.process(b"not a jpeg", Needs::DEPTH),
         Err(PipelineError::Decode(_))
     ));
     let wrong = jpeg(32, 32, |_, _, _| 9);
     assert!(matches!(
-        p.process(&wrong, Needs { depth: true }),
+        p.process(&wrong, Needs::DEPTH),
         Err(PipelineError::Decode(DecodeError::Size { .. }))
     ));
     let truncated = &frame[..frame.len() / 2];
-    let _ = p.process(truncated, Needs { depth: true }); // an error or a partial image, never a panic
+    let _ = p.process(truncated, Needs::DEPTH); // an error or a partial image, never a panic
 }
 
 #[test]
@@ -131,9 +140,7 @@ fn reference_never_drifts_during_contact() {
     let mut p = pipeline(w, h, Some(Solver::Dct));
     p.calibrate(&[&flat, &flat]).expect("calibrates");
     for _ in 0..200 {
-        let s = p
-            .process(&pressed, Needs { depth: false })
-            .expect("processes");
+        let s = p.process(&pressed, Needs::AREA).expect("processes");
         assert!(s.in_contact, "contact faded: the reference absorbed it");
     }
 }

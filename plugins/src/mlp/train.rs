@@ -1,0 +1,237 @@
+//! Training an [`MlpModel`] with candle-nn: Adam (AdamW without decay), L1 loss, dropout
+//! after each hidden layer, a cosine learning-rate decay over the epochs, and seeded
+//! initialisation, shuffling and dropout masks, so a run is reproducible.
+
+use candle_core::{DType, Device, Tensor, Var};
+use candle_nn::{AdamW, Optimizer, ParamsAdamW};
+use rand::seq::SliceRandom;
+use rand::{Rng, SeedableRng};
+use rand_pcg::Pcg64Mcg;
+
+use super::net::FastTanh;
+use super::{DEFAULT_HIDDEN, INPUTS, Layer, MlpError, MlpModel};
+use crate::lut::Input;
+
+/// Labelled pixels: features (`n × 5`, transfer not applied) and targets (`n × 2`).
+#[derive(Debug, Clone, Default)]
+pub struct Samples {
+    /// Row-major features.
+    pub features: Vec<f32>,
+    /// Row-major (gx, gy).
+    pub targets: Vec<f32>,
+}
+
+impl Samples {
+    /// Rows.
+    pub fn len(&self) -> usize {
+        self.targets.len() / 2
+    }
+
+    /// No rows.
+    pub fn is_empty(&self) -> bool {
+        self.targets.is_empty()
+    }
+
+    /// Add one row.
+    pub fn push(&mut self, features: [f32; INPUTS], gx: f32, gy: f32) {
+        self.features.extend_from_slice(&features);
+        self.targets.extend_from_slice(&[gx, gy]);
+    }
+}
+
+/// Training settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrainOptions {
+    /// Hidden layer width.
+    pub hidden: usize,
+    /// Dropout probability after each hidden layer (training only).
+    pub dropout: f32,
+    /// Initial learning rate (decays to 5 % of it by the last epoch).
+    pub learning_rate: f64,
+    /// Rows per step.
+    pub batch: usize,
+    /// Passes over the samples.
+    pub epochs: usize,
+    /// Seed of initialisation, shuffling and dropout.
+    pub seed: u64,
+}
+
+impl Default for TrainOptions {
+    fn default() -> Self {
+        Self {
+            hidden: DEFAULT_HIDDEN,
+            dropout: 0.05,
+            learning_rate: 2e-3,
+            batch: 1024,
+            epochs: 60,
+            seed: 1,
+        }
+    }
+}
+
+/// Progress after an epoch.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EpochReport {
+    /// Epochs done (1-based).
+    pub epoch: usize,
+    /// Epochs in all.
+    pub epochs: usize,
+    /// Mean L1 loss over the epoch's batches.
+    pub loss: f64,
+}
+
+/// The model being trained: candle variables for each layer.
+struct Params {
+    layers: Vec<(Var, Var)>,
+}
+
+fn init(hidden: usize, rng: &mut Pcg64Mcg) -> Result<Params, MlpError> {
+    let sizes = [INPUTS, hidden, hidden, hidden, 2];
+    let mut layers = Vec::new();
+    for i in 0..4 {
+        let (inp, out) = (sizes[i], sizes[i + 1]);
+        // Xavier (Glorot) uniform, suited to tanh.
+        let bound = (6.0 / (inp + out) as f32).sqrt();
+        let w: Vec<f32> = (0..inp * out)
+            .map(|_| rng.random_range(-bound..bound))
+            .collect();
+        let w = Var::from_tensor(&Tensor::from_vec(w, (out, inp), &Device::Cpu)?)?;
+        let b = Var::from_tensor(&Tensor::zeros((1, out), DType::F32, &Device::Cpu)?)?;
+        layers.push((w, b));
+    }
+    Ok(Params { layers })
+}
+
+fn forward(
+    p: &Params,
+    x: &Tensor,
+    dropout: f32,
+    rng: &mut Pcg64Mcg,
+) -> candle_core::Result<Tensor> {
+    let last = p.layers.len() - 1;
+    let mut h = x.clone();
+    for (i, (w, b)) in p.layers.iter().enumerate() {
+        h = h
+            .matmul(&w.as_tensor().t()?)?
+            .broadcast_add(b.as_tensor())?;
+        if i < last {
+            h = h.apply_op1(FastTanh)?;
+            if dropout > 0.0 {
+                let keep = 1.0 / (1.0 - dropout);
+                let mask: Vec<f32> = (0..h.elem_count())
+                    .map(|_| {
+                        if rng.random::<f32>() < dropout {
+                            0.0
+                        } else {
+                            keep
+                        }
+                    })
+                    .collect();
+                h = h.mul(&Tensor::from_vec(mask, h.shape(), &Device::Cpu)?)?;
+            }
+        }
+    }
+    Ok(h)
+}
+
+/// Train a model on `samples` for images of `width × height`; `progress` is called after
+/// every epoch. Dropout is off in the returned model (it is used for training only).
+pub fn train(
+    samples: &Samples,
+    input: Input,
+    (width, height): (usize, usize),
+    opts: &TrainOptions,
+    mut progress: impl FnMut(&EpochReport),
+) -> Result<MlpModel, MlpError> {
+    if samples.is_empty() {
+        return Err(MlpError::NoData("no labelled pixels to train on".into()));
+    }
+    let mut rng = Pcg64Mcg::seed_from_u64(opts.seed);
+    let params = init(opts.hidden.max(1), &mut rng)?;
+    let vars: Vec<Var> = params
+        .layers
+        .iter()
+        .flat_map(|(w, b)| [w.clone(), b.clone()])
+        .collect();
+    let mut opt = AdamW::new(
+        vars,
+        ParamsAdamW {
+            lr: opts.learning_rate,
+            weight_decay: 0.0,
+            ..Default::default()
+        },
+    )?;
+    let n = samples.len();
+    let batch = opts.batch.clamp(1, n);
+    let epochs = opts.epochs.max(1);
+    let mut order: Vec<usize> = (0..n).collect();
+    let (mut xb, mut yb) = (
+        Vec::with_capacity(batch * INPUTS),
+        Vec::with_capacity(batch * 2),
+    );
+    for epoch in 0..epochs {
+        let t = epoch as f64 / epochs as f64;
+        let lr =
+            opts.learning_rate * (0.05 + 0.95 * 0.5 * (1.0 + (std::f64::consts::PI * t).cos()));
+        opt.set_learning_rate(lr);
+        order.shuffle(&mut rng);
+        let (mut loss_sum, mut steps) = (0.0, 0usize);
+        for chunk in order.chunks(batch) {
+            xb.clear();
+            yb.clear();
+            for &i in chunk {
+                xb.extend_from_slice(&samples.features[i * INPUTS..(i + 1) * INPUTS]);
+                yb.extend_from_slice(&samples.targets[i * 2..i * 2 + 2]);
+            }
+            let x = Tensor::from_slice(&xb, (chunk.len(), INPUTS), &Device::Cpu)?;
+            let y = Tensor::from_slice(&yb, (chunk.len(), 2), &Device::Cpu)?;
+            let pred = forward(&params, &x, opts.dropout, &mut rng)?;
+            let loss = (pred - y)?.abs()?.mean_all()?;
+            opt.backward_step(&loss)?;
+            loss_sum += f64::from(loss.to_scalar::<f32>()?);
+            steps += 1;
+        }
+        progress(&EpochReport {
+            epoch: epoch + 1,
+            epochs,
+            loss: loss_sum / steps.max(1) as f64,
+        });
+    }
+    let sizes = [
+        INPUTS,
+        opts.hidden.max(1),
+        opts.hidden.max(1),
+        opts.hidden.max(1),
+        2,
+    ];
+    let layers = params
+        .layers
+        .iter()
+        .enumerate()
+        .map(|(i, (w, b))| {
+            Ok(Layer {
+                inputs: sizes[i],
+                outputs: sizes[i + 1],
+                weight: w.as_tensor().flatten_all()?.to_vec1::<f32>()?,
+                bias: b.as_tensor().flatten_all()?.to_vec1::<f32>()?,
+            })
+        })
+        .collect::<Result<Vec<_>, candle_core::Error>>()?;
+    if layers
+        .iter()
+        .any(|l| l.weight.iter().chain(&l.bias).any(|v| !v.is_finite()))
+    {
+        return Err(MlpError::NoData(
+            "training diverged (non-finite weights); lower --learning-rate".into(),
+        ));
+    }
+    Ok(MlpModel {
+        input,
+        width,
+        height,
+        hidden: opts.hidden.max(1),
+        layers,
+        offset_rgb: [0.0; 3],
+        gain_rgb: [1.0; 3],
+    })
+}

@@ -1,0 +1,82 @@
+//! Gradient models for a whole simulated hand, as the benches need them: from a press
+//! dataset per sensor, a LUT per sensor, and one MLP trained on the first sensor and transferred to the
+//! others from one press each (the paper's deployment; `bench calibration` scores it).
+
+use std::path::Path;
+
+use gelgrip_controller::config::AppConfig;
+use gelgrip_plugins::calibrate;
+use gelgrip_plugins::lut::{DEFAULT_BINS, Input, LutModel};
+use gelgrip_plugins::mlp::MlpModel;
+use gelgrip_plugins::mlp::train::TrainOptions;
+use gelgrip_plugins::mlp::transfer::{Fit, transfer};
+use gelgrip_sim::config::SimConfig;
+use gelgrip_sim::pool::SensorCamera;
+
+use crate::{progress, simcam};
+
+/// One sensor's camera, dataset and models.
+pub struct SensorModels {
+    /// Sensor id.
+    pub id: String,
+    /// Its simulated camera.
+    pub cam: SensorCamera,
+    /// The simulator settings it was built with.
+    pub sim: SimConfig,
+    /// Its own LUT (difference input).
+    pub lut: LutModel,
+    /// The hand's MLP (difference input), transferred to this sensor.
+    pub mlp: Option<MlpModel>,
+}
+
+/// Collect `presses` presses on every sensor of `config` into `dir`, train a LUT per sensor
+/// and, with `mlp`, an MLP on the first sensor transferred to the others (`fit`).
+pub fn calibrate_hand(
+    config: &AppConfig,
+    presses: usize,
+    dir: &Path,
+    mlp: Option<(&TrainOptions, Fit)>,
+) -> anyhow::Result<Vec<SensorModels>> {
+    let mut out: Vec<SensorModels> = Vec::new();
+    for (i, spec) in config.layout.sensors.iter().enumerate() {
+        let id = spec.id.to_string();
+        let (cam, sim) = simcam::camera(config, &id)?;
+        eprintln!("calibrating {id}: {presses} presses, LUT training");
+        let presses_sim = SimConfig {
+            seed: sim.seed ^ (0x5EED_0000 + i as u64),
+            ..sim.clone()
+        };
+        let dataset = simcam::collect(&cam, &presses_sim, presses, &dir.join(&id), |_| {})?;
+        let lut = calibrate::train_lut(&dataset, Input::Diff, DEFAULT_BINS)?;
+        let model = match (mlp, out.first().and_then(|s| s.mlp.as_ref())) {
+            (None, _) => None,
+            (Some((opts, _)), None) => {
+                eprintln!(
+                    "training the mlp on {id} ({} epochs); the other sensors get it by transfer",
+                    opts.epochs
+                );
+                let bar = progress::epochs(opts.epochs as u64);
+                let m = calibrate::train_mlp_on(
+                    &[&dataset],
+                    Input::Diff,
+                    opts,
+                    progress::epoch_reporter(&bar),
+                )?;
+                bar.finish_and_clear();
+                Some(m)
+            }
+            (Some((_, fit)), Some(source)) => {
+                let press = calibrate::press_pixels(&dataset, 0, Input::Diff)?;
+                Some(transfer(source, &press, fit)?.0)
+            }
+        };
+        out.push(SensorModels {
+            id,
+            cam,
+            sim,
+            lut,
+            mlp: model,
+        });
+    }
+    Ok(out)
+}
