@@ -1,6 +1,7 @@
 //! Gradient models for a whole simulated hand, as the benches need them: from a press
-//! dataset per sensor, a LUT per sensor, and one MLP trained on the first sensor and transferred to the
-//! others from one press each (the paper's deployment; `bench calibration` scores it).
+//! dataset per sensor, a LUT per sensor and an MLP per sensor — either trained on each
+//! sensor, or trained on the first and transferred to the others from one press each (the
+//! paper's deployment; `bench calibration` scores both).
 
 use std::path::Path;
 
@@ -29,13 +30,41 @@ pub struct SensorModels {
     pub mlp: Option<MlpModel>,
 }
 
+/// How the hand's MLPs are made.
+#[derive(Debug, Clone, Copy)]
+pub enum MlpPlan<'a> {
+    /// No MLP.
+    None,
+    /// One per sensor, each trained on its own presses.
+    Individual(&'a TrainOptions),
+    /// Trained on the first sensor, transferred to the others with `Fit`.
+    ZeroShot(&'a TrainOptions, Fit),
+}
+
+fn train(
+    id: &str,
+    dataset: &gelgrip_plugins::dataset::PressDataset,
+    opts: &TrainOptions,
+) -> anyhow::Result<MlpModel> {
+    eprintln!("training the mlp on {id} ({} epochs)", opts.epochs);
+    let bar = progress::epochs(opts.epochs as u64);
+    let m = calibrate::train_mlp_on(
+        &[dataset],
+        Input::Diff,
+        opts,
+        progress::epoch_reporter(&bar),
+    )?;
+    bar.finish_and_clear();
+    Ok(m)
+}
+
 /// Collect `presses` presses on every sensor of `config` into `dir`, train a LUT per sensor
-/// and, with `mlp`, an MLP on the first sensor transferred to the others (`fit`).
+/// and the MLPs `plan` asks for.
 pub fn calibrate_hand(
     config: &AppConfig,
     presses: usize,
     dir: &Path,
-    mlp: Option<(&TrainOptions, Fit)>,
+    plan: MlpPlan<'_>,
 ) -> anyhow::Result<Vec<SensorModels>> {
     let mut out: Vec<SensorModels> = Vec::new();
     for (i, spec) in config.layout.sensors.iter().enumerate() {
@@ -48,24 +77,13 @@ pub fn calibrate_hand(
         };
         let dataset = simcam::collect(&cam, &presses_sim, presses, &dir.join(&id), |_| {})?;
         let lut = calibrate::train_lut(&dataset, Input::Diff, DEFAULT_BINS)?;
-        let model = match (mlp, out.first().and_then(|s| s.mlp.as_ref())) {
-            (None, _) => None,
-            (Some((opts, _)), None) => {
-                eprintln!(
-                    "training the mlp on {id} ({} epochs); the other sensors get it by transfer",
-                    opts.epochs
-                );
-                let bar = progress::epochs(opts.epochs as u64);
-                let m = calibrate::train_mlp_on(
-                    &[&dataset],
-                    Input::Diff,
-                    opts,
-                    progress::epoch_reporter(&bar),
-                )?;
-                bar.finish_and_clear();
-                Some(m)
+        let source = out.first().and_then(|s| s.mlp.as_ref());
+        let model = match (plan, source) {
+            (MlpPlan::None, _) => None,
+            (MlpPlan::Individual(opts), _) | (MlpPlan::ZeroShot(opts, _), None) => {
+                Some(train(&id, &dataset, opts)?)
             }
-            (Some((_, fit)), Some(source)) => {
+            (MlpPlan::ZeroShot(_, fit), Some(source)) => {
                 let press = calibrate::press_pixels(&dataset, 0, Input::Diff)?;
                 Some(transfer(source, &press, fit)?.0)
             }

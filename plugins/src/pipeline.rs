@@ -79,6 +79,12 @@ pub enum PipelineError {
     NoReference,
 }
 
+/// Contact-only MLP inference evaluates a pixel whose difference from the reference exceeds
+/// this percentile of the no-contact frames' per-pixel differences. Lower evaluates more
+/// pixels (slower); higher drops the shallow slopes of a contact (less accurate);
+/// docs/calibration.md has the measured trade.
+pub const PIXEL_NOISE_PERCENTILE: usize = 95;
+
 /// A window of the image: `(x, y, width, height)` in px.
 pub type Window = (usize, usize, usize, usize);
 
@@ -116,7 +122,7 @@ pub struct SensorPipeline {
     /// every prediction, so a pixel like the background has zero gradient).
     background_prediction: Vec<[f32; 2]>,
     /// MLP contact-only: a pixel is evaluated when the sum over channels of
-    /// |frame − reference| exceeds this (the no-contact frames' 99.9th percentile).
+    /// |frame − reference| exceeds this (the no-contact frames' [`PIXEL_NOISE_PERCENTILE`]th percentile).
     pixel_threshold: f32,
     /// MLP: the rows evaluated and their window positions.
     features: Vec<f32>,
@@ -238,7 +244,8 @@ impl SensorPipeline {
         self.pixel_threshold = if pixel_activity.is_empty() {
             0.0
         } else {
-            let k = (pixel_activity.len() * 999 / 1000).min(pixel_activity.len() - 1);
+            let k =
+                (pixel_activity.len() * PIXEL_NOISE_PERCENTILE / 100).min(pixel_activity.len() - 1);
             *pixel_activity.select_nth_unstable_by(k, f32::total_cmp).1
         };
         self.noise = Some(NoiseModel::measure(&activity, &depth));

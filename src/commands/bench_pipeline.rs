@@ -26,7 +26,8 @@ use gelgrip_plugins::poisson::{PoissonPlan, Solver};
 use gelgrip_sim::scene::HeightMap;
 
 use crate::cli::{BenchPipelineArgs, ModelKind};
-use crate::{sensor_models, simcam, wiring};
+use crate::sensor_models::{self, MlpPlan};
+use crate::{simcam, wiring};
 
 /// Presses collected to calibrate each sensor.
 const CALIBRATION_PRESSES: usize = 50;
@@ -128,8 +129,12 @@ pub fn run(args: BenchPipelineArgs) -> anyhow::Result<u8> {
         epochs: args.epochs as usize,
         ..TrainOptions::default()
     };
-    let mlp = (args.model == ModelKind::Mlp).then_some((&opts, Fit::Offset));
-    let hand = sensor_models::calibrate_hand(&config, CALIBRATION_PRESSES, &tmp, mlp)?;
+    let plan = if args.model == ModelKind::Mlp {
+        MlpPlan::ZeroShot(&opts, Fit::Offset)
+    } else {
+        MlpPlan::None
+    };
+    let hand = sensor_models::calibrate_hand(&config, CALIBRATION_PRESSES, &tmp, plan)?;
     let mut model_name = "lut";
     let mut pipes = Vec::new();
     let mut frames = Vec::new();

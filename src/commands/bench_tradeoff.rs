@@ -1,8 +1,8 @@
 //! `gelgrip bench tradeoff`: what accuracy each millisecond buys.
 //!
-//! The gripper's seven simulated sensors are calibrated once (a LUT each; one MLP trained
-//! on the first sensor and transferred to the others from one press; that MLP baked into a
-//! tiled LUT per sensor). Then every combination of decode resolution (full, 1/2, 1/4 by
+//! The gripper's seven simulated sensors are calibrated once, each on its own presses: a
+//! LUT, an MLP, and that MLP baked into a tiled LUT (the transfer's effect is `bench
+//! calibration`'s subject; here models are compared like for like). Then every combination of decode resolution (full, 1/2, 1/4 by
 //! scaled JPEG decode), gradient model (lut, dense mlp, contact-only mlp, baked mlp) and
 //! depth solver (dst, dct, none) runs the same sets: each sensor pressed by its built-in
 //! ball. A row gives the median wall-clock time per set of 7 (rayon across sensors) and the
@@ -21,14 +21,14 @@ use gelgrip_plugins::contact::ContactSummary;
 use gelgrip_plugins::gradient::{GradientModel, MlpMode};
 use gelgrip_plugins::mlp::bake::{BakeOptions, bake};
 use gelgrip_plugins::mlp::train::TrainOptions;
-use gelgrip_plugins::mlp::transfer::Fit;
 use gelgrip_plugins::pipeline::{Needs, SensorPipeline, StageChoice, process_set};
 use gelgrip_plugins::poisson::Solver;
 use gelgrip_sim::scene::HeightMap;
 
 use crate::cli::BenchTradeoffArgs;
 use crate::plot::{Figure, Series};
-use crate::{sensor_models, simcam, wiring};
+use crate::sensor_models::{self, MlpPlan};
+use crate::{simcam, wiring};
 
 /// One configuration's result.
 #[derive(Debug, Clone, Serialize)]
@@ -162,7 +162,7 @@ pub fn run(args: BenchTradeoffArgs) -> anyhow::Result<u8> {
         &config,
         args.presses as usize,
         &tmp,
-        Some((&opts, Fit::Offset)),
+        MlpPlan::Individual(&opts),
     )?;
     let _ = std::fs::remove_dir_all(&tmp);
     let mut sensors = Vec::new();
