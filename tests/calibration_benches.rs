@@ -2,6 +2,10 @@
 //! Table II), `bench tradeoff` (with its plot) and `bench pipeline --model mlp` in each of
 //! its modes. The figures themselves are in docs/calibration.md; these check the contract
 //! (fields, nulls, the Pareto marks) and that nothing is NaN.
+//!
+//! They train MLPs and run dozens of pipeline configurations, which a debug build takes
+//! minutes over, so they are ignored in plain `cargo test` and scripts/test runs them
+//! against the release binary.
 
 mod common;
 
@@ -12,6 +16,7 @@ fn finite(v: &serde_json::Value) -> bool {
 }
 
 #[test]
+#[ignore = "trains MLPs: scripts/test runs it (release)"]
 fn bench_calibration_prints_table_two() {
     let v = json(&gelgrip(&[
         "bench",
@@ -46,6 +51,7 @@ fn bench_calibration_prints_table_two() {
 }
 
 #[test]
+#[ignore = "trains MLPs: scripts/test runs it (release)"]
 fn bench_tradeoff_rows_and_plot() {
     let plot = std::env::temp_dir().join(format!("gelgrip-tradeoff-{}.svg", std::process::id()));
     let v = json(&gelgrip(&[
@@ -84,6 +90,7 @@ fn bench_tradeoff_rows_and_plot() {
 }
 
 #[test]
+#[ignore = "trains MLPs: scripts/test runs it (release)"]
 fn bench_pipeline_runs_the_mlp_in_every_mode() {
     for (mode, name) in [
         ("contact", "mlp-contact"),

@@ -66,6 +66,8 @@ pub struct TransferReport {
 
 /// Adam steps of the fit (full batch: a press is a few thousand pixels).
 const STEPS: usize = 400;
+/// Pixels of the press the fit uses at most (evenly strided).
+const MAX_PIXELS: usize = 1024;
 /// Ridge weight on the squared offset (in network input units, 128 grey levels) and on the
 /// squared gain change: an offset of 10 grey levels costs 3·10⁻⁴ of mean |error|, one of
 /// 100 levels 0.03.
@@ -77,12 +79,23 @@ pub fn transfer(
     press: &PressPixels,
     fit: Fit,
 ) -> Result<(MlpModel, TransferReport), MlpError> {
-    let n = press.keys.len();
-    if n == 0 {
+    if press.keys.is_empty() {
         return Err(MlpError::NoData(
             "the first press has no labelled pixels to fit the transfer on".into(),
         ));
     }
+    // Every k-th pixel, at most MAX_PIXELS: six parameters need far fewer, and each step
+    // costs two forward and backward passes over them.
+    let stride = press.keys.len().div_ceil(MAX_PIXELS);
+    let pick = |v: &[[f32; 3]]| v.iter().step_by(stride).copied().collect::<Vec<_>>();
+    let press = PressPixels {
+        keys: pick(&press.keys),
+        background_keys: pick(&press.background_keys),
+        positions: press.positions.iter().step_by(stride).copied().collect(),
+        targets: press.targets.iter().step_by(stride).copied().collect(),
+    };
+    let press = &press;
+    let n = press.keys.len();
     let dev = Device::Cpu;
     let centre = match model.input {
         Input::Diff => 0.0,
