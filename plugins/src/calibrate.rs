@@ -5,8 +5,7 @@
 use thiserror::Error;
 
 use crate::dataset::{DatasetError, PressDataset, PressTruth};
-use crate::gradient::{GradientModel, background_key};
-use crate::image::RgbImage;
+use crate::gradient::{GradientModel, background_key, frame_key};
 use crate::lut::{Input, LutModel, LutTrainer};
 use crate::mlp::train::{EpochReport, Samples, TrainOptions};
 use crate::mlp::transfer::PressPixels;
@@ -34,12 +33,25 @@ pub fn split_index(rows: usize) -> usize {
     rows - test
 }
 
-fn key(img: &RgbImage, bg: &RgbImage, p: usize, input: Input) -> [f32; 3] {
-    let v = |c: usize| f32::from(img.data[p * 3 + c]);
-    match input {
-        Input::Diff => [0, 1, 2].map(|c| v(c) - f32::from(bg.data[p * 3 + c])),
-        Input::Raw => [v(0), v(1), v(2)],
-    }
+/// The labelled pixels of a press, as every trainer and the transfer use them: each inside
+/// pixel with its geometric gradient, and background pixels (untouched, one for every five
+/// inside pixels, evenly spaced) with zero gradient. Labels are `(pixel, gx, gy)`, possibly
+/// non-finite (callers skip those).
+fn labelled_pixels(truth: &PressTruth, w: usize, h: usize) -> Vec<(usize, f32, f32)> {
+    let (gx, gy) = truth.gradients(w, h);
+    let inside = truth.inside.iter().filter(|v| **v).count().max(1);
+    let stride = ((w * h - inside).max(1) * 5 / inside).max(1);
+    (0..w * h)
+        .filter_map(|p| {
+            if truth.inside[p] {
+                Some((p, gx[p] as f32, gy[p] as f32))
+            } else if p % stride == 0 && truth.depth_px[p] == 0.0 {
+                Some((p, 0.0, 0.0))
+            } else {
+                None
+            }
+        })
+        .collect()
 }
 
 /// Train a LUT on the dataset's training rows (every row but the held-out last 10%).
@@ -64,20 +76,8 @@ pub fn train_lut_on(
         for press in &ds.presses[..split_index(ds.presses.len())] {
             let img = ds.press_image(press)?;
             let truth = PressTruth::new(press, r, w, h);
-            let (gx, gy) = truth.gradients(w, h);
-            let inside = truth.inside.iter().filter(|v| **v).count().max(1);
-            let outside = (w * h - inside).max(1);
-            let stride = (outside * 5 / inside).max(1);
-            for p in 0..w * h {
-                if truth.inside[p] {
-                    trainer.add(
-                        key(&img, &ds.background, p, input),
-                        gx[p] as f32,
-                        gy[p] as f32,
-                    );
-                } else if p % stride == 0 && truth.depth_px[p] == 0.0 {
-                    trainer.add(key(&img, &ds.background, p, input), 0.0, 0.0);
-                }
+            for (p, gx, gy) in labelled_pixels(&truth, w, h) {
+                trainer.add(frame_key(&img, &ds.background, p, input), gx, gy);
             }
         }
     }
@@ -108,20 +108,10 @@ pub fn mlp_samples(
         for press in &ds.presses[..split_index(ds.presses.len())] {
             let img = ds.press_image(press)?;
             let truth = PressTruth::new(press, r, w, h);
-            let (gx, gy) = truth.gradients(w, h);
-            let inside = truth.inside.iter().filter(|v| **v).count().max(1);
-            let stride = ((w * h - inside).max(1) * 5 / inside).max(1);
-            for p in 0..w * h {
-                let label = if truth.inside[p] {
-                    Some((gx[p] as f32, gy[p] as f32))
-                } else if p % stride == 0 && truth.depth_px[p] == 0.0 {
-                    Some((0.0, 0.0))
-                } else {
-                    None
-                };
-                if let Some((a, b)) = label.filter(|(a, b)| a.is_finite() && b.is_finite()) {
-                    let k = key(&img, &ds.background, p, input);
-                    samples.push(shape.features(k, p % w, p / w), a, b);
+            for (p, gx, gy) in labelled_pixels(&truth, w, h) {
+                if gx.is_finite() && gy.is_finite() {
+                    let k = frame_key(&img, &ds.background, p, input);
+                    samples.push(shape.features(k, p % w, p / w), gx, gy);
                 }
             }
         }
@@ -178,24 +168,14 @@ pub fn press_pixels(
     let (w, h) = (ds.background.width, ds.background.height);
     let img = ds.press_image(press)?;
     let truth = PressTruth::new(press, ds.ball_radius_px(), w, h);
-    let (gx, gy) = truth.gradients(w, h);
-    let inside = truth.inside.iter().filter(|v| **v).count().max(1);
-    let stride = ((w * h - inside).max(1) * 5 / inside).max(1);
     let mut out = PressPixels::default();
-    for p in 0..w * h {
-        let target = if truth.inside[p] {
-            [gx[p] as f32, gy[p] as f32]
-        } else if p % stride == 0 && truth.depth_px[p] == 0.0 {
-            [0.0, 0.0]
-        } else {
-            continue;
-        };
-        if target.iter().all(|v| v.is_finite()) {
-            out.keys.push(key(&img, &ds.background, p, input));
+    for (p, gx, gy) in labelled_pixels(&truth, w, h) {
+        if gx.is_finite() && gy.is_finite() {
+            out.keys.push(frame_key(&img, &ds.background, p, input));
             out.background_keys
                 .push(background_key(&ds.background, p, input));
             out.positions.push((p % w, p / w));
-            out.targets.push(target);
+            out.targets.push([gx, gy]);
         }
     }
     Ok(out)
