@@ -213,13 +213,6 @@ impl LutModel {
         index(key, self.input, self.bins)
     }
 
-    /// (gx, gy) for a key colour (difference or raw, per `input`), ignoring tiles (the
-    /// first tile's table).
-    #[inline]
-    pub fn predict(&self, rgb: [f32; 3]) -> [f32; 2] {
-        self.table[self.shifted(rgb)]
-    }
-
     /// (gx, gy) for a key colour at pixel `(x, y)`: with tiles, interpolated bilinearly
     /// between the four nearest tile centres.
     #[inline]
@@ -377,12 +370,12 @@ mod tests {
         t.add([100.0, -100.0, 0.0], -1.0, 0.5);
         assert_eq!(t.filled_bins(), 2);
         let m = t.finish(4, 4);
-        assert_eq!(m.predict([0.5, 0.5, 0.5]), [2.0, 3.0]);
-        assert_eq!(m.predict([110.0, -110.0, 0.0]), [-1.0, 0.5]);
+        assert_eq!(m.predict_at([0.5, 0.5, 0.5], 0, 0), [2.0, 3.0]);
+        assert_eq!(m.predict_at([110.0, -110.0, 0.0], 0, 0), [-1.0, 0.5]);
         // An untouched colour takes its nearest filled bin.
-        assert_eq!(m.predict([20.0, 10.0, 0.0]), [2.0, 3.0]);
+        assert_eq!(m.predict_at([20.0, 10.0, 0.0], 0, 0), [2.0, 3.0]);
         assert!(
-            m.predict([f32::NAN, 1e9, -1e9])
+            m.predict_at([f32::NAN, 1e9, -1e9], 0, 0)
                 .iter()
                 .all(|v| v.is_finite())
         );
