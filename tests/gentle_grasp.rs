@@ -381,3 +381,8 @@ fn the_held_force_is_steady_without_camera_noise_at_187_hz() {
 fn the_held_force_is_steady_at_the_bus_maximum_of_53_hz() {
     steady_hold("tests/configs/steady-ratemax.toml");
 }
+
+#[test]
+fn the_held_force_is_steady_at_5_hz() {
+    steady_hold("tests/configs/steady-5hz.toml");
+}

@@ -23,6 +23,9 @@
 //!   re-tightens: its target rises by 20% and it squeezes again. (Before every finger
 //!   holds, the others move the object on purpose; that is not slip.)
 //! - **No object**: a finger that reaches its closing goal, or stalls, without contact.
+//! - **Slow set rates**: below 20 sets/s the approach speed and the current's PI gains
+//!   scale with the set period, and the force is neither median-filtered nor averaged
+//!   over more than about 80 ms (`Tuning::reference_period_s`, `Tuning::force_span_s`).
 //! - **Stale**: a finger whose sensor is missing from the set holds where it is.
 //! - **Release**: back to the open position at the approach current.
 
@@ -125,6 +128,14 @@ pub struct Tuning {
     /// readings are first the median of the last three sets, which rejects a one-set
     /// outlier.
     pub force_filter: f64,
+    /// The averaging spans at most this long, s: when sets come further apart the weight
+    /// per set rises (`1 − exp(−period / span)`), and above `reference_period_s` the median
+    /// of three is skipped (it would delay the force by a whole set).
+    pub force_span_s: f64,
+    /// The set period the gains are tuned for, s. At longer periods (slower set rates) the
+    /// force the controller sees is older, so the approach speed, the goal's creep and the
+    /// current's PI gains scale by `reference_period_s / period` to keep the loop stable.
+    pub reference_period_s: f64,
 }
 
 impl Default for Tuning {
@@ -148,6 +159,8 @@ impl Default for Tuning {
             retighten_factor: 1.2,
             slip_sets: 2,
             force_filter: 0.3,
+            force_span_s: 0.08,
+            reference_period_s: 0.05,
         }
     }
 }
@@ -215,6 +228,9 @@ pub struct GraspController {
     fingers: Vec<FingerCtl>,
     started_s: Option<f64>,
     last_s: Option<f64>,
+    /// When the last set arrived, s, and the running mean of the set period, s.
+    last_set_s: Option<f64>,
+    set_period_s: Option<f64>,
     done: Option<GraspOutcome>,
 }
 
@@ -266,6 +282,8 @@ impl GraspController {
             fingers,
             started_s: None,
             last_s: None,
+            last_set_s: None,
+            set_period_s: None,
             done: None,
         }
     }
@@ -324,7 +342,8 @@ impl GraspController {
         self.last_s = Some(t_s);
         let limit = self.limit();
         let t = self.tuning.clone();
-        let speed = finite_or(self.request.speed_deg_s, 0.0).max(0.0);
+        let (rate_scale, weight, use_median) = self.track_set_rate(t_s, set.is_some());
+        let speed = finite_or(self.request.speed_deg_s, 0.0).max(0.0) * rate_scale;
         let settled = self.settled();
         for f in 0..self.fingers.len() {
             let present = servos
@@ -353,11 +372,15 @@ impl GraspController {
             // Regulate on a short average of the median of the last three sets: a one-set
             // outlier of the pipeline never moves the finger.
             c.recent_n = [c.recent_n[1], c.recent_n[2], finite_or(fused.force_n, 0.0)];
-            let median = median3(c.recent_n);
+            let median = if use_median {
+                median3(c.recent_n)
+            } else {
+                c.recent_n[2]
+            };
             c.force_n = if c.force_n == 0.0 {
                 median
             } else {
-                c.force_n + (median - c.force_n) * t.force_filter
+                c.force_n + (median - c.force_n) * weight
             };
             let force_n = c.force_n;
             match c.phase {
@@ -416,20 +439,25 @@ impl GraspController {
                 }
                 Phase::Squeeze | Phase::Hold => {
                     let e = c.target_n - force_n;
-                    let p = t.kp_ma_per_n * e;
-                    let trial = c.feedforward_ma + p + c.integral_ma + t.ki_ma_per_n_s * e * dt;
+                    // What the loop acts on: an excess beyond the target counts as the
+                    // target, so one high reading (unfiltered at slow set rates) backs the
+                    // finger off by no more than the whole target would.
+                    let e_ctl = e.max(-c.target_n);
+                    let p = t.kp_ma_per_n * rate_scale * e_ctl;
+                    let ki = t.ki_ma_per_n_s * rate_scale;
+                    let trial = c.feedforward_ma + p + c.integral_ma + ki * e_ctl * dt;
                     let min = t.min_current_ma.min(limit);
                     // Anti-windup: integrate only while the output is not pinned in the
                     // direction the error pushes.
                     if !((trial >= limit && e > 0.0) || (trial <= min && e < 0.0)) {
-                        c.integral_ma += t.ki_ma_per_n_s * e * dt;
+                        c.integral_ma += ki * e_ctl * dt;
                     }
                     c.current_ma = (c.feedforward_ma + p + c.integral_ma).clamp(min, limit);
                     // The goal creeps by the force error: in current-based position mode the
                     // servo holds a goal it has reached, so the force stops at the target
                     // instead of running on to the current cap.
-                    let lead =
-                        (t.squeeze_deg_per_n * e).clamp(-t.squeeze_lead_deg, t.squeeze_lead_deg);
+                    let lead = (t.squeeze_deg_per_n * e_ctl)
+                        .clamp(-t.squeeze_lead_deg, t.squeeze_lead_deg);
                     c.goal_deg = (present + lead).min(close.max(present));
                     let in_band = e.abs() <= t.stable_band * c.target_n.max(1e-6);
                     // Stall at the cap: the current limit allows no more force. Straining
@@ -511,6 +539,38 @@ impl GraspController {
             goals: self.goals(),
             done: self.done.clone(),
         }
+    }
+
+    /// Track the set period; returns the gain scale for it, the weight of a new force
+    /// reading in the average, and whether to take the median of three first.
+    fn track_set_rate(&mut self, t_s: f64, with_set: bool) -> (f64, f64, bool) {
+        let t = &self.tuning;
+        if with_set {
+            if let Some(prev) = self.last_set_s {
+                let gap = (t_s - prev).clamp(0.0, 1.0);
+                self.set_period_s = Some(match self.set_period_s {
+                    Some(p) => p + (gap - p) * 0.2,
+                    None => gap,
+                });
+            }
+            self.last_set_s = Some(t_s);
+        }
+        let period = self.set_period_s.unwrap_or(0.0);
+        let scale = if period > t.reference_period_s {
+            t.reference_period_s / period
+        } else {
+            1.0
+        };
+        let weight = if t.force_span_s > 0.0 {
+            t.force_filter.max(1.0 - (-period / t.force_span_s).exp())
+        } else {
+            1.0
+        };
+        (
+            scale,
+            weight.clamp(0.0, 1.0),
+            period <= t.reference_period_s,
+        )
     }
 
     /// Every active finger holds (on the object, or having found none).
