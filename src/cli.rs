@@ -322,6 +322,11 @@ pub struct TrainArgs {
     /// LUT bins per channel.
     #[arg(long, default_value = "64", value_parser = clap::value_parser!(u16).range(2..=256))]
     pub bins: u16,
+    /// LUT: box-blur radius the frames are read through, px (default: none when the
+    /// presses' pixel noise is at most 16 grey levels RMS, else the smallest of 1, 2, 3, 4,
+    /// 6, 8 whose validation error is within 10% of the best).
+    #[arg(long, value_parser = clap::value_parser!(u8).range(0..=8))]
+    pub blur_px: Option<u8>,
     /// Output model file (.safetensors).
     #[arg(long)]
     pub out: PathBuf,

@@ -37,7 +37,7 @@ const CALIBRATION_PRESSES: usize = 50;
 const CALIBRATION_BALLS_MM: [f64; 2] = [6.0, 25.0];
 /// Version of the self-calibration recipe; raise it when the recipe changes so cached
 /// models from an older one are not reused.
-const CALIBRATION_VERSION: u32 = 2;
+const CALIBRATION_VERSION: u32 = 4;
 /// No-contact frames averaged into each sensor's reference.
 const REFERENCE_FRAMES: u64 = 12;
 

@@ -88,6 +88,14 @@ impl GradientModel {
         }
     }
 
+    /// Box-blur radius the model reads frames through, px (0 for an MLP).
+    pub fn blur_px(&self) -> usize {
+        match self {
+            GradientModel::Lut(l) => l.blur_px,
+            GradientModel::Mlp { .. } => 0,
+        }
+    }
+
     /// A short name: `lut`, `baked-mlp`, `mlp-dense` or `mlp-contact`.
     pub fn name(&self) -> &'static str {
         match self {
@@ -111,6 +119,14 @@ impl GradientModel {
         gy: &mut [f64],
     ) -> Result<(), MlpError> {
         let (w, h) = (img.width, img.height);
+        let blurred;
+        let (img, background) = match self.blur_px() {
+            0 => (img, background),
+            r => {
+                blurred = (img.blurred(r), background.blurred(r));
+                (&blurred.0, &blurred.1)
+            }
+        };
         let key = |p: usize| frame_key(img, background, p, self.input());
         match self {
             GradientModel::Lut(lut) => {

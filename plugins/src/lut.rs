@@ -63,6 +63,11 @@ pub struct LutModel {
     pub tiles: [usize; 2],
     /// What it was made from: `presses` (trained) or `mlp` (baked).
     pub source: String,
+    /// Box-blur radius applied to every frame and to the reference before the key is taken,
+    /// px (0 = none; metadata `blur_px`): chosen at training from the sensor's measured
+    /// pixel noise, since a table read through heavy noise learns gradients shrunk toward
+    /// zero.
+    pub blur_px: usize,
     /// `tiles × bins³` entries of (gx, gy), tile-major.
     table: Vec<[f32; 2]>,
 }
@@ -157,6 +162,7 @@ impl LutTrainer {
             offset_rgb: [0.0; 3],
             tiles: [1, 1],
             source: "presses".into(),
+            blur_px: 0,
             table,
         }
     }
@@ -200,6 +206,7 @@ impl LutModel {
             offset_rgb: [0.0; 3],
             tiles,
             source: source.into(),
+            blur_px: 0,
             table,
         })
     }
@@ -256,6 +263,7 @@ impl LutModel {
                 format!("{},{}", self.tiles[0], self.tiles[1]),
             ),
             ("source".to_string(), self.source.clone()),
+            ("blur_px".to_string(), self.blur_px.to_string()),
         ]);
         let n = self.bins;
         let values = self.table.iter().flat_map(|g| *g).collect();
@@ -354,6 +362,20 @@ impl LutModel {
                 detail: "table size disagrees with bins and tiles".into(),
             })?;
         model.offset_rgb = offset_rgb;
+        model.blur_px = match file.metadata.get("blur_px") {
+            None => 0,
+            Some(v) => v
+                .trim()
+                .parse()
+                .ok()
+                .filter(|r| *r <= crate::image::MAX_BLUR_PX)
+                .ok_or_else(|| ModelFileError::Metadata {
+                    path: p.clone(),
+                    key: "blur_px".into(),
+                    actual: Some(v.clone()),
+                    expected: format!("an integer in [0, {}]", crate::image::MAX_BLUR_PX),
+                })?,
+        };
         Ok(model)
     }
 }
@@ -387,11 +409,17 @@ mod tests {
         t.add([10.0, 20.0, 30.0], 0.25, -0.5);
         let mut m = t.finish(320, 240);
         m.offset_rgb = [1.0, -2.0, 0.5];
+        m.blur_px = 3;
         let dir = std::env::temp_dir().join(format!("gelgrip-lut-{}", std::process::id()));
         std::fs::create_dir_all(&dir).expect("tmp dir");
         let path = dir.join("m.safetensors");
         m.save(&path).expect("save");
         assert_eq!(LutModel::load(&path).expect("load"), m);
+        let mut wide = m.clone();
+        wide.blur_px = 99;
+        wide.save(&path).expect("save");
+        let err = LutModel::load(&path).expect_err("blur beyond the largest");
+        assert!(err.to_string().contains("blur_px"), "{err}");
         let mut bad = m.clone();
         bad.bins = 0;
         bad.table.clear();

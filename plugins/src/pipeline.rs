@@ -202,6 +202,13 @@ impl SensorPipeline {
             remap.apply(&self.rgb, &mut self.rgb_undistorted);
             std::mem::swap(&mut self.rgb, &mut self.rgb_undistorted);
         }
+        // The model reads frames (and so the reference) through its blur.
+        crate::image::box_blur_rgb(
+            &mut self.rgb,
+            self.width,
+            self.height,
+            self.choice.model.blur_px(),
+        );
         Ok(())
     }
 

@@ -66,6 +66,7 @@ struct TrainJson {
     hidden: Option<usize>,
     parameters: Option<usize>,
     epochs: Option<u32>,
+    blur_px: Option<usize>,
     train_presses: usize,
     test_presses: usize,
     train_gx_mae: f64,
@@ -84,7 +85,7 @@ fn train(args: TrainArgs) -> anyhow::Result<u8> {
     let ds = PressDataset::load(&args.data)?;
     let split = calibrate::split_index(ds.presses.len());
     let started = std::time::Instant::now();
-    let (model, name, hidden, parameters) = match args.model {
+    let (model, name, hidden, parameters, blur_px) = match args.model {
         ModelKind::Lut => {
             eprintln!(
                 "training lut ({} input, {} bins) on {} presses, testing on {}",
@@ -93,9 +94,32 @@ fn train(args: TrainArgs) -> anyhow::Result<u8> {
                 split,
                 ds.presses.len() - split
             );
-            let lut = calibrate::train_lut(&ds, input, usize::from(args.bins))?;
+            let bins = usize::from(args.bins);
+            let blur_px = match args.blur_px {
+                Some(r) => usize::from(r),
+                None => {
+                    let noise = calibrate::pixel_noise(&[&ds])?;
+                    eprintln!("pixel noise {noise:.1} grey levels (RMS, away from the contact)");
+                    if noise > calibrate::BLUR_ABOVE_NOISE {
+                        let sweep = calibrate::choose_blur(&[&ds], input, bins)?;
+                        let listed: Vec<String> = sweep
+                            .iter()
+                            .map(|(r, e)| format!("{r} px: {e:.4}"))
+                            .collect();
+                        eprintln!(
+                            "blur radius, validation error (mean of gx and gy): {}",
+                            listed.join(", ")
+                        );
+                        calibrate::best_blur(&sweep)
+                    } else {
+                        0
+                    }
+                }
+            };
+            eprintln!("frames read through a box blur of radius {blur_px} px");
+            let lut = calibrate::train_lut_blurred(&[&ds], input, bins, blur_px)?;
             lut.save(&args.out)?;
-            (GradientModel::lut(lut), "lut", None, None)
+            (GradientModel::lut(lut), "lut", None, None, Some(blur_px))
         }
         ModelKind::Mlp => {
             let opts = TrainOptions {
@@ -126,6 +150,7 @@ fn train(args: TrainArgs) -> anyhow::Result<u8> {
                 "mlp",
                 Some(h),
                 Some(n),
+                None,
             )
         }
     };
@@ -138,6 +163,7 @@ fn train(args: TrainArgs) -> anyhow::Result<u8> {
         hidden,
         parameters,
         epochs: (args.model == ModelKind::Mlp).then_some(args.epochs),
+        blur_px,
         train_presses: train.presses,
         test_presses: test.presses,
         train_gx_mae: train.gx_mae,
