@@ -5,6 +5,12 @@
 //! true force's overshoot and the crush margin. `--sweep resolution` repeats every object
 //! at 320×240, 160×120 and 80×60: smaller frames cross the bus faster (a higher set rate)
 //! but carry less depth detail, and the rows measure what that does to the grasp.
+//!
+//! The loop-latency budget: after the grasps, `gelgrip bench pipeline` times the tactile
+//! pipelines alone on a grasp-like press (a 30 mm ball, 1 mm deep, on every sensor; the
+//! default 6 mm probe is a far smaller contact than a grasped object makes), and each row
+//! says whether its `loop_latency_ms_p99` is within 1 ms of that bench's `ms_per_set_p99`
+//! (the grasp issue's acceptance: fusion, control and the servo write add at most 1 ms).
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -63,6 +69,58 @@ fn scenes(args: &BenchGraspArgs) -> anyhow::Result<Vec<PathBuf>> {
         .collect();
     out.sort();
     Ok(out)
+}
+
+/// The press `bench pipeline` is timed on for the latency budget: ball diameter and depth, mm.
+const BUDGET_PRESS_MM: (f64, f64) = (30.0, 1.0);
+/// What the loop may add to the pipelines' p99, ms.
+const LOOP_ALLOWANCE_MS: f64 = 1.0;
+
+/// `bench pipeline`'s `ms_per_set_p99` on the budget's press (the default configuration).
+fn pipeline_p99_ms() -> anyhow::Result<f64> {
+    let exe = std::env::current_exe().context("locating the gelgrip binary")?;
+    let out = Command::new(&exe)
+        .args(["bench", "pipeline", "--json", "--sets", "200"])
+        .args(["--ball-mm", &BUDGET_PRESS_MM.0.to_string()])
+        .args(["--press-depth-mm", &BUDGET_PRESS_MM.1.to_string()])
+        .output()
+        .context("running bench pipeline")?;
+    let report: Value = serde_json::from_slice(&out.stdout).with_context(|| {
+        format!(
+            "bench pipeline: no report (exit {:?}): {}",
+            out.status.code(),
+            String::from_utf8_lossy(&out.stderr)
+                .lines()
+                .last()
+                .unwrap_or("")
+        )
+    })?;
+    report["ms_per_set_p99"]
+        .as_f64()
+        .context("bench pipeline's report has no ms_per_set_p99")
+}
+
+/// Add the latency budget to a row: `bench_pipeline_ms_per_set_p99`, `latency_budget_ms`
+/// and `latency_within_budget` (null when there is no budget, as in a resolution sweep).
+fn add_budget(row: &mut Value, pipeline_p99_ms: Option<f64>) {
+    let budget = pipeline_p99_ms.map(|p| p + LOOP_ALLOWANCE_MS);
+    let within = budget
+        .zip(row["loop_latency_ms_p99"].as_f64())
+        .map(|(b, l)| l <= b);
+    if let Value::Object(m) = row {
+        m.insert(
+            "bench_pipeline_ms_per_set_p99".into(),
+            pipeline_p99_ms.map_or(Value::Null, Value::from),
+        );
+        m.insert(
+            "latency_budget_ms".into(),
+            budget.map_or(Value::Null, Value::from),
+        );
+        m.insert(
+            "latency_within_budget".into(),
+            within.map_or(Value::Null, Value::from),
+        );
+    }
 }
 
 fn row(scene: &Path, report: &Value, resolution: Option<(u32, u32)>) -> Value {
@@ -213,6 +271,20 @@ pub fn run(args: BenchGraspArgs) -> anyhow::Result<u8> {
             rows.push(row(scene, &report, *resolution));
         }
     }
+    // The budget holds for the default configuration (bench pipeline's); a resolution
+    // sweep changes the frames, so its rows carry none.
+    let pipeline_p99 = if args.sweep.is_none() {
+        eprintln!(
+            "bench pipeline on a {} mm ball, {} mm deep (the loop-latency budget)",
+            BUDGET_PRESS_MM.0, BUDGET_PRESS_MM.1
+        );
+        Some(pipeline_p99_ms()?)
+    } else {
+        None
+    };
+    for r in &mut rows {
+        add_budget(r, pipeline_p99);
+    }
     if let Some(plot) = &args.plot {
         crate::plot::save(&sweep_figure(&rows, args.target_force), plot)?;
         eprintln!("plot: {}", plot.display());
@@ -222,7 +294,7 @@ pub fn run(args: BenchGraspArgs) -> anyhow::Result<u8> {
         return Ok(0);
     }
     println!(
-        "{:<12} {:>9} {:>7} {:>7} {:>7} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>9} {:>9} {:>8}  reason",
+        "{:<12} {:>9} {:>7} {:>7} {:>7} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>9} {:>9} {:>9} {:>8}  reason",
         "scene",
         "res",
         "rate Hz",
@@ -236,12 +308,13 @@ pub fn run(args: BenchGraspArgs) -> anyhow::Result<u8> {
         "stable s",
         "loop p99",
         "pipe p99",
+        "budget",
         "slip mm"
     );
     let num = |v: &Value, d: usize| v.as_f64().map_or("-".to_string(), |x| format!("{x:.d$}"));
     for r in &rows {
         println!(
-            "{:<12} {:>9} {:>7} {:>7} {:>7} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>9} {:>9} {:>8}  {}",
+            "{:<12} {:>9} {:>7} {:>7} {:>7} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>9} {:>9} {:>9} {:>8}  {}",
             r["scene"].as_str().unwrap_or(""),
             r["resolution"].as_str().unwrap_or("config"),
             num(&r["set_rate_hz"], 1),
@@ -255,6 +328,14 @@ pub fn run(args: BenchGraspArgs) -> anyhow::Result<u8> {
             num(&r["time_to_stable_s"], 1),
             num(&r["loop_latency_ms_p99"], 1),
             num(&r["pipeline_ms_p99"], 1),
+            match (
+                num(&r["latency_budget_ms"], 1),
+                r["latency_within_budget"].as_bool()
+            ) {
+                (b, Some(true)) => format!("{b} ok"),
+                (b, Some(false)) => format!("{b} over"),
+                _ => "-".to_string(),
+            },
             num(&r["hold_slip_mm"], 2),
             r["reason"].as_str().unwrap_or("")
         );
