@@ -23,9 +23,11 @@
 //!   re-tightens: its target rises by 20% and it squeezes again. (Before every finger
 //!   holds, the others move the object on purpose; that is not slip.)
 //! - **No object**: a finger that reaches its closing goal, or stalls, without contact.
-//! - **Slow set rates**: below 20 sets/s the approach speed and the current's PI gains
-//!   scale with the set period, and the force is neither median-filtered nor averaged
-//!   over more than about 80 ms (`Tuning::reference_period_s`, `Tuning::force_span_s`).
+//! - **Slow set rates**: below 20 sets/s the approach speed and the current's proportional
+//!   gain scale with the set period, the force is not median-filtered and is averaged over
+//!   about 80 ms but at least two sets (`Tuning::reference_period_s`,
+//!   `Tuning::force_span_s`), and a held finger moves only when its half-second average
+//!   leaves the stable band (`Tuning::slow_hold_span_s`).
 //! - **Stale**: a finger whose sensor is missing from the set holds where it is.
 //! - **Release**: back to the open position at the approach current.
 
@@ -129,13 +131,19 @@ pub struct Tuning {
     /// outlier.
     pub force_filter: f64,
     /// The averaging spans at most this long, s: when sets come further apart the weight
-    /// per set rises (`1 − exp(−period / span)`), and above `reference_period_s` the median
-    /// of three is skipped (it would delay the force by a whole set).
+    /// per set rises (`1 − exp(−period / span)`, at most 0.5), and above
+    /// `reference_period_s` the median of three is skipped (it would delay the force by a
+    /// whole set).
     pub force_span_s: f64,
     /// The set period the gains are tuned for, s. At longer periods (slower set rates) the
-    /// force the controller sees is older, so the approach speed, the goal's creep and the
-    /// current's PI gains scale by `reference_period_s / period` to keep the loop stable.
+    /// force the controller sees is older, so the approach speed and the current's
+    /// proportional gain scale by `reference_period_s / period` to keep the loop stable.
     pub reference_period_s: f64,
+    /// Below 20 sets/s a held finger is judged on its force averaged over this long, s, and
+    /// left alone while that stays within the stable band: at slow set rates every
+    /// correction is a large step on an old reading, and one reading can differ from the
+    /// next by more than the band.
+    pub slow_hold_span_s: f64,
 }
 
 impl Default for Tuning {
@@ -161,6 +169,7 @@ impl Default for Tuning {
             force_filter: 0.3,
             force_span_s: 0.08,
             reference_period_s: 0.05,
+            slow_hold_span_s: 0.5,
         }
     }
 }
@@ -200,6 +209,12 @@ struct FingerCtl {
     feedforward_ma: f64,
     profile_rpm: f64,
     contact_since_s: Option<f64>,
+    /// Sets in a row that showed the contact since it began.
+    contact_sets: u32,
+    /// The largest regulated force since the approach began, N.
+    peak_n: f64,
+    /// The force averaged over `Tuning::slow_hold_span_s`, N.
+    slow_force_n: f64,
     target_n: f64,
     stable_since_s: Option<f64>,
     stall_ref: Option<(f64, f64)>,
@@ -234,6 +249,10 @@ pub struct GraspController {
     done: Option<GraspOutcome>,
 }
 
+/// The regulated force always averages at least two sets (a reading that alternates from
+/// set to set, as a slow hub's can, is mostly cancelled).
+const MAX_FORCE_WEIGHT: f64 = 0.5;
+
 fn finite_or(v: f64, default: f64) -> f64 {
     if v.is_finite() { v } else { default }
 }
@@ -262,6 +281,9 @@ impl GraspController {
                 feedforward_ma: 0.0,
                 profile_rpm: 0.0,
                 contact_since_s: None,
+                contact_sets: 0,
+                peak_n: 0.0,
+                slow_force_n: 0.0,
                 target_n: target,
                 stable_since_s: None,
                 stall_ref: None,
@@ -343,6 +365,11 @@ impl GraspController {
         let limit = self.limit();
         let t = self.tuning.clone();
         let (rate_scale, weight, use_median) = self.track_set_rate(t_s, set.is_some());
+        let slow_weight = if t.slow_hold_span_s > 0.0 {
+            1.0 - (-self.set_period_s.unwrap_or(0.0) / t.slow_hold_span_s).exp()
+        } else {
+            1.0
+        };
         let speed = finite_or(self.request.speed_deg_s, 0.0).max(0.0) * rate_scale;
         let settled = self.settled();
         for f in 0..self.fingers.len() {
@@ -383,6 +410,16 @@ impl GraspController {
                 c.force_n + (median - c.force_n) * weight
             };
             let force_n = c.force_n;
+            c.slow_force_n = if c.slow_force_n == 0.0 {
+                force_n
+            } else {
+                c.slow_force_n + (force_n - c.slow_force_n) * slow_weight
+            };
+            if c.phase == Phase::Approach {
+                c.peak_n = 0.0;
+            } else {
+                c.peak_n = c.peak_n.max(force_n);
+            }
             match c.phase {
                 Phase::Approach | Phase::Contact => {
                     let measured = servos
@@ -392,9 +429,13 @@ impl GraspController {
                     if fused.contact && c.phase == Phase::Approach {
                         c.phase = Phase::Contact;
                         c.contact_since_s = Some(t_s);
+                        c.contact_sets = 0;
                     } else if !fused.contact && c.phase == Phase::Contact {
                         c.phase = Phase::Approach;
                         c.contact_since_s = None;
+                    }
+                    if c.phase == Phase::Contact {
+                        c.contact_sets += 1;
                     }
                     if c.phase == Phase::Approach {
                         // Learn what the return springs take: track the free-motion current,
@@ -417,8 +458,12 @@ impl GraspController {
                     }
                     c.goal_deg = close;
                     let in_contact_s = c.contact_since_s.map_or(0.0, |s0| t_s - s0);
+                    // Squeeze once the force is a third of the way there, or once the contact has
+                    // lasted 0.3 s and three sets (at slow set rates 0.3 s is one or two sets,
+                    // too few to tell a touch from a noisy frame).
                     if c.phase == Phase::Contact
-                        && (force_n >= 0.3 * c.target_n || in_contact_s >= 0.3)
+                        && (force_n >= 0.3 * c.target_n
+                            || (in_contact_s >= 0.3 && c.contact_sets >= 3))
                     {
                         c.phase = Phase::Squeeze;
                         c.integral_ma = 0.0;
@@ -437,28 +482,60 @@ impl GraspController {
                         }
                     }
                 }
+                Phase::Squeeze | Phase::Hold
+                    if c.phase == Phase::Squeeze
+                        && !fused.contact
+                        && c.peak_n < 0.05 * c.target_n =>
+                {
+                    // Squeezing what was never felt (the contact was a noisy frame): three
+                    // sets in a row without contact and the finger approaches again, its
+                    // current back to the approach's, instead of winding up on air.
+                    c.contact_sets = c.contact_sets.min(3).saturating_sub(1);
+                    if c.contact_sets == 0 {
+                        c.phase = Phase::Approach;
+                        c.contact_since_s = None;
+                        c.integral_ma = 0.0;
+                        c.current_ma = (c.feedforward_ma + t.approach_margin_ma)
+                            .clamp(t.min_current_ma, t.approach_current_ma)
+                            .min(limit);
+                    }
+                }
                 Phase::Squeeze | Phase::Hold => {
-                    let e = c.target_n - force_n;
+                    if c.phase == Phase::Squeeze {
+                        c.contact_sets = 3;
+                    }
+                    let mut e = c.target_n - force_n;
+                    // Slow set rates: a held finger moves only when its half-second average
+                    // leaves the stable band, and then on that average.
+                    let slow_hold = rate_scale < 1.0
+                        && c.phase == Phase::Hold
+                        && c.status == FingerStatus::ContactClosing;
+                    if slow_hold {
+                        e = c.target_n - c.slow_force_n;
+                    }
+                    let regulate = !(slow_hold && e.abs() <= t.stable_band * c.target_n);
                     // What the loop acts on: an excess beyond the target counts as the
                     // target, so one high reading (unfiltered at slow set rates) backs the
                     // finger off by no more than the whole target would.
-                    let e_ctl = e.max(-c.target_n);
-                    let p = t.kp_ma_per_n * rate_scale * e_ctl;
-                    let ki = t.ki_ma_per_n_s * rate_scale;
-                    let trial = c.feedforward_ma + p + c.integral_ma + ki * e_ctl * dt;
-                    let min = t.min_current_ma.min(limit);
-                    // Anti-windup: integrate only while the output is not pinned in the
-                    // direction the error pushes.
-                    if !((trial >= limit && e > 0.0) || (trial <= min && e < 0.0)) {
-                        c.integral_ma += ki * e_ctl * dt;
+                    if regulate {
+                        let e_ctl = e.max(-c.target_n);
+                        let p = t.kp_ma_per_n * rate_scale * e_ctl;
+                        let ki = t.ki_ma_per_n_s;
+                        let trial = c.feedforward_ma + p + c.integral_ma + ki * e_ctl * dt;
+                        let min = t.min_current_ma.min(limit);
+                        // Anti-windup: integrate only while the output is not pinned in the
+                        // direction the error pushes.
+                        if !((trial >= limit && e > 0.0) || (trial <= min && e < 0.0)) {
+                            c.integral_ma += ki * e_ctl * dt;
+                        }
+                        c.current_ma = (c.feedforward_ma + p + c.integral_ma).clamp(min, limit);
+                        // The goal creeps by the force error: in current-based position mode the
+                        // servo holds a goal it has reached, so the force stops at the target
+                        // instead of running on to the current cap.
+                        let lead = (t.squeeze_deg_per_n * e_ctl)
+                            .clamp(-t.squeeze_lead_deg, t.squeeze_lead_deg);
+                        c.goal_deg = (present + lead).min(close.max(present));
                     }
-                    c.current_ma = (c.feedforward_ma + p + c.integral_ma).clamp(min, limit);
-                    // The goal creeps by the force error: in current-based position mode the
-                    // servo holds a goal it has reached, so the force stops at the target
-                    // instead of running on to the current cap.
-                    let lead = (t.squeeze_deg_per_n * e_ctl)
-                        .clamp(-t.squeeze_lead_deg, t.squeeze_lead_deg);
-                    c.goal_deg = (present + lead).min(close.max(present));
                     let in_band = e.abs() <= t.stable_band * c.target_n.max(1e-6);
                     // Stall at the cap: the current limit allows no more force. Straining
                     // there would overload the servo, so the finger holds a little below
@@ -499,13 +576,18 @@ impl GraspController {
                             continue;
                         };
                         let area_drop = fused.area_mm2 < t.slip_area_share * area0;
-                        let shifted = match (centroid0, fused.centroid) {
-                            (Some((s0, x0, y0)), Some((s1, x1, y1))) => {
-                                s0 != s1 || (x1 - x0).hypot(y1 - y0) > t.slip_shift_mm
-                            }
-                            (Some(_), None) => true,
-                            _ => false,
-                        };
+                        // A contact that grew by as much as a slip would shrink it is not a slip
+                        // (an object pushed in, or, at high camera noise, a spurious region):
+                        // its centroid moving does not count.
+                        let grew = fused.area_mm2 * t.slip_area_share > area0;
+                        let shifted = !grew
+                            && match (centroid0, fused.centroid) {
+                                (Some((s0, x0, y0)), Some((s1, x1, y1))) => {
+                                    s0 != s1 || (x1 - x0).hypot(y1 - y0) > t.slip_shift_mm
+                                }
+                                (Some(_), None) => true,
+                                _ => false,
+                            };
                         c.slip_seen = if area_drop || shifted {
                             c.slip_seen + 1
                         } else {
@@ -562,7 +644,9 @@ impl GraspController {
             1.0
         };
         let weight = if t.force_span_s > 0.0 {
-            t.force_filter.max(1.0 - (-period / t.force_span_s).exp())
+            t.force_filter
+                .max(1.0 - (-period / t.force_span_s).exp())
+                .min(MAX_FORCE_WEIGHT)
         } else {
             1.0
         };
