@@ -249,6 +249,18 @@ pub struct GraspController {
     done: Option<GraspOutcome>,
 }
 
+/// What the set period scales in one step.
+struct RateScaling {
+    /// Approach speed and proportional gain multiplier (1 at 20 sets/s and faster).
+    gain_scale: f64,
+    /// Weight of a new reading in the regulated average.
+    weight: f64,
+    /// Weight of a new reading in the slow (hold) average.
+    slow_weight: f64,
+    /// Take the median of the last three sets first.
+    use_median: bool,
+}
+
 /// The regulated force always averages at least two sets (a reading that alternates from
 /// set to set, as a slow hub's can, is mostly cancelled).
 const MAX_FORCE_WEIGHT: f64 = 0.5;
@@ -364,12 +376,12 @@ impl GraspController {
         self.last_s = Some(t_s);
         let limit = self.limit();
         let t = self.tuning.clone();
-        let (rate_scale, weight, use_median) = self.track_set_rate(t_s, set.is_some());
-        let slow_weight = if t.slow_hold_span_s > 0.0 {
-            1.0 - (-self.set_period_s.unwrap_or(0.0) / t.slow_hold_span_s).exp()
-        } else {
-            1.0
-        };
+        let RateScaling {
+            gain_scale: rate_scale,
+            weight,
+            slow_weight,
+            use_median,
+        } = self.track_set_rate(t_s, set.is_some());
         let speed = finite_or(self.request.speed_deg_s, 0.0).max(0.0) * rate_scale;
         let settled = self.settled();
         for f in 0..self.fingers.len() {
@@ -482,11 +494,7 @@ impl GraspController {
                         }
                     }
                 }
-                Phase::Squeeze | Phase::Hold
-                    if c.phase == Phase::Squeeze
-                        && !fused.contact
-                        && c.peak_n < 0.05 * c.target_n =>
-                {
+                Phase::Squeeze if !fused.contact && c.peak_n < 0.05 * c.target_n => {
                     // Squeezing what was never felt (the contact was a noisy frame): three
                     // sets in a row without contact and the finger approaches again, its
                     // current back to the approach's, instead of winding up on air.
@@ -501,6 +509,8 @@ impl GraspController {
                     }
                 }
                 Phase::Squeeze | Phase::Hold => {
+                    // While squeezing, `contact_sets` counts down the sets without contact
+                    // that the arm above allows; a set with contact refills it.
                     if c.phase == Phase::Squeeze {
                         c.contact_sets = 3;
                     }
@@ -514,10 +524,10 @@ impl GraspController {
                         e = c.target_n - c.slow_force_n;
                     }
                     let regulate = !(slow_hold && e.abs() <= t.stable_band * c.target_n);
-                    // What the loop acts on: an excess beyond the target counts as the
-                    // target, so one high reading (unfiltered at slow set rates) backs the
-                    // finger off by no more than the whole target would.
                     if regulate {
+                        // What the loop acts on: an excess beyond the target counts as the
+                        // target, so one high reading (unfiltered at slow set rates) backs
+                        // the finger off by no more than the whole target would.
                         let e_ctl = e.max(-c.target_n);
                         let p = t.kp_ma_per_n * rate_scale * e_ctl;
                         let ki = t.ki_ma_per_n_s;
@@ -623,9 +633,8 @@ impl GraspController {
         }
     }
 
-    /// Track the set period; returns the gain scale for it, the weight of a new force
-    /// reading in the average, and whether to take the median of three first.
-    fn track_set_rate(&mut self, t_s: f64, with_set: bool) -> (f64, f64, bool) {
+    /// Track the set period and derive what it scales.
+    fn track_set_rate(&mut self, t_s: f64, with_set: bool) -> RateScaling {
         let t = &self.tuning;
         if with_set {
             if let Some(prev) = self.last_set_s {
@@ -643,18 +652,28 @@ impl GraspController {
         } else {
             1.0
         };
-        let weight = if t.force_span_s > 0.0 {
-            t.force_filter
-                .max(1.0 - (-period / t.force_span_s).exp())
-                .min(MAX_FORCE_WEIGHT)
-        } else {
-            1.0
+        // 1 − exp(−period / span): the weight that spans `span` at this period.
+        let spanning = |span: f64| {
+            if span > 0.0 {
+                1.0 - (-period / span).exp()
+            } else {
+                1.0
+            }
         };
-        (
-            scale,
-            weight.clamp(0.0, 1.0),
-            period <= t.reference_period_s,
-        )
+        RateScaling {
+            gain_scale: scale,
+            // No span: no averaging at all.
+            weight: if t.force_span_s > 0.0 {
+                t.force_filter
+                    .max(spanning(t.force_span_s))
+                    .min(MAX_FORCE_WEIGHT)
+                    .clamp(0.0, 1.0)
+            } else {
+                1.0
+            },
+            slow_weight: spanning(t.slow_hold_span_s),
+            use_median: period <= t.reference_period_s,
+        }
     }
 
     /// Every active finger holds (on the object, or having found none).

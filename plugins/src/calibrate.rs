@@ -74,12 +74,40 @@ pub fn train_lut_on(
     input: Input,
     bins: usize,
 ) -> Result<LutModel, CalibrateError> {
-    let blur_px = if pixel_noise(datasets)? > BLUR_ABOVE_NOISE {
-        best_blur(&choose_blur(datasets, input, bins)?)
+    let choice = blur_choice(datasets, input, bins)?;
+    Ok(train_lut_blurred(datasets, input, bins, choice.blur_px)?)
+}
+
+/// How a LUT's blur was chosen: the presses' measured noise, the radius sweep (empty when
+/// the noise is at most [`BLUR_ABOVE_NOISE`]) and the radius kept.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BlurChoice {
+    /// [`pixel_noise`] of the training presses, grey levels RMS.
+    pub noise: f64,
+    /// [`choose_blur`]'s sweep, when the noise called for one.
+    pub sweep: Vec<(usize, f64)>,
+    /// The radius kept, px.
+    pub blur_px: usize,
+}
+
+/// Choose a LUT's blur for `datasets`: none for presses no noisier than
+/// [`BLUR_ABOVE_NOISE`], else [`best_blur`] of [`choose_blur`]'s sweep.
+pub fn blur_choice(
+    datasets: &[&PressDataset],
+    input: Input,
+    bins: usize,
+) -> Result<BlurChoice, CalibrateError> {
+    let noise = pixel_noise(datasets)?;
+    let sweep = if noise > BLUR_ABOVE_NOISE {
+        choose_blur(datasets, input, bins)?
     } else {
-        0
+        Vec::new()
     };
-    Ok(train_lut_blurred(datasets, input, bins, blur_px)?)
+    Ok(BlurChoice {
+        noise,
+        blur_px: best_blur(&sweep),
+        sweep,
+    })
 }
 
 /// Pixel noise (RMS grey levels, [`pixel_noise`]) above which a LUT is read through a

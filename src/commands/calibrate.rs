@@ -98,11 +98,14 @@ fn train(args: TrainArgs) -> anyhow::Result<u8> {
             let blur_px = match args.blur_px {
                 Some(r) => usize::from(r),
                 None => {
-                    let noise = calibrate::pixel_noise(&[&ds])?;
-                    eprintln!("pixel noise {noise:.1} grey levels (RMS, away from the contact)");
-                    if noise > calibrate::BLUR_ABOVE_NOISE {
-                        let sweep = calibrate::choose_blur(&[&ds], input, bins)?;
-                        let listed: Vec<String> = sweep
+                    let choice = calibrate::blur_choice(&[&ds], input, bins)?;
+                    eprintln!(
+                        "pixel noise {:.1} grey levels (RMS, away from the contact)",
+                        choice.noise
+                    );
+                    if !choice.sweep.is_empty() {
+                        let listed: Vec<String> = choice
+                            .sweep
                             .iter()
                             .map(|(r, e)| format!("{r} px: {e:.4}"))
                             .collect();
@@ -110,10 +113,8 @@ fn train(args: TrainArgs) -> anyhow::Result<u8> {
                             "blur radius, validation error (mean of gx and gy): {}",
                             listed.join(", ")
                         );
-                        calibrate::best_blur(&sweep)
-                    } else {
-                        0
                     }
+                    choice.blur_px
                 }
             };
             eprintln!("frames read through a box blur of radius {blur_px} px");
