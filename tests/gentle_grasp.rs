@@ -386,3 +386,8 @@ fn the_held_force_is_steady_at_the_bus_maximum_of_53_hz() {
 fn the_held_force_is_steady_at_5_hz() {
     steady_hold("tests/configs/steady-5hz.toml");
 }
+
+#[test]
+fn the_held_force_is_steady_at_5x_camera_noise() {
+    steady_hold("tests/configs/steady-noise5.toml");
+}

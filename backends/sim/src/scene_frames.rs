@@ -1,9 +1,12 @@
 //! Frames of a scene in motion: each capture renders the pad's current indentation from the
 //! shared [`World`](crate::world::World).
 //!
-//! An untouched pad serves its pre-rendered flat frames. A touched pad is rendered and
-//! encoded only when its indentation changed (compared at 5 µm), so a steady hold costs
-//! nothing per set and only moving contacts pay for rendering.
+//! An untouched pad serves its pre-rendered flat frames. A touched pad keeps, per
+//! indentation (compared at 5 µm), up to `noise_pool` frames with different noise and cycles
+//! through them by capture count, like the flat frames: a steady hold costs nothing per set
+//! once its variants are rendered, only moving contacts pay for rendering, and consecutive
+//! frames never share their noise (a real camera draws it afresh; one frame reused for many
+//! captures would turn the noise into a bias that a controller's average cannot remove).
 
 use std::collections::hash_map::DefaultHasher;
 use std::hash::{Hash, Hasher};
@@ -24,8 +27,25 @@ pub struct SceneFrames {
     world: SharedWorld,
     cameras: Vec<SceneCamera>,
     flat: FramePool,
-    /// Per sensor: (indentation hash, its JPEG).
-    cache: Vec<Option<(u64, Bytes)>>,
+    /// Per sensor: the indentation's hash and its frames by noise variant.
+    cache: Vec<Option<Variants>>,
+    /// Noise variants kept per indentation.
+    pool: usize,
+}
+
+/// One indentation's frames, each with a different noise.
+#[derive(Debug, Clone)]
+struct Variants {
+    key: u64,
+    frames: Vec<Option<Bytes>>,
+}
+
+impl Variants {
+    fn get(&self, key: u64, variant: usize) -> Option<&Bytes> {
+        (self.key == key)
+            .then(|| self.frames.get(variant).and_then(Option::as_ref))
+            .flatten()
+    }
 }
 
 /// Indentation changes smaller than this are invisible under the camera noise (σ ≈ 10
@@ -70,6 +90,7 @@ impl SceneFrames {
             world,
             flat: FramePool::render_flat(layout, cfg)?,
             cache: vec![None; cameras.len()],
+            pool: cfg.noise_pool.max(1),
             cameras,
         })
     }
@@ -93,13 +114,17 @@ impl SceneFrames {
             .into_iter()
             .map(|m| m.map(|m| (fingerprint(&m), m)))
             .collect();
+        let variant = (nth % self.pool as u64) as usize;
         let fresh: Vec<Option<Bytes>> = keyed
             .par_iter()
             .enumerate()
-            .map(|(s, k)| match (k, &self.cache[s]) {
-                (Some((key, _)), Some((cached, _))) if key == cached => Ok(None),
-                (Some((_, map)), _) => self.cameras[s].jpeg(map, nth).map(|j| Some(Bytes::from(j))),
-                (None, _) => Ok(None),
+            .map(|(s, k)| match k {
+                Some((key, map)) => match self.cache[s].as_ref().and_then(|v| v.get(*key, variant))
+                {
+                    Some(_) => Ok(None),
+                    None => self.cameras[s].jpeg(map, nth).map(|j| Some(Bytes::from(j))),
+                },
+                None => Ok(None),
             })
             .collect::<Result<_, _>>()?;
         let mut out = Vec::with_capacity(keyed.len());
@@ -110,12 +135,21 @@ impl SceneFrames {
                     self.flat.frame(s, nth).cloned().unwrap_or_default()
                 }
                 (Some((key, _)), Some(jpeg)) => {
-                    self.cache[s] = Some((key, jpeg.clone()));
+                    let mut entry = match self.cache[s].take() {
+                        Some(v) if v.key == key => v,
+                        _ => Variants {
+                            key,
+                            frames: vec![None; self.pool],
+                        },
+                    };
+                    entry.frames[variant] = Some(jpeg.clone());
+                    self.cache[s] = Some(entry);
                     jpeg
                 }
-                (Some(_), None) => self.cache[s]
+                (Some((key, _)), None) => self.cache[s]
                     .as_ref()
-                    .map(|(_, j)| j.clone())
+                    .and_then(|v| v.get(key, variant))
+                    .cloned()
                     .unwrap_or_default(),
             };
             out.push(frame);
@@ -127,5 +161,68 @@ impl SceneFrames {
         (0..self.cameras.len())
             .map(|s| self.flat.frame(s, nth).cloned().unwrap_or_default())
             .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene_spec::SceneSpec;
+    use crate::world::World;
+    use gelgrip_controller::actuator::MotorCommand;
+
+    #[test]
+    fn a_still_contact_cycles_through_noise_variants_and_never_repeats_the_last_frame() {
+        let layout = HandLayout::from_toml(
+            "three-finger.toml",
+            include_str!("../../../configs/layouts/three-finger.toml"),
+        )
+        .expect("layout");
+        let scene = SceneSpec::from_toml(
+            "tennis-ball.toml",
+            include_str!("../../../configs/scenes/tennis-ball.toml"),
+            &layout,
+        )
+        .expect("scene");
+        let mut world = World::new(&layout, Some(scene));
+        for f in 0..world.fingers() {
+            world.set_command(
+                f,
+                MotorCommand {
+                    torque_on: true,
+                    goal_position_deg: 180.0,
+                    goal_current_ma: 300.0,
+                    profile_velocity_rpm: 0.0,
+                },
+            );
+        }
+        // Settle the squeeze, then capture the same instant again and again.
+        let settled_us = 4_000_000;
+        for t_us in (0..=settled_us).step_by(100_000) {
+            world.advance_to(t_us);
+        }
+        let cfg = crate::pool::tests::default_config(&layout);
+        let pool = cfg.noise_pool as u64;
+        let mut frames = SceneFrames::new(world.into_shared(), &layout, &cfg).expect("frames");
+        frames.capture(settled_us, 0).expect("capture");
+        let touched: Vec<usize> = {
+            let w = frames.world.lock().expect("world");
+            (0..layout.sensors.len())
+                .filter(|s| w.height_map(*s).is_some())
+                .collect()
+        };
+        assert!(!touched.is_empty(), "the ball is touched");
+        let shots: Vec<Vec<Bytes>> = (1..=2 * pool)
+            .map(|nth| frames.capture(settled_us, nth).expect("capture"))
+            .collect();
+        for s in touched {
+            for n in 1..shots.len() {
+                assert_ne!(shots[n][s], shots[n - 1][s], "sensor {s}: capture {n}");
+            }
+            for n in 0..pool as usize {
+                let (a, b) = (&shots[n][s], &shots[n + pool as usize][s]);
+                assert_eq!(a.as_ptr(), b.as_ptr(), "sensor {s}: variant {n} reused");
+            }
+        }
     }
 }
