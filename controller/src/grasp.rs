@@ -95,6 +95,11 @@ pub struct Tuning {
     pub approach_margin_ma: f64,
     /// Speed share kept after first contact.
     pub contact_speed_share: f64,
+    /// Share of `approach_margin_ma` kept after first contact: the contact is seen tens of
+    /// ms late, and on a rigid object the whole margin alone pushes past a light target
+    /// (30 mA is about 1.8 N at a middle pad), so the finger presses on with less until the
+    /// squeeze regulates.
+    pub contact_margin_share: f64,
     /// Largest goal lead beyond the present position while squeezing, degrees.
     pub squeeze_lead_deg: f64,
     /// Goal lead per N of force error while squeezing and holding, degrees per N: the
@@ -152,6 +157,7 @@ impl Default for Tuning {
             approach_current_ma: 400.0,
             approach_margin_ma: 30.0,
             contact_speed_share: 0.25,
+            contact_margin_share: 0.5,
             squeeze_lead_deg: 15.0,
             squeeze_deg_per_n: 0.25,
             kp_ma_per_n: 15.0,
@@ -442,6 +448,11 @@ impl GraspController {
                         c.phase = Phase::Contact;
                         c.contact_since_s = Some(t_s);
                         c.contact_sets = 0;
+                        c.current_ma = (c.feedforward_ma
+                            + t.approach_margin_ma * t.contact_margin_share)
+                            .clamp(t.min_current_ma, t.approach_current_ma)
+                            .min(limit)
+                            .min(c.current_ma);
                     } else if !fused.contact && c.phase == Phase::Contact {
                         c.phase = Phase::Approach;
                         c.contact_since_s = None;

@@ -360,3 +360,37 @@ fn a_contact_that_vanishes_before_the_squeeze_was_not_one() {
     assert_eq!(ctl.phases()[0], Phase::Approach);
     assert!(ctl.goals()[0].goal_current_ma <= Tuning::default().approach_current_ma);
 }
+
+#[test]
+fn first_contact_presses_on_with_half_the_approach_margin() {
+    let t = Tuning::default();
+    let mut ctl = controller(2.0);
+    let mut f = toy(Some(20.0));
+    let mut approach_ma = 0.0;
+    let mut contact_ma = None;
+    for k in 0..300 {
+        let before = ctl.phases()[0];
+        run(&mut ctl, &mut f, 1.0 / 30.0, 30.0);
+        match (before, ctl.phases()[0]) {
+            (_, Phase::Approach) => approach_ma = ctl.goals()[0].goal_current_ma,
+            (Phase::Approach, Phase::Contact) => {
+                contact_ma = Some(ctl.goals()[0].goal_current_ma);
+                break;
+            }
+            _ => {}
+        }
+        assert!(k < 299, "no contact");
+    }
+    let contact_ma = contact_ma.expect("a contact phase");
+    // The approach learnt the springs' 100 mA and added the whole margin…
+    assert!(
+        (approach_ma - (SPRING_MA + t.approach_margin_ma)).abs() < 2.0,
+        "{approach_ma}"
+    );
+    // …and the contact keeps half of it.
+    let expected = SPRING_MA + t.approach_margin_ma * t.contact_margin_share;
+    assert!(
+        (contact_ma - expected).abs() < 2.0,
+        "{contact_ma} vs {expected}"
+    );
+}
