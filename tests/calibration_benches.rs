@@ -3,9 +3,8 @@
 //! its modes. The figures themselves are in docs/calibration.md; these check the contract
 //! (fields, nulls, the Pareto marks) and that nothing is NaN.
 //!
-//! They train MLPs and run dozens of pipeline configurations, which a debug build takes
-//! minutes over, so they are ignored in plain `cargo test` and scripts/test runs them
-//! against the release binary.
+//! They train MLPs and run dozens of pipeline configurations (98 s on the 2-core machine),
+//! so they are ignored in plain `cargo test` and scripts/test runs them.
 
 mod common;
 
@@ -16,7 +15,7 @@ fn finite(v: &serde_json::Value) -> bool {
 }
 
 #[test]
-#[ignore = "trains MLPs: scripts/test runs it (release)"]
+#[ignore = "trains MLPs: scripts/test runs it"]
 fn bench_calibration_prints_table_two() {
     let v = json(&gelgrip(&[
         "bench",
@@ -51,7 +50,7 @@ fn bench_calibration_prints_table_two() {
 }
 
 #[test]
-#[ignore = "trains MLPs: scripts/test runs it (release)"]
+#[ignore = "trains MLPs: scripts/test runs it"]
 fn bench_tradeoff_rows_and_plot() {
     let plot = std::env::temp_dir().join(format!("gelgrip-tradeoff-{}.svg", std::process::id()));
     let v = json(&gelgrip(&[
@@ -90,7 +89,7 @@ fn bench_tradeoff_rows_and_plot() {
 }
 
 #[test]
-#[ignore = "trains MLPs: scripts/test runs it (release)"]
+#[ignore = "trains MLPs: scripts/test runs it"]
 fn bench_pipeline_runs_the_mlp_in_every_mode() {
     for (mode, name) in [
         ("contact", "mlp-contact"),

@@ -1,11 +1,11 @@
 //! The 60-second soak: `gelgrip bench soak --minutes 1` injects every fault kind into a
 //! running gripper through its dashboard API and checks the invariants. Wall clock and CPU
-//! bound, so `scripts/test` runs it in release, alone.
+//! bound, so `scripts/test` runs it alone.
 
 mod common;
 
 #[test]
-#[ignore = "60 s of wall clock: scripts/test runs it (release)"]
+#[ignore = "60 s of wall clock: scripts/test runs it"]
 fn a_minute_of_random_faults_loses_nothing_and_never_panics() {
     let out = common::gelgrip_cached(&["bench", "soak", "--minutes", "1", "--json"]);
     let r = common::json(&out);
