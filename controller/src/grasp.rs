@@ -275,6 +275,16 @@ fn finite_or(v: f64, default: f64) -> f64 {
     if v.is_finite() { v } else { default }
 }
 
+impl Tuning {
+    /// The cap while approaching or pressing on at first contact: the free-motion current
+    /// plus `margin_ma`, within the approach's bounds and the request's `limit`, mA.
+    fn approach_cap_ma(&self, feedforward_ma: f64, margin_ma: f64, limit: f64) -> f64 {
+        (feedforward_ma + margin_ma)
+            .clamp(self.min_current_ma, self.approach_current_ma)
+            .min(limit)
+    }
+}
+
 fn median3([a, b, c]: [f64; 3]) -> f64 {
     a.max(b).min(a.min(b).max(c))
 }
@@ -448,10 +458,9 @@ impl GraspController {
                         c.phase = Phase::Contact;
                         c.contact_since_s = Some(t_s);
                         c.contact_sets = 0;
-                        c.current_ma = (c.feedforward_ma
-                            + t.approach_margin_ma * t.contact_margin_share)
-                            .clamp(t.min_current_ma, t.approach_current_ma)
-                            .min(limit)
+                        let margin = t.approach_margin_ma * t.contact_margin_share;
+                        c.current_ma = t
+                            .approach_cap_ma(c.feedforward_ma, margin, limit)
                             .min(c.current_ma);
                     } else if !fused.contact && c.phase == Phase::Contact {
                         c.phase = Phase::Approach;
@@ -472,9 +481,8 @@ impl GraspController {
                         } else {
                             c.feedforward_ma + (measured - c.feedforward_ma) * 0.5
                         };
-                        c.current_ma = (c.feedforward_ma + t.approach_margin_ma)
-                            .clamp(t.min_current_ma, t.approach_current_ma)
-                            .min(limit);
+                        c.current_ma =
+                            t.approach_cap_ma(c.feedforward_ma, t.approach_margin_ma, limit);
                         c.profile_rpm = speed / 6.0;
                     } else {
                         c.profile_rpm = speed * t.contact_speed_share / 6.0;
@@ -514,9 +522,8 @@ impl GraspController {
                         c.phase = Phase::Approach;
                         c.contact_since_s = None;
                         c.integral_ma = 0.0;
-                        c.current_ma = (c.feedforward_ma + t.approach_margin_ma)
-                            .clamp(t.min_current_ma, t.approach_current_ma)
-                            .min(limit);
+                        c.current_ma =
+                            t.approach_cap_ma(c.feedforward_ma, t.approach_margin_ma, limit);
                     }
                 }
                 Phase::Squeeze | Phase::Hold => {

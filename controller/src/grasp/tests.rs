@@ -368,7 +368,7 @@ fn first_contact_presses_on_with_half_the_approach_margin() {
     let mut f = toy(Some(20.0));
     let mut approach_ma = 0.0;
     let mut contact_ma = None;
-    for k in 0..300 {
+    for _ in 0..300 {
         let before = ctl.phases()[0];
         run(&mut ctl, &mut f, 1.0 / 30.0, 30.0);
         match (before, ctl.phases()[0]) {
@@ -379,9 +379,8 @@ fn first_contact_presses_on_with_half_the_approach_margin() {
             }
             _ => {}
         }
-        assert!(k < 299, "no contact");
     }
-    let contact_ma = contact_ma.expect("a contact phase");
+    let contact_ma = contact_ma.expect("contact within 10 s");
     // The approach learnt the springs' 100 mA and added the whole margin…
     assert!(
         (approach_ma - (SPRING_MA + t.approach_margin_ma)).abs() < 2.0,
