@@ -270,7 +270,8 @@ pub struct ForceArgs {
     /// Sensor id (e.g. f1.tip).
     #[arg(long)]
     pub sensor: String,
-    /// Presses (6, 30 and 66 mm balls in turn) at depths spread over 0.1–1.0 mm.
+    /// Presses (6, 30 and 66 mm balls and 20 and 40 mm cylinders in turn) at depths spread
+    /// over 0.1–1.0 mm.
     #[arg(long, default_value_t = 30, value_parser = clap::value_parser!(u32).range(3..=2000))]
     pub presses: u32,
     /// Configuration (default: the embedded simulated gripper).

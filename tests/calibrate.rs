@@ -343,6 +343,27 @@ fn calibrate_force_fits_the_simulators_gel_stiffness() {
         "{r}"
     );
     assert_eq!(r["configured_stiffness_n_per_mm3"], 0.081);
+    // The error by indenter: balls and cylinders, each with its presses above 0.1 N.
+    let per = r["per_indenter"].as_array().expect("per_indenter");
+    let names: Vec<&str> = per.iter().filter_map(|e| e["indenter"].as_str()).collect();
+    assert_eq!(
+        names,
+        [
+            "ball 6 mm",
+            "ball 30 mm",
+            "ball 66 mm",
+            "cylinder 20 mm",
+            "cylinder 40 mm"
+        ],
+        "{r}"
+    );
+    let counted: u64 = per.iter().filter_map(|e| e["presses"].as_u64()).sum();
+    assert!((8..=12).contains(&counted), "{r}");
+    for e in per {
+        let worst = e["worst_abs_err_pct"].as_f64().expect("worst");
+        let mean = e["mean_err_pct"].as_f64().expect("mean");
+        assert!(mean.abs() <= worst + 1e-9 && worst < 20.0, "{e}");
+    }
     let bad = std::process::Command::new(env!("CARGO_BIN_EXE_gelgrip"))
         .args(["calibrate", "force", "--sensor", "f9.tip"])
         .output()

@@ -1,9 +1,12 @@
 //! `gelgrip calibrate force --sensor ID [--presses N] [--json]`: fit the force proxy.
 //!
 //! The pipeline's force is `indentation volume × stiffness_n_per_mm3`. On the simulator the
-//! sensor is pressed by balls of 6, 30 and 66 mm (a fingertip-sized probe to a tennis ball)
-//! at depths spread over 0.1–1.0 mm at varied places; the broad balls also press across the
-//! pad's edge, as objects in a grasp do. Each press's ground-truth normal force comes from
+//! sensor is pressed in turn by balls of 6, 30 and 66 mm (a fingertip-sized probe to a
+//! tennis ball) and by cylinders of 20 and 40 mm lying across the pad at random angles (a
+//! tool handle, a bottle), at depths spread over 0.1–1.0 mm at varied places; the broad
+//! balls and the cylinders also press across the pad's edge, as objects in a grasp do. The
+//! report gives the fit's error by indenter, since the proxy's accuracy depends on the
+//! contact's shape (docs/control.md). Each press's ground-truth normal force comes from
 //! the simulator's gel law (the same one that loads the fingers), and the pipeline measures
 //! the volume from the rendered JPEG. The stiffness minimises the relative error over the
 //! presses above 0.1 N, `Σ(V/F) / Σ(V/F)²`, and goes into
@@ -23,8 +26,35 @@ use gelgrip_sim::scene::HeightMap;
 use crate::cli::ForceArgs;
 use crate::{tactile, wiring};
 
-/// Ball diameters of the presses, in turn, mm.
-const BALLS_MM: [f64; 3] = [6.0, 30.0, 66.0];
+/// What presses the pad, in turn.
+#[derive(Debug, Clone, Copy)]
+enum Indenter {
+    /// A ball of this diameter, mm.
+    Ball(f64),
+    /// A cylinder of this diameter, mm, lying across the pad at a random angle.
+    Cylinder(f64),
+}
+
+impl Indenter {
+    /// `ball 6 mm`, `cylinder 20 mm`.
+    fn name(self) -> String {
+        match self {
+            Indenter::Ball(mm) => format!("ball {mm} mm"),
+            Indenter::Cylinder(mm) => format!("cylinder {mm} mm"),
+        }
+    }
+}
+
+/// The presses' indenters, in turn: balls from a fingertip-sized probe to a tennis ball, and
+/// cylinders from a tool handle to a bottle (a grasp holds both kinds; the pipeline reads a
+/// long, shallow cylinder's volume lower than a ball's, docs/control.md).
+const INDENTERS: [Indenter; 5] = [
+    Indenter::Ball(6.0),
+    Indenter::Ball(30.0),
+    Indenter::Ball(66.0),
+    Indenter::Cylinder(20.0),
+    Indenter::Cylinder(40.0),
+];
 /// Presses below this true force are left out of the worst-case error (their relative
 /// error is dominated by the sensor's noise floor), N.
 const WORST_CASE_FROM_N: f64 = 0.1;
@@ -41,6 +71,56 @@ struct ForceReport {
     /// Largest |error| of a press above 0.1 N, %.
     worst_abs_err_pct: f64,
     force_range_n: [f64; 2],
+    /// The fit's error by indenter: how the proxy's accuracy depends on the contact's shape.
+    per_indenter: Vec<IndenterError>,
+}
+
+/// The fitted proxy's error on one indenter's presses above 0.1 N.
+#[derive(Debug, Serialize)]
+struct IndenterError {
+    indenter: String,
+    presses: usize,
+    /// Mean signed error, % (negative: the proxy reads this shape low).
+    mean_err_pct: f64,
+    worst_abs_err_pct: f64,
+    /// Mean signed error of the light presses (0.1 N to [`LIGHT_BELOW_N`], the force a pad
+    /// takes in a gentle grasp), %; `None` without any.
+    light_mean_err_pct: Option<f64>,
+}
+
+/// Presses below this true force are "light": a gentle grasp's force per pad, N.
+const LIGHT_BELOW_N: f64 = 1.0;
+
+fn mean(v: &[f64]) -> Option<f64> {
+    (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64)
+}
+
+/// [`IndenterError`] of each indenter in `pairs` (indenter, volume, true force) for
+/// stiffness `k`.
+fn per_indenter(pairs: &[(Indenter, f64, f64)], k: f64) -> Vec<IndenterError> {
+    INDENTERS
+        .iter()
+        .map(|ind| {
+            let errors: Vec<(f64, f64)> = pairs
+                .iter()
+                .filter(|(i, _, f)| i.name() == ind.name() && *f >= WORST_CASE_FROM_N)
+                .map(|(_, v, f)| (*f, (k * v - f) / f * 100.0))
+                .collect();
+            let all: Vec<f64> = errors.iter().map(|(_, e)| *e).collect();
+            let light: Vec<f64> = errors
+                .iter()
+                .filter(|(f, _)| *f < LIGHT_BELOW_N)
+                .map(|(_, e)| *e)
+                .collect();
+            IndenterError {
+                indenter: ind.name(),
+                presses: all.len(),
+                mean_err_pct: mean(&all).unwrap_or(0.0),
+                worst_abs_err_pct: all.iter().map(|e| e.abs()).fold(0.0, f64::max),
+                light_mean_err_pct: mean(&light),
+            }
+        })
+        .collect()
 }
 
 /// Run the command; returns the exit code.
@@ -71,13 +151,25 @@ pub fn run(args: ForceArgs) -> anyhow::Result<u8> {
     let mut pairs = Vec::with_capacity(n);
     for i in 0..n {
         let depth = 0.1 + 0.9 * i as f64 / (n - 1) as f64;
-        let ball = BALLS_MM[i % BALLS_MM.len()];
-        // Small balls press inside the pad; broad ones anywhere, up to across its edge.
-        let margin = if ball > 10.0 { 0.0 } else { 60.0 };
+        let indenter = INDENTERS[i % INDENTERS.len()];
+        // Small balls press inside the pad; broad ones and cylinders anywhere, up to across
+        // its edge.
+        let margin = match indenter {
+            Indenter::Ball(mm) if mm < 10.0 => 60.0,
+            _ => 0.0,
+        };
         let cx = rng.random_range(margin..cam.width as f64 - margin);
         let cy = rng.random_range(margin..cam.height as f64 - margin);
-        let map =
-            HeightMap::ball_press(cam.width, cam.height, cam.mm_per_px, (cx, cy), ball, depth);
+        let size = (cam.width, cam.height);
+        let map = match indenter {
+            Indenter::Ball(mm) => {
+                HeightMap::ball_press(size.0, size.1, cam.mm_per_px, (cx, cy), mm, depth)
+            }
+            Indenter::Cylinder(mm) => {
+                let axis_deg = rng.random_range(0.0..180.0);
+                HeightMap::cylinder_press(size, cam.mm_per_px, (cx, cy), axis_deg, mm, depth)
+            }
+        };
         let truth: f64 = map
             .depth_mm
             .iter()
@@ -86,7 +178,7 @@ pub fn run(args: ForceArgs) -> anyhow::Result<u8> {
         let jpeg = cam.jpeg(&map, 9_000_000 + i as u64)?;
         let summary = pipe.process(&jpeg, Needs::DEPTH)?;
         let volume = summary.volume_mm3.unwrap_or(0.0);
-        pairs.push((volume, truth));
+        pairs.push((indenter, volume, truth));
         if !args.json && (i + 1) % 10 == 0 {
             eprintln!("  {}/{n} presses", i + 1);
         }
@@ -96,8 +188,8 @@ pub fn run(args: ForceArgs) -> anyhow::Result<u8> {
     // presses above the noise floor.
     let (a, b) = pairs
         .iter()
-        .filter(|(_, f)| *f >= WORST_CASE_FROM_N)
-        .fold((0.0, 0.0), |(a, b), (v, f)| {
+        .filter(|(_, _, f)| *f >= WORST_CASE_FROM_N)
+        .fold((0.0, 0.0), |(a, b), (_, v, f)| {
             (a + v / f, b + (v / f).powi(2))
         });
     if b <= 0.0 {
@@ -106,9 +198,9 @@ pub fn run(args: ForceArgs) -> anyhow::Result<u8> {
         );
     }
     let k = a / b;
-    let mean_f = pairs.iter().map(|(_, f)| f).sum::<f64>() / n as f64;
-    let ss_res: f64 = pairs.iter().map(|(v, f)| (f - k * v).powi(2)).sum();
-    let ss_tot: f64 = pairs.iter().map(|(_, f)| (f - mean_f).powi(2)).sum();
+    let mean_f = pairs.iter().map(|(_, _, f)| f).sum::<f64>() / n as f64;
+    let ss_res: f64 = pairs.iter().map(|(_, v, f)| (f - k * v).powi(2)).sum();
+    let ss_tot: f64 = pairs.iter().map(|(_, _, f)| (f - mean_f).powi(2)).sum();
     let report = ForceReport {
         sensor: args.sensor.clone(),
         presses: n,
@@ -122,18 +214,19 @@ pub fn run(args: ForceArgs) -> anyhow::Result<u8> {
         rmse_n: (ss_res / n as f64).sqrt(),
         worst_abs_err_pct: pairs
             .iter()
-            .filter(|(_, f)| *f >= WORST_CASE_FROM_N)
-            .map(|(v, f)| ((k * v - f) / f).abs() * 100.0)
+            .filter(|(_, _, f)| *f >= WORST_CASE_FROM_N)
+            .map(|(_, v, f)| ((k * v - f) / f).abs() * 100.0)
             .fold(0.0, f64::max),
         mean_abs_err_pct: pairs
             .iter()
-            .filter(|(_, f)| *f > 0.0)
-            .map(|(v, f)| ((k * v - f) / f).abs() * 100.0)
+            .filter(|(_, _, f)| *f > 0.0)
+            .map(|(_, v, f)| ((k * v - f) / f).abs() * 100.0)
             .sum::<f64>()
             / n as f64,
-        force_range_n: pairs
-            .iter()
-            .fold([f64::MAX, 0.0], |[lo, hi], (_, f)| [lo.min(*f), hi.max(*f)]),
+        force_range_n: pairs.iter().fold([f64::MAX, 0.0], |[lo, hi], (_, _, f)| {
+            [lo.min(*f), hi.max(*f)]
+        }),
+        per_indenter: per_indenter(&pairs, k),
     };
     if args.json {
         println!("{}", serde_json::to_string(&report)?);
@@ -155,6 +248,16 @@ pub fn run(args: ForceArgs) -> anyhow::Result<u8> {
             report.sensor,
             report.stiffness_n_per_mm3,
         );
+        println!("error by indenter (presses above 0.1 N; light: below 1 N, a grasp's pad):");
+        for e in &report.per_indenter {
+            let light = e
+                .light_mean_err_pct
+                .map_or("-".to_string(), |v| format!("{v:+.1}%"));
+            println!(
+                "  {:16} {:3} presses  mean {:+6.1}%  worst |error| {:5.1}%  light mean {light}",
+                e.indenter, e.presses, e.mean_err_pct, e.worst_abs_err_pct
+            );
+        }
     }
     Ok(0)
 }

@@ -34,16 +34,46 @@ impl HeightMap {
         diameter_mm: f64,
         depth_mm: f64,
     ) -> Self {
+        Self::round_press((width_px, height_px), diameter_mm, depth_mm, |x, y| {
+            let (dx, dy) = ((x - cx_px) * mm_per_px, (y - cy_px) * mm_per_px);
+            dx * dx + dy * dy
+        })
+    }
+
+    /// A cylinder of `diameter_mm` lying on the pad, pressed `depth_mm` deep, its axis
+    /// through (`cx_px`, `cy_px`) at `axis_deg` from the image x axis (towards y). It runs
+    /// across the whole pad, as a handle or a bottle held in a grasp does.
+    pub fn cylinder_press(
+        (width_px, height_px): (usize, usize),
+        mm_per_px: f64,
+        (cx_px, cy_px): (f64, f64),
+        axis_deg: f64,
+        diameter_mm: f64,
+        depth_mm: f64,
+    ) -> Self {
+        let (sin, cos) = axis_deg.to_radians().sin_cos();
+        Self::round_press((width_px, height_px), diameter_mm, depth_mm, |x, y| {
+            let rho = ((y - cy_px) * cos - (x - cx_px) * sin) * mm_per_px;
+            rho * rho
+        })
+    }
+
+    /// A press by a round surface of `diameter_mm` (a ball or a cylinder's side) `depth_mm`
+    /// deep, where `rho2_mm2(x, y)` is the square of pixel (x, y)'s distance from its centre
+    /// or axis, mm²: the surface lies `r − sqrt(r² − ρ²)` above its lowest point.
+    fn round_press(
+        (width_px, height_px): (usize, usize),
+        diameter_mm: f64,
+        depth_mm: f64,
+        rho2_mm2: impl Fn(f64, f64) -> f64,
+    ) -> Self {
         let mut map = Self::flat(width_px, height_px);
         let r = diameter_mm / 2.0;
         let depth = depth_mm.clamp(0.0, r);
         for y in 0..height_px {
             for x in 0..width_px {
-                let dx = (x as f64 - cx_px) * mm_per_px;
-                let dy = (y as f64 - cy_px) * mm_per_px;
-                let rho2 = dx * dx + dy * dy;
+                let rho2 = rho2_mm2(x as f64, y as f64);
                 if rho2 < r * r {
-                    // Sphere surface below the gel plane: depth − (r − sqrt(r² − ρ²)).
                     let d = depth - (r - (r * r - rho2).sqrt());
                     if d > 0.0 {
                         map.depth_mm[y * width_px + x] = d as f32;
@@ -88,6 +118,26 @@ impl HeightMap {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn cylinder_press_is_a_band_of_the_contact_width() {
+        // Axis along x through the centre: 2·sqrt(2·r·d − d²) wide, the same in every column.
+        let m = HeightMap::cylinder_press((320, 240), 0.0625, (160.0, 120.0), 0.0, 40.0, 0.2);
+        assert!((m.max_depth_mm() - 0.2).abs() < 1e-3);
+        let width_mm = 2.0 * (2.0f64 * 20.0 * 0.2 - 0.04).sqrt();
+        for x in [0, 100, 319] {
+            let rows = (0..240).filter(|y| m.depth_mm[y * 320 + x] > 0.0).count() as f64;
+            assert!(
+                (rows * 0.0625 - width_mm).abs() < 0.13,
+                "column {x}: {rows} rows"
+            );
+        }
+        // Turned a right angle: the same band along y.
+        let t = HeightMap::cylinder_press((320, 240), 0.0625, (160.0, 120.0), 90.0, 40.0, 0.2);
+        let cols = (0..320).filter(|x| t.depth_mm[120 * 320 + x] > 0.0).count() as f64;
+        assert!((cols * 0.0625 - width_mm).abs() < 0.13, "{cols} columns");
+        assert!(t.depth_mm.iter().all(|d| d.is_finite() && *d >= 0.0));
+    }
 
     #[test]
     fn ball_press_has_the_right_depth_and_contact_radius() {
