@@ -408,3 +408,26 @@ fn bench_bus_measures_the_cdc_hub_over_a_pty_at_full_and_high_speed() {
     let out = gelgrip(&["bench", "bus", "--transport", "sim", "--usb", "fs"]);
     assert_eq!(out.status.code(), Some(2), "a usage error");
 }
+
+/// The README's main command on a fresh machine: the sensors' self-calibration (no cache
+/// yet, seconds) comes before the run, and `--duration` counts from the end of the set-up,
+/// so a short run still acquires (it used to end during the calibration with no set).
+#[test]
+fn a_first_run_with_no_calibration_cache_acquires_for_its_whole_duration() {
+    let cache = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("gelgrip-cold-cache-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&cache);
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_gelgrip"))
+        .args(["--duration", "1", "--json", "--http", "127.0.0.1:0"])
+        .env("GELGRIP_CACHE_DIR", &cache)
+        .env("RUST_LOG", "warn")
+        .output()
+        .expect("the gelgrip binary runs");
+    let v = json(&out);
+    let _ = std::fs::remove_dir_all(&cache);
+    assert_eq!(v["end_reason"], "duration", "{v}");
+    assert_eq!(v["clock"], "real", "{v}");
+    let elapsed = v["elapsed_s"].as_f64().expect("elapsed_s");
+    assert!((1.0..1.5).contains(&elapsed), "{v}");
+    assert!(v["sets"].as_u64().unwrap_or(0) >= 5, "{v}");
+}

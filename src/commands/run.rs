@@ -157,7 +157,6 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
         "acquiring"
     );
     let start = clock.now_us();
-    let deadline = args.duration.map(|s| start + (s * 1e6) as u64);
     let mut progress = Progress {
         last_log_us: start,
         last_sets: 0,
@@ -252,6 +251,10 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
         control = Some(c);
         Some(d)
     };
+    // `--duration` counts from here, after the set-up (on a fresh machine the sensors'
+    // self-calibration takes seconds), so a short run still acquires for its duration.
+    let run_start = clock.now_us();
+    let deadline = args.duration.map(|s| run_start + (s * 1e6) as u64);
     let shutdown = shutdown_signal();
     let estop = estop_signal();
     let timer = real_deadline(clock.clone(), deadline);
@@ -394,7 +397,7 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
             ClockArg::Real => "real",
             ClockArg::Virtual => "virtual",
         },
-        elapsed_s: (clock.now_us() - start) as f64 / 1e6,
+        elapsed_s: (clock.now_us() - run_start) as f64 / 1e6,
         max_spread_us: acq.gate().limits().max_spread_us,
         max_age_us: acq.gate().limits().max_age_us,
         set_latency_ms_p50: latency_ms(stats, 0.5),
