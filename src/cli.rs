@@ -217,6 +217,11 @@ pub struct EmulateHubArgs {
     /// Sets kept for `Resume` after an unplug.
     #[arg(long, default_value_t = 64)]
     pub ring: u16,
+    /// Known weights instead of the built-in presses: every sensor starts untouched, and
+    /// each stdin line `SENSOR GRAMS` rests that weight on the sensor through a 30 mm ball
+    /// (`SENSOR 0` lifts it), answered by one JSON line on stdout (for `calibrate force`).
+    #[arg(long)]
+    pub weights_on_stdin: bool,
 }
 
 /// `gelgrip emulate servos`.
@@ -260,7 +265,8 @@ pub enum CalibrateCommand {
     /// Bake a difference-input MLP into a (tiled) LUT for table-speed inference.
     Bake(BakeArgs),
     /// Fit the force proxy (indentation volume × stiffness) against known forces: on the
-    /// simulator, its ground-truth force of ball presses.
+    /// simulator, its ground-truth force of ball and cylinder presses; on a hardware hub,
+    /// known weights placed on the sensor in turn.
     Force(ForceArgs),
 }
 
@@ -270,10 +276,17 @@ pub struct ForceArgs {
     /// Sensor id (e.g. f1.tip).
     #[arg(long)]
     pub sensor: String,
-    /// Presses (6, 30 and 66 mm balls and 20 and 40 mm cylinders in turn) at depths spread
-    /// over 0.1–1.0 mm.
+    /// Simulator: presses (6, 30 and 66 mm balls and 20 and 40 mm cylinders in turn) at
+    /// depths spread over 0.1–1.0 mm.
     #[arg(long, default_value_t = 30, value_parser = clap::value_parser!(u32).range(3..=2000))]
     pub presses: u32,
+    /// Hardware hub: the known weights to place on the sensor in turn, g (each prompted
+    /// on stderr and confirmed with Enter on stdin).
+    #[arg(long, value_delimiter = ',', default_value = "20,50,100,200", value_parser = parse_weight_g)]
+    pub weights_g: Vec<f64>,
+    /// Hardware hub: frames read per weight (and for the untouched reference).
+    #[arg(long, default_value_t = 12, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    pub frames: u32,
     /// Configuration (default: the embedded simulated gripper).
     #[arg(long)]
     pub config: Option<PathBuf>,
@@ -736,6 +749,20 @@ pub struct RunArgs {
     /// task states, the config) into this directory (docs/recording.md).
     #[arg(long, value_name = "DIR")]
     pub record: Option<PathBuf>,
+}
+
+fn parse_weight_g(s: &str) -> Result<f64, String> {
+    let g: f64 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{s}` is not a weight in g"))?;
+    if g.is_finite() && g > 0.0 && g <= 10_000.0 {
+        Ok(g)
+    } else {
+        Err(format!(
+            "a weight of {s} g: expected more than 0 and at most 10000 g"
+        ))
+    }
 }
 
 fn parse_force_n(s: &str) -> Result<f64, String> {

@@ -76,7 +76,7 @@ fn main() -> ExitCode {
             Command::Bench(BenchCommand::Dashboard(args)) => {
                 commands::bench_dashboard::run(args).await
             }
-            Command::Calibrate(cmd) => commands::calibrate::run(cmd),
+            Command::Calibrate(cmd) => commands::calibrate::run(cmd).await,
             Command::Depth(args) => commands::depth::run(args),
             Command::Emulate(EmulateCommand::Servos(args)) => commands::emulate::run(args).await,
             Command::Emulate(EmulateCommand::Hub(args)) => commands::emulate_hub::run(args).await,

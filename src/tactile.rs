@@ -5,6 +5,9 @@
 //! cached on disk, keyed by the recipe's version, the seed, sensor, resolution, JPEG
 //! quality and camera noise, so later runs start at once.
 //!
+//! On a hardware hub (`hub.transport` other than `sim`) every sensor needs a model file,
+//! and the references come from the first live sets, untouched ([`Tactile::open`]).
+//!
 //! Each gated set goes through [`Tactile::process`], the sensors in parallel, and comes out
 //! as the controller's per-sensor readings (`None` for a sensor whose frame failed).
 
@@ -61,17 +64,30 @@ pub struct Tactile {
     pipes: Vec<SensorPipeline>,
     geometry: Vec<(f64, f64, f64)>,
     results: Vec<Result<ContactSummary, gelgrip_plugins::pipeline::PipelineError>>,
+    /// On a hardware hub, each sensor's untouched frames gathered so far for its reference
+    /// (`None` once referenced, and on the simulator).
+    pending_reference: Option<Vec<Vec<Vec<u8>>>>,
 }
 
 impl Tactile {
-    /// Build and calibrate the pipelines for `config` (simulator only without model files).
+    /// Build the pipelines for `config`. On the simulator each is calibrated at once
+    /// (model files optional); on a hardware hub every sensor needs a model file, and the
+    /// references are the first [`REFERENCE_FRAMES`] sets [`Tactile::process`] receives (the
+    /// gripper starts open, nothing touching): until then every reading is `None`, which
+    /// holds the fingers.
     pub fn open(config: &AppConfig) -> anyhow::Result<Self> {
         let pipeline = PipelineConfig::from_section(&config.pipeline, &config.layout)?;
+        let live = config.hub.transport != "sim";
         let mut pipes = Vec::new();
         let mut geometry = Vec::new();
-        for i in 0..config.layout.sensors.len() {
-            let (pipe, cam) = sensor_pipeline(config, &pipeline, i)?;
-            geometry.push((cam.width as f64, cam.height as f64, cam.mm_per_px));
+        for (i, spec) in config.layout.sensors.iter().enumerate() {
+            let pipe = if live {
+                unreferenced_pipeline(config, &pipeline, i)?
+            } else {
+                sensor_pipeline(config, &pipeline, i)?.0
+            };
+            let (w, h) = (spec.resolution.width_px, spec.resolution.height_px);
+            geometry.push((f64::from(w), f64::from(h), spec.mm_per_px));
             pipes.push(pipe);
         }
         let n = pipes.len();
@@ -79,7 +95,57 @@ impl Tactile {
             pipes,
             geometry,
             results: (0..n).map(|_| Ok(ContactSummary::default())).collect(),
+            pending_reference: live.then(|| vec![Vec::new(); n]),
         })
+    }
+
+    /// Sets still to gather for the live references (0 on the simulator and once taken).
+    pub fn reference_sets_missing(&self) -> usize {
+        self.pending_reference.as_ref().map_or(0, |p| {
+            (REFERENCE_FRAMES as usize).saturating_sub(p.first().map_or(0, Vec::len))
+        })
+    }
+
+    /// Take `set` toward the live references (a run does this before its loop, so the
+    /// one-time reference does not stall the loop; a replay, in [`Tactile::process`]).
+    pub fn offer_reference(&mut self, set: &FrameSet) {
+        let frames: Vec<&[u8]> = set.frames.iter().map(|f| f.frame.jpeg.as_ref()).collect();
+        if frames.len() == self.pipes.len() {
+            self.gather_reference(&frames);
+        }
+    }
+
+    /// Gather `frames` toward the live references; true while still gathering.
+    fn gather_reference(&mut self, frames: &[&[u8]]) -> bool {
+        let Some(pending) = self.pending_reference.as_mut() else {
+            return false;
+        };
+        for (kept, frame) in pending.iter_mut().zip(frames) {
+            kept.push(frame.to_vec());
+        }
+        if pending.first().map_or(0, Vec::len) < REFERENCE_FRAMES as usize {
+            return true;
+        }
+        // The sensors in parallel, as in process_set.
+        std::thread::scope(|scope| {
+            for (i, (pipe, kept)) in self.pipes.iter_mut().zip(pending.iter()).enumerate() {
+                scope.spawn(move || {
+                    let quiet: Vec<&[u8]> = kept.iter().map(Vec::as_slice).collect();
+                    if let Err(e) = pipe.calibrate(&quiet) {
+                        tracing::error!(
+                            sensor = i,
+                            "reference from live frames failed: {e}; its finger holds"
+                        );
+                    }
+                });
+            }
+        });
+        tracing::info!(
+            sets = REFERENCE_FRAMES,
+            "sensors referenced on live untouched frames"
+        );
+        self.pending_reference = None;
+        true
     }
 
     /// Sensor `i`'s last reconstructed depth window (mm, row-major), its width and height,
@@ -97,7 +163,7 @@ impl Tactile {
     /// Process one gated set into per-sensor readings.
     pub fn process(&mut self, set: &FrameSet) -> Vec<Option<SensorReading>> {
         let frames: Vec<&[u8]> = set.frames.iter().map(|f| f.frame.jpeg.as_ref()).collect();
-        if frames.len() != self.pipes.len() {
+        if frames.len() != self.pipes.len() || self.gather_reference(&frames) {
             return vec![None; self.pipes.len()];
         }
         process_set(&mut self.pipes, &frames, Needs::DEPTH, &mut self.results);
@@ -237,4 +303,54 @@ pub fn sensor_pipeline(
     pipe.calibrate(&quiet)
         .with_context(|| format!("sensor {id}: reference frames"))?;
     Ok((pipe, cam))
+}
+
+/// The sensors a run's pipelines cannot be built for: on a hardware hub, those without a
+/// model file (none on the simulator).
+pub fn sensors_without_model(config: &AppConfig) -> anyhow::Result<Vec<String>> {
+    if config.hub.transport == "sim" {
+        return Ok(Vec::new());
+    }
+    let pipeline = PipelineConfig::from_section(&config.pipeline, &config.layout)?;
+    Ok(config
+        .layout
+        .sensors
+        .iter()
+        .zip(&pipeline.sensors)
+        .filter(|(_, stages)| stages.model.is_none())
+        .map(|(spec, _)| spec.id.to_string())
+        .collect())
+}
+
+/// Sensor `index`'s pipeline for frames from a hardware hub: the layout's camera geometry
+/// and the configured model file (required: there is no simulated camera to calibrate a
+/// LUT on), not yet referenced ([`SensorPipeline::calibrate`] on untouched frames).
+pub fn unreferenced_pipeline(
+    config: &AppConfig,
+    pipeline: &PipelineConfig,
+    index: usize,
+) -> anyhow::Result<SensorPipeline> {
+    let spec = config
+        .layout
+        .sensors
+        .get(index)
+        .context("sensor index out of range")?;
+    let stages = pipeline.sensors[index].clone();
+    let Some(path) = stages.model.clone() else {
+        anyhow::bail!(crate::cli::UsageError(format!(
+            "{}: sensor {} has no gradient model file; on a hardware hub the pipeline cannot \
+             calibrate a LUT on a simulated camera: train one on this sensor's presses \
+             (`gelgrip calibrate train`, docs/calibration.md) and set it with \
+             [[pipeline.sensors]] id = \"{}\" model = \"….safetensors\"",
+            config.file, spec.id, spec.id
+        )));
+    };
+    let model = GradientModel::load(&path, stages.mlp.unwrap_or(MlpMode::ContactOnly))
+        .with_context(|| format!("sensor {}: model {}", spec.id, path.display()))?;
+    Ok(SensorPipeline::new(
+        StageChoice { stages, model },
+        spec.resolution.width_px as usize,
+        spec.resolution.height_px as usize,
+        spec.mm_per_px,
+    ))
 }

@@ -90,6 +90,9 @@ pub struct TaskIo {
     tactile: Tactile,
     bus: Box<dyn ServoBus>,
     world: Option<SharedWorld>,
+    /// The world's pad forces are the truth of what the sensors see: the simulator is also
+    /// the hub (with a hardware hub and simulated servos they are not).
+    ground_truth: bool,
     /// The hand.
     pub layout: HandLayout,
     states: Vec<ServoState>,
@@ -125,14 +128,16 @@ impl TaskIo {
         let tactile = Tactile::open(config)?;
         bus.configure()
             .map_err(|e| anyhow::anyhow!("configuring the servos: {e}"))?;
+        let ground_truth = world.is_some() && config.hub.transport == "sim";
         let log = match log {
             None => None,
-            Some(path) => Some(create_log(path, &layout, world.is_some())?),
+            Some(path) => Some(create_log(path, &layout, ground_truth)?),
         };
         Ok(Self {
             tactile,
             bus,
             world,
+            ground_truth,
             layout,
             states: Vec::new(),
             last_set_us: None,
@@ -193,6 +198,11 @@ impl TaskIo {
     /// The pipelines.
     pub fn tactile(&self) -> &Tactile {
         &self.tactile
+    }
+
+    /// The pipelines, to reference them before the loop.
+    pub fn tactile_mut(&mut self) -> &mut Tactile {
+        &mut self.tactile
     }
 
     /// The servos' last states.
@@ -271,9 +281,10 @@ impl TaskIo {
         (silent_ms >= WATCHDOG_MS).then_some(silent_ms)
     }
 
-    /// The simulator's ground-truth force on every pad, N (empty off the simulator).
+    /// The simulator's ground-truth force on every pad, N (empty off the simulator, and
+    /// when the frames come from a hardware hub).
     pub fn true_forces_n(&self) -> Vec<f64> {
-        let Some(world) = self.world.as_ref() else {
+        let Some(world) = self.world.as_ref().filter(|_| self.ground_truth) else {
             return Vec::new();
         };
         let Ok(w) = world.lock() else {

@@ -35,6 +35,14 @@ fn script_end_reason(end: Option<ScriptEnd>, ends_run: bool) -> Option<&'static 
 }
 
 impl Task {
+    /// The task's pipelines.
+    pub fn tactile_mut(&mut self) -> &mut crate::tactile::Tactile {
+        match self {
+            Self::Grasp(t) => t.io_mut().tactile_mut(),
+            Self::Gripper { gripper, .. } => gripper.io_mut().tactile_mut(),
+        }
+    }
+
     /// Handle one gated set; returns an end reason when the task ends.
     pub fn on_set(&mut self, set: &FrameSet, now_us: u64) -> anyhow::Result<Option<&'static str>> {
         match self {

@@ -19,14 +19,14 @@ use crate::cli::{
 use crate::{progress, simcam, wiring};
 
 /// Run a calibrate subcommand; returns the exit code.
-pub fn run(cmd: CalibrateCommand) -> anyhow::Result<u8> {
+pub async fn run(cmd: CalibrateCommand) -> anyhow::Result<u8> {
     match cmd {
         CalibrateCommand::Collect(a) => collect(a),
         CalibrateCommand::Train(a) => train(a),
         CalibrateCommand::Eval(a) => eval(a),
         CalibrateCommand::Transfer(a) => transfer_cmd(a),
         CalibrateCommand::Bake(a) => bake_cmd(a),
-        CalibrateCommand::Force(a) => crate::commands::calibrate_force::run(a),
+        CalibrateCommand::Force(a) => crate::commands::calibrate_force::run(a).await,
     }
 }
 

@@ -1,4 +1,5 @@
-//! `gelgrip calibrate force --sensor ID [--presses N] [--json]`: fit the force proxy.
+//! `gelgrip calibrate force --sensor ID [--presses N] [--weights-g G,…] [--frames N] [--json]`:
+//! fit the force proxy.
 //!
 //! The pipeline's force is `indentation volume × stiffness_n_per_mm3`. On the simulator the
 //! sensor is pressed in turn by balls of 6, 30 and 66 mm (a fingertip-sized probe to a
@@ -10,9 +11,9 @@
 //! the simulator's gel law (the same one that loads the fingers), and the pipeline measures
 //! the volume from the rendered JPEG. The stiffness minimises the relative error over the
 //! presses above 0.1 N, `Σ(V/F) / Σ(V/F)²`, and goes into
-//! `[pipeline] stiffness_n_per_mm3`. On hardware the same fit takes known weights pressed on
-//! a sensor; that needs the hardware hub (`hub.transport` other than `sim`), which is
-//! reported as such.
+//! `[pipeline] stiffness_n_per_mm3`. On a hardware hub (`hub.transport` other than `sim`)
+//! the same fit takes known weights placed on the sensor in turn
+//! ([`crate::commands::calibrate_force_hw`]).
 
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
@@ -23,7 +24,10 @@ use gelgrip_plugins::pipeline::Needs;
 use gelgrip_sim::contact::pressure_n_per_mm2;
 use gelgrip_sim::scene::HeightMap;
 
+use gelgrip_controller::config::AppConfig;
+
 use crate::cli::ForceArgs;
+use crate::commands::calibrate_force_hw::{KNOWN_WEIGHTS, WeightReading, weigh};
 use crate::{tactile, wiring};
 
 /// What presses the pad, in turn.
@@ -73,6 +77,9 @@ struct ForceReport {
     force_range_n: [f64; 2],
     /// The fit's error by indenter: how the proxy's accuracy depends on the contact's shape.
     per_indenter: Vec<IndenterError>,
+    /// On hardware, each known weight's reading.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    per_weight: Option<Vec<WeightReading>>,
 }
 
 /// The fitted proxy's error on one indenter's presses above 0.1 N.
@@ -95,16 +102,31 @@ fn mean(v: &[f64]) -> Option<f64> {
     (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64)
 }
 
-/// [`IndenterError`] of each indenter in `pairs` (indenter, volume, true force) for
-/// stiffness `k`.
-fn per_indenter(pairs: &[(Indenter, f64, f64)], k: f64) -> Vec<IndenterError> {
-    INDENTERS
+/// A press or weighing: what pressed (its group in the report), the volume read and the
+/// true force.
+pub struct Pair {
+    /// The indenter, or "known weights".
+    pub group: String,
+    /// Indentation volume the pipeline read, mm³.
+    pub volume_mm3: f64,
+    /// The true normal force, N.
+    pub force_n: f64,
+}
+
+/// [`IndenterError`] of each group of `pairs`, in the order of `groups`, for stiffness `k`.
+fn per_group(pairs: &[Pair], groups: &[String], k: f64) -> Vec<IndenterError> {
+    groups
         .iter()
-        .map(|ind| {
+        .map(|group| {
             let errors: Vec<(f64, f64)> = pairs
                 .iter()
-                .filter(|(i, _, f)| i.name() == ind.name() && *f >= WORST_CASE_FROM_N)
-                .map(|(_, v, f)| (*f, (k * v - f) / f * 100.0))
+                .filter(|p| p.group == *group && p.force_n >= WORST_CASE_FROM_N)
+                .map(|p| {
+                    (
+                        p.force_n,
+                        (k * p.volume_mm3 - p.force_n) / p.force_n * 100.0,
+                    )
+                })
                 .collect();
             let all: Vec<f64> = errors.iter().map(|(_, e)| *e).collect();
             let light: Vec<f64> = errors
@@ -113,7 +135,7 @@ fn per_indenter(pairs: &[(Indenter, f64, f64)], k: f64) -> Vec<IndenterError> {
                 .map(|(_, e)| *e)
                 .collect();
             IndenterError {
-                indenter: ind.name(),
+                indenter: group.clone(),
                 presses: all.len(),
                 mean_err_pct: mean(&all).unwrap_or(0.0),
                 worst_abs_err_pct: all.iter().map(|e| e.abs()).fold(0.0, f64::max),
@@ -124,16 +146,9 @@ fn per_indenter(pairs: &[(Indenter, f64, f64)], k: f64) -> Vec<IndenterError> {
 }
 
 /// Run the command; returns the exit code.
-pub fn run(args: ForceArgs) -> anyhow::Result<u8> {
+pub async fn run(args: ForceArgs) -> anyhow::Result<u8> {
     let registry = wiring::registry();
     let config = wiring::load_config(args.config.as_deref(), &registry)?;
-    if config.hub.transport != "sim" {
-        anyhow::bail!(crate::cli::UsageError(format!(
-            "{}: force calibration with known weights on hardware needs the hardware hub, \
-             which this build does not drive yet; on the simulator use hub.transport = \"sim\"",
-            config.file
-        )));
-    }
     let index = config.layout.index_of(&args.sensor).ok_or_else(|| {
         crate::cli::UsageError(format!(
             "no sensor `{}` in layout {}; sensors: {}",
@@ -144,7 +159,30 @@ pub fn run(args: ForceArgs) -> anyhow::Result<u8> {
     })?;
     let pipeline = PipelineConfig::from_section(&config.pipeline, &config.layout)?;
     let configured = pipeline.sensors[index].stiffness_n_per_mm3;
-    let (mut pipe, cam) = tactile::sensor_pipeline(&config, &pipeline, index)?;
+    let report = if config.hub.transport == "sim" {
+        let pairs = simulated_presses(&args, &config, &pipeline, index)?;
+        let groups: Vec<String> = INDENTERS.iter().map(|i| i.name()).collect();
+        fit(&args.sensor, configured, &pairs, &groups)?
+    } else {
+        let readings = weigh(&args, &config, &pipeline, index).await?;
+        let pairs: Vec<Pair> = readings.iter().map(WeightReading::pair).collect();
+        let mut report = fit(&args.sensor, configured, &pairs, &[KNOWN_WEIGHTS.into()])?;
+        let k = report.stiffness_n_per_mm3;
+        report.per_weight = Some(readings.into_iter().map(|r| r.with_fit(k)).collect());
+        report
+    };
+    print(&report, args.json)?;
+    Ok(0)
+}
+
+/// The simulator's presses of every indenter in turn: (indenter, volume read, true force).
+fn simulated_presses(
+    args: &ForceArgs,
+    config: &AppConfig,
+    pipeline: &PipelineConfig,
+    index: usize,
+) -> anyhow::Result<Vec<Pair>> {
+    let (mut pipe, cam) = tactile::sensor_pipeline(config, pipeline, index)?;
     let mut rng = Pcg64Mcg::seed_from_u64(0xF0_4CE);
     let n = args.presses as usize;
     let px_mm2 = cam.mm_per_px * cam.mm_per_px;
@@ -177,32 +215,50 @@ pub fn run(args: ForceArgs) -> anyhow::Result<u8> {
             .sum();
         let jpeg = cam.jpeg(&map, 9_000_000 + i as u64)?;
         let summary = pipe.process(&jpeg, Needs::DEPTH)?;
-        let volume = summary.volume_mm3.unwrap_or(0.0);
-        pairs.push((indenter, volume, truth));
+        pairs.push(Pair {
+            group: indenter.name(),
+            volume_mm3: summary.volume_mm3.unwrap_or(0.0),
+            force_n: truth,
+        });
         if !args.json && (i + 1) % 10 == 0 {
             eprintln!("  {}/{n} presses", i + 1);
         }
     }
+    Ok(pairs)
+}
+
+/// The stiffness fitted to `pairs` and its errors, by group in the order of `groups`.
+fn fit(
+    sensor: &str,
+    configured: f64,
+    pairs: &[Pair],
+    groups: &[String],
+) -> anyhow::Result<ForceReport> {
+    let n = pairs.len();
     // Least squares on the relative error, so light and heavy presses count alike (a grasp
     // regulates at 1–2 N, far below the heaviest press): k = Σ(V/F) / Σ(V/F)² over the
     // presses above the noise floor.
-    let (a, b) = pairs
-        .iter()
-        .filter(|(_, _, f)| *f >= WORST_CASE_FROM_N)
-        .fold((0.0, 0.0), |(a, b), (_, v, f)| {
-            (a + v / f, b + (v / f).powi(2))
-        });
-    if b <= 0.0 {
+    let above = || pairs.iter().filter(|p| p.force_n >= WORST_CASE_FROM_N);
+    let (a, b) = above().fold((0.0, 0.0), |(a, b), p| {
+        let r = p.volume_mm3 / p.force_n;
+        (a + r, b + r * r)
+    });
+    if b <= 0.0 || !(a / b).is_finite() {
         anyhow::bail!(
-            "the pipeline saw no indentation in {n} presses: check the sensor's calibration"
+            "the pipeline saw no indentation in {n} presses of {WORST_CASE_FROM_N} N or more: \
+             check the sensor's calibration"
         );
     }
     let k = a / b;
-    let mean_f = pairs.iter().map(|(_, _, f)| f).sum::<f64>() / n as f64;
-    let ss_res: f64 = pairs.iter().map(|(_, v, f)| (f - k * v).powi(2)).sum();
-    let ss_tot: f64 = pairs.iter().map(|(_, _, f)| (f - mean_f).powi(2)).sum();
-    let report = ForceReport {
-        sensor: args.sensor.clone(),
+    let rel_err = |p: &Pair| (k * p.volume_mm3 - p.force_n) / p.force_n * 100.0;
+    let mean_f = pairs.iter().map(|p| p.force_n).sum::<f64>() / n as f64;
+    let ss_res: f64 = pairs
+        .iter()
+        .map(|p| (p.force_n - k * p.volume_mm3).powi(2))
+        .sum();
+    let ss_tot: f64 = pairs.iter().map(|p| (p.force_n - mean_f).powi(2)).sum();
+    Ok(ForceReport {
+        sensor: sensor.to_string(),
         presses: n,
         stiffness_n_per_mm3: k,
         configured_stiffness_n_per_mm3: configured,
@@ -212,52 +268,67 @@ pub fn run(args: ForceArgs) -> anyhow::Result<u8> {
             0.0
         },
         rmse_n: (ss_res / n as f64).sqrt(),
-        worst_abs_err_pct: pairs
-            .iter()
-            .filter(|(_, _, f)| *f >= WORST_CASE_FROM_N)
-            .map(|(_, v, f)| ((k * v - f) / f).abs() * 100.0)
-            .fold(0.0, f64::max),
+        worst_abs_err_pct: above().map(|p| rel_err(p).abs()).fold(0.0, f64::max),
         mean_abs_err_pct: pairs
             .iter()
-            .filter(|(_, _, f)| *f > 0.0)
-            .map(|(_, v, f)| ((k * v - f) / f).abs() * 100.0)
+            .filter(|p| p.force_n > 0.0)
+            .map(|p| rel_err(p).abs())
             .sum::<f64>()
             / n as f64,
-        force_range_n: pairs.iter().fold([f64::MAX, 0.0], |[lo, hi], (_, _, f)| {
-            [lo.min(*f), hi.max(*f)]
+        force_range_n: pairs.iter().fold([f64::MAX, 0.0], |[lo, hi], p| {
+            [lo.min(p.force_n), hi.max(p.force_n)]
         }),
-        per_indenter: per_indenter(&pairs, k),
-    };
-    if args.json {
-        println!("{}", serde_json::to_string(&report)?);
-    } else {
-        println!(
-            "sensor {}: stiffness_n_per_mm3 = {:.4} (configured {:.4}); R² {:.4}, RMSE {:.3} N, \
-             mean |error| {:.1}% (worst {:.1}% above 0.1 N) over {} presses of {:.2}–{:.2} N\n\
-             put it in the config: [[pipeline.sensors]] id = \"{}\" stiffness_n_per_mm3 = {:.4}",
-            report.sensor,
-            report.stiffness_n_per_mm3,
-            report.configured_stiffness_n_per_mm3,
-            report.r2,
-            report.rmse_n,
-            report.mean_abs_err_pct,
-            report.worst_abs_err_pct,
-            n,
-            report.force_range_n[0],
-            report.force_range_n[1],
-            report.sensor,
-            report.stiffness_n_per_mm3,
-        );
-        println!("error by indenter (presses above 0.1 N; light: below 1 N, a grasp's pad):");
-        for e in &report.per_indenter {
-            let light = e
-                .light_mean_err_pct
-                .map_or("-".to_string(), |v| format!("{v:+.1}%"));
+        per_indenter: per_group(pairs, groups, k),
+        per_weight: None,
+    })
+}
+
+/// Print `report`: one JSON object, or the text summary.
+fn print(report: &ForceReport, json: bool) -> anyhow::Result<()> {
+    if json {
+        println!("{}", serde_json::to_string(report)?);
+        return Ok(());
+    }
+    println!(
+        "sensor {}: stiffness_n_per_mm3 = {:.4} (configured {:.4}); R² {:.4}, RMSE {:.3} N, \
+         mean |error| {:.1}% (worst {:.1}% above 0.1 N) over {} presses of {:.2}–{:.2} N\n\
+         put it in the config: [[pipeline.sensors]] id = \"{}\" stiffness_n_per_mm3 = {:.4}",
+        report.sensor,
+        report.stiffness_n_per_mm3,
+        report.configured_stiffness_n_per_mm3,
+        report.r2,
+        report.rmse_n,
+        report.mean_abs_err_pct,
+        report.worst_abs_err_pct,
+        report.presses,
+        report.force_range_n[0],
+        report.force_range_n[1],
+        report.sensor,
+        report.stiffness_n_per_mm3,
+    );
+    if let Some(weights) = &report.per_weight {
+        println!("by weight:");
+        for w in weights {
+            let err = w.err_pct.map_or("- (under 0.1 N, not fitted)".into(), |e| {
+                format!("{e:+.1}%")
+            });
             println!(
-                "  {:16} {:3} presses  mean {:+6.1}%  worst |error| {:5.1}%  light mean {light}",
-                e.indenter, e.presses, e.mean_err_pct, e.worst_abs_err_pct
+                "  {:7.1} g {:6.3} N  volume {:7.3} ± {:.3} mm³ ({} of {} frames in contact)  \
+                 error {err}",
+                w.weight_g, w.force_n, w.volume_mm3, w.volume_sd_mm3, w.contact_frames, w.frames,
             );
         }
+        return Ok(());
     }
-    Ok(0)
+    println!("error by indenter (presses above 0.1 N; light: below 1 N, a grasp's pad):");
+    for e in &report.per_indenter {
+        let light = e
+            .light_mean_err_pct
+            .map_or("-".to_string(), |v| format!("{v:+.1}%"));
+        println!(
+            "  {:16} {:3} presses  mean {:+6.1}%  worst |error| {:5.1}%  light mean {light}",
+            e.indenter, e.presses, e.mean_err_pct, e.worst_abs_err_pct
+        );
+    }
+    Ok(())
 }

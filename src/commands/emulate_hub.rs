@@ -1,6 +1,10 @@
 //! `gelgrip emulate hub --link PATH [--config FILE] [--usb fs|hs] [--ring K]`: serve the
 //! MCU hub's CDC protocol on a pseudo-terminal, its boards showing the simulator's presses
 //! (the config's layout and `[hub.sim]` camera settings), paced at the USB link's rate.
+//! With `--weights-on-stdin` the boards show known weights instead
+//! (`gelgrip_sim::weights`): each stdin line `SENSOR GRAMS` places one, and one JSON line
+//! on stdout answers it: `{"sensor", "weight_g", "force_n", "depth_mm"}`, or
+//! `{"sensor", "weight_g", "error"}`.
 //!
 //! As for `emulate servos` (CONTRACTS.md): the pseudo-terminal is served first, then the
 //! symlink PATH is created, then one JSON line `{"link", "pty", "usb", "sensors"}` goes to
@@ -11,8 +15,11 @@ use std::path::Path;
 use anyhow::Context;
 
 use gelgrip_cdc::emu::{HubEmulatorConfig, RunningHub, UsbSpeed};
+use gelgrip_controller::camera::BoardCameras;
+use gelgrip_controller::layout::HandLayout;
 use gelgrip_sim::board_cameras::SimCameras;
 use gelgrip_sim::config::SimConfig;
+use gelgrip_sim::weights::{WeightControl, weighted_cameras};
 
 use crate::cli::{EmulateHubArgs, UsageError, UsbArg};
 use crate::wiring;
@@ -29,8 +36,15 @@ pub async fn run(args: EmulateHubArgs) -> anyhow::Result<u8> {
         section.table = toml::Table::new();
         SimConfig::from_section(&section, &config.layout)?
     };
-    let cameras =
-        SimCameras::presses(&config.layout, &sim).context("rendering the boards' frames")?;
+    let (cameras, weights): (Box<dyn BoardCameras>, _) = if args.weights_on_stdin {
+        let (cameras, control) =
+            weighted_cameras(&config.layout, &sim).context("rendering the boards' frames")?;
+        (Box::new(cameras), Some(control))
+    } else {
+        let cameras =
+            SimCameras::presses(&config.layout, &sim).context("rendering the boards' frames")?;
+        (Box::new(cameras), None)
+    };
     let usb = match args.usb {
         UsbArg::Fs => UsbSpeed::Full,
         UsbArg::Hs => UsbSpeed::High,
@@ -38,7 +52,7 @@ pub async fn run(args: EmulateHubArgs) -> anyhow::Result<u8> {
     let link = Path::new(&args.link);
     let hub = RunningHub::serve(
         link,
-        Box::new(cameras),
+        cameras,
         HubEmulatorConfig {
             usb,
             spi_clock_hz: sim.spi_clock_hz,
@@ -58,6 +72,10 @@ pub async fn run(args: EmulateHubArgs) -> anyhow::Result<u8> {
         "{}",
         serde_json::json!({ "link": args.link, "pty": hub.pty(), "usb": usb.as_str(), "sensors": sensors })
     );
+    if let Some(control) = weights {
+        let layout = config.layout.clone();
+        std::thread::spawn(move || serve_weights(&layout, &control));
+    }
     tracing::info!(
         sensors,
         usb = usb.as_str(),
@@ -67,4 +85,51 @@ pub async fn run(args: EmulateHubArgs) -> anyhow::Result<u8> {
     crate::commands::run::shutdown_signal().await;
     drop(hub);
     Ok(0)
+}
+
+/// Read `SENSOR GRAMS` lines from stdin until it closes, placing each weight and answering
+/// each line with one JSON line on stdout.
+fn serve_weights(layout: &HandLayout, control: &WeightControl) {
+    use std::io::{BufRead, Write};
+    for line in std::io::stdin().lock().lines() {
+        let Ok(line) = line else { break };
+        if line.trim().is_empty() {
+            continue;
+        }
+        let answer = place_weight(layout, control, &line);
+        let mut out = std::io::stdout().lock();
+        let _ = writeln!(out, "{answer}");
+        let _ = out.flush();
+    }
+}
+
+/// Place the weight one stdin line asks for; the JSON answer.
+fn place_weight(layout: &HandLayout, control: &WeightControl, line: &str) -> serde_json::Value {
+    let mut words = line.split_whitespace();
+    let (sensor, grams) = (words.next().unwrap_or(""), words.next());
+    let fail = |why: String| {
+        tracing::warn!("weights: `{line}`: {why}");
+        serde_json::json!({ "sensor": sensor, "weight_g": grams, "error": why })
+    };
+    let Some(board) = layout.index_of(sensor) else {
+        return fail(format!(
+            "no sensor `{sensor}`; sensors: {}",
+            layout.id_list()
+        ));
+    };
+    let Some(Ok(g)) = grams.map(str::parse::<f64>) else {
+        return fail("expected `SENSOR GRAMS`, e.g. `f1.tip 100`".into());
+    };
+    if words.next().is_some() {
+        return fail("expected `SENSOR GRAMS`, e.g. `f1.tip 100`".into());
+    }
+    match control.place(board, g) {
+        Ok(p) => serde_json::json!({
+            "sensor": sensor,
+            "weight_g": p.grams,
+            "force_n": p.force_n,
+            "depth_mm": p.depth_mm,
+        }),
+        Err(e) => fail(e.to_string()),
+    }
 }

@@ -10,6 +10,7 @@ pub mod bench_sync;
 pub mod bench_tradeoff;
 pub mod calibrate;
 pub mod calibrate_force;
+pub mod calibrate_force_hw;
 pub mod check_config;
 pub mod dashboard_child;
 pub mod depth;

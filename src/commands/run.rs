@@ -18,6 +18,7 @@ use crate::recording::RunRecorder;
 use crate::scene_report::SceneReport;
 use crate::script_task::load_script;
 use crate::servo_loop::ServoLoop;
+use crate::tactile::Tactile;
 use crate::tasks::Task;
 
 use crate::wiring;
@@ -117,6 +118,37 @@ impl Progress {
     }
 }
 
+/// Longest wait for the untouched sets of a hardware hub's references.
+const REFERENCE_TIMEOUT_S: u64 = 10;
+
+/// On a hardware hub, take the sensors' references on the first gated sets, before the
+/// loop (nothing touches the sensors: the gripper starts open). Nothing to do on the
+/// simulator.
+async fn reference_live(
+    acq: &mut Acquisition,
+    tactile: &mut Tactile,
+    clock: &dyn Clock,
+    transport: &str,
+) -> anyhow::Result<()> {
+    let missing = tactile.reference_sets_missing();
+    if missing == 0 {
+        return Ok(());
+    }
+    tracing::info!(sets = missing, "referencing the sensors on untouched sets");
+    let give_up = clock.now_us() + REFERENCE_TIMEOUT_S * 1_000_000;
+    while tactile.reference_sets_missing() > 0 {
+        let Some(set) = acq.next_set_before(give_up).await? else {
+            anyhow::bail!(
+                "no synchronized set from the {transport} hub in {REFERENCE_TIMEOUT_S} s: the \
+                 sensors' references could not be taken (gate: {:?})",
+                acq.gate().stats()
+            );
+        };
+        tactile.offer_reference(&set);
+    }
+    Ok(())
+}
+
 /// Run the command; returns the exit code.
 pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
     let registry = wiring::registry();
@@ -166,6 +198,18 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
     let bus = wiring::open_servos(&config, world.as_ref(), clock.clone())?;
     let mut task = None;
     let mut servos = None;
+    // The dashboard's grasp needs every sensor's pipeline; on a hardware hub without model
+    // files the dashboard still serves the cameras, sync and servos.
+    let unmodelled = crate::tactile::sensors_without_model(&config)?;
+    let dashboard_grasp = !args.headless && unmodelled.is_empty();
+    if !args.headless && args.task.is_none() && !unmodelled.is_empty() {
+        tracing::warn!(
+            sensors = unmodelled.join(", "),
+            "no gradient model file for these sensors on the {} hub: the dashboard serves \
+             the cameras, sync and servos, without the grasp (docs/pipeline.md)",
+            config.hub.transport
+        );
+    }
     match (args.task.as_deref(), bus) {
         (Some("gentle-grasp"), Some(bus)) => {
             let options = GraspOptions {
@@ -208,7 +252,7 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
                 config.layout.name
             )));
         }
-        (None, Some(bus)) if !args.headless => {
+        (None, Some(bus)) if dashboard_grasp => {
             task = Some(Task::Gripper {
                 gripper: Box::new(GripperLoop::start(
                     &config,
@@ -251,6 +295,15 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
         control = Some(c);
         Some(d)
     };
+    if let Some(t) = task.as_mut() {
+        reference_live(
+            &mut acq,
+            t.tactile_mut(),
+            clock.as_ref(),
+            &description.transport,
+        )
+        .await?;
+    }
     // `--duration` counts from here, after the set-up (on a fresh machine the sensors'
     // self-calibration takes seconds), so a short run still acquires for its duration.
     let run_start = clock.now_us();

@@ -6,6 +6,19 @@ use std::process::{Command, Output};
 
 pub mod server;
 
+/// A fresh scratch directory for test `name` (removed first if left over).
+pub fn scratch(name: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("gelgrip-e2e-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("scratch dir");
+    dir
+}
+
+/// A path as `&str` (the tests' temp paths are UTF-8).
+pub fn s(p: &std::path::Path) -> &str {
+    p.to_str().expect("utf-8 path")
+}
+
 /// Run `gelgrip` with `args`, logs at warn.
 pub fn gelgrip(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_gelgrip"))

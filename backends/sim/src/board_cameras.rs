@@ -87,11 +87,7 @@ mod tests {
     use crate::world::World;
 
     fn layout() -> HandLayout {
-        HandLayout::from_toml(
-            "three-finger.toml",
-            include_str!("../../../configs/layouts/three-finger.toml"),
-        )
-        .expect("layout")
+        crate::pool::tests::three_finger_layout()
     }
 
     fn cfg(layout: &HandLayout) -> SimConfig {

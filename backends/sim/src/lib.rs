@@ -35,6 +35,7 @@ pub mod servo_fault_plan;
 pub mod shapes;
 pub mod timeline;
 pub mod unit;
+pub mod weights;
 pub mod world;
 pub mod world_log;
 

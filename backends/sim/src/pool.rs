@@ -241,6 +241,15 @@ pub(crate) mod tests {
     use gelgrip_controller::config::DiskFiles;
     use gelgrip_controller::config::{BackendSection, FieldCheck};
 
+    /// The shipped three-finger layout.
+    pub(crate) fn three_finger_layout() -> HandLayout {
+        HandLayout::from_toml(
+            "three-finger.toml",
+            include_str!("../../../configs/layouts/three-finger.toml"),
+        )
+        .expect("layout")
+    }
+
     pub(crate) fn default_config(layout: &HandLayout) -> SimConfig {
         let section = BackendSection {
             check: FieldCheck::new("test"),
