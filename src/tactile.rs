@@ -2,7 +2,8 @@
 //! `[pipeline]` section, with each sensor's gradient model either from its configured
 //! `model` file or, on the simulator, calibrated from simulated presses of a 6 mm and a
 //! 25 mm ball on that very sensor (as `calibrate collect` + `calibrate train` would) and
-//! cached on disk, keyed by the recipe's version, the seed, sensor, resolution, JPEG
+//! cached on disk, keyed by the recipe's version, the seed, the sensor (its id and its
+//! position in the layout, which draws its unit variation), resolution, pixel size, JPEG
 //! quality and camera noise, so later runs start at once.
 //!
 //! On a hardware hub (`hub.transport` other than `sim`) every sensor needs a model file,
@@ -187,6 +188,26 @@ impl Tactile {
     }
 }
 
+/// The cache file of sensor `id`'s calibration on camera `cam` under `sim`.
+fn cache_file(id: &str, cam: &SensorCamera, sim: &SimConfig) -> PathBuf {
+    // Everything the calibration depends on is in the key, so a changed camera or recipe
+    // never reuses an old model: the unit (its position in the layout draws its optics, so
+    // f1.tip of a 16-sensor layout is another unit than the three-finger hand's) and the
+    // pixel size besides the id.
+    cache_dir().join(format!(
+        "sim-v{CALIBRATION_VERSION}-seed{}-unit{}-{id}-{}x{}px-{}mm-q{}-noise{}-lut-{}+{}mm.safetensors",
+        sim.seed,
+        cam.unit_index(),
+        cam.width,
+        cam.height,
+        cam.mm_per_px,
+        sim.jpeg_quality,
+        sim.noise_sigma,
+        CALIBRATION_BALLS_MM[0],
+        CALIBRATION_BALLS_MM[1]
+    ))
+}
+
 /// The gradient model of sensor `id`: its configured file, else (on the simulator) a
 /// calibration from simulated presses, cached.
 fn sensor_model(
@@ -199,18 +220,7 @@ fn sensor_model(
         return LutModel::load(path)
             .with_context(|| format!("sensor {id}: model {}", path.display()));
     }
-    // Everything the calibration depends on is in the key, so a changed camera or recipe
-    // never reuses an old model.
-    let cached = cache_dir().join(format!(
-        "sim-v{CALIBRATION_VERSION}-seed{}-{id}-{}x{}-q{}-noise{}-lut-{}+{}mm.safetensors",
-        sim.seed,
-        cam.width,
-        cam.height,
-        sim.jpeg_quality,
-        sim.noise_sigma,
-        CALIBRATION_BALLS_MM[0],
-        CALIBRATION_BALLS_MM[1]
-    ));
+    let cached = cache_file(id, cam, sim);
     if let Ok(m) = LutModel::load(&cached) {
         return Ok(m);
     }
@@ -353,4 +363,40 @@ pub fn unreferenced_pipeline(
         spec.resolution.height_px as usize,
         spec.mm_per_px,
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use gelgrip_controller::layout::HandLayout;
+
+    fn layout(file: &str) -> HandLayout {
+        let path = format!("{}/configs/layouts/{file}", env!("CARGO_MANIFEST_DIR"));
+        let text = std::fs::read_to_string(&path).expect("layout file");
+        HandLayout::from_toml(&path, &text).expect("a valid layout")
+    }
+
+    /// The same id at another position in another layout is another unit (other optics):
+    /// it must not reuse the other's cached calibration.
+    #[test]
+    fn the_calibration_cache_tells_units_of_the_same_id_apart() {
+        let path = format!("{}/configs/gelgripper-sim.toml", env!("CARGO_MANIFEST_DIR"));
+        let config = crate::wiring::load_config(
+            Some(std::path::Path::new(&path)),
+            &crate::wiring::registry(),
+        )
+        .expect("the shipped config");
+        let sim = SimConfig::from_section(&config.hub.section, &config.layout).expect("sim");
+        let (three, five) = (layout("three-finger.toml"), layout("five-finger.toml"));
+        let file = |l: &HandLayout, id: &str| {
+            let i = l.index_of(id).expect("the sensor");
+            cache_file(id, &SensorCamera::new(l, i, &sim).expect("camera"), &sim)
+        };
+        // Each of these ids sits at another position in the five-finger layout.
+        for id in ["f1.tip", "f2.middle", "palm"] {
+            assert_ne!(three.index_of(id), five.index_of(id), "{id}");
+            assert_ne!(file(&three, id), file(&five, id), "{id}");
+            assert_eq!(file(&three, id), file(&three, id), "{id}");
+        }
+    }
 }

@@ -58,7 +58,9 @@ pub fn start_gelgrip(extra: &[&str]) -> (Running, String) {
     let stderr = child.stderr.take().expect("stderr");
     let (tx, rx) = mpsc::channel();
     std::thread::spawn(move || {
+        // Its warnings go to the test's output (shown when the test fails).
         for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+            eprintln!("gelgrip: {line}");
             if let Some(url) = line.strip_prefix("dashboard: ") {
                 let _ = tx.send(url.trim().to_string());
             }

@@ -69,6 +69,12 @@ impl SensorCamera {
         })
     }
 
+    /// The sensor's position in its layout, which draws its unit variation (two layouts'
+    /// sensors of the same id but another position are different units).
+    pub fn unit_index(&self) -> usize {
+        self.index
+    }
+
     /// The built-in press of this sensor (what `hub.sim` serves).
     pub fn builtin_press(&self, cfg: &SimConfig) -> HeightMap {
         HeightMap::builtin_press(
