@@ -304,7 +304,7 @@ impl GraspTask {
     /// (all motion stopped: every finger holds where it is).
     pub fn watchdog(&mut self, now_us: u64) -> Option<String> {
         let silent_ms = self.io.watchdog_silence_ms(now_us)?;
-        let _ = self.handle.stop();
+        let _ = self.handle.stop_on_watchdog();
         self.hold_now();
         Some(format!(
             "watchdog: no synchronized set for {silent_ms} ms; fingers hold"

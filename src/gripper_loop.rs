@@ -177,14 +177,15 @@ impl GripperLoop {
         self.handle.set_busy(None);
     }
 
-    /// Stop all motion: every finger holds where it is (a running script ends).
+    /// The watchdog fired: stop all motion, every finger holds where it is (a running
+    /// script ends; a waiting grasp call resolves with the reason `watchdog`).
     pub fn hold(&mut self, reason: &str) {
         if let Some(script) = self.script.as_mut() {
             script.hold_now(&mut self.io, reason);
             self.end_script();
             return;
         }
-        let _ = self.handle.stop();
+        let _ = self.handle.stop_on_watchdog();
         self.apply_urgent();
     }
 

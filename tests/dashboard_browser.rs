@@ -137,19 +137,29 @@ async fn the_dashboard_shows_live_views_and_grasps_on_a_click() {
     tokio::time::sleep(Duration::from_millis(500)).await;
     assert_ne!(src().await, before, "the camera views follow new frames");
 
-    // Grasp: the request resolves grasped, and the fingers hold.
-    client
-        .find(Locator::Id("grasp"))
-        .await
-        .expect("the Grasp button")
-        .click()
-        .await
-        .expect("click");
-    let result = wait_for(Duration::from_secs(60), "the grasp's outcome", || async {
-        let t = text(&client, "#result").await;
-        t.contains("\"reason\"").then_some(t)
-    })
-    .await;
+    // Grasp: the request resolves grasped, and the fingers hold. A machine that stalls the
+    // run for 500 ms trips the watchdog (the grasp resolves `watchdog`, the fingers hold,
+    // and the next set hands control back): that is the product working, so the page gets
+    // one more try, and says so. Any other outcome fails.
+    let mut result = String::new();
+    for attempt in 1..=2 {
+        client
+            .find(Locator::Id("grasp"))
+            .await
+            .expect("the Grasp button")
+            .click()
+            .await
+            .expect("click");
+        result = wait_for(Duration::from_secs(60), "the grasp's outcome", || async {
+            let t = text(&client, "#result").await;
+            t.contains("\"reason\"").then_some(t)
+        })
+        .await;
+        if !result.contains("\"reason\":\"watchdog\"") {
+            break;
+        }
+        eprintln!("attempt {attempt}: the watchdog stopped the grasp: {result}");
+    }
     assert!(result.contains("\"grasped\":true"), "{result}");
     wait_for(Duration::from_secs(10), "fingers holding", || async {
         let t = text(&client, "#fingers").await;

@@ -7,7 +7,8 @@
 //! [`GripperService::apply_commands`]). A grasp call resolves with the controller's outcome
 //! (`grasped`, per-finger status, `final_force_n`, `reason`) when the grasp ends: stable,
 //! force-limited, no object, or its own timeout. No call can block forever: a grasp that is
-//! replaced by another, released, stopped or e-stopped resolves at once with that reason,
+//! replaced by another, released, stopped (by a call or the run loop's watchdog) or
+//! e-stopped resolves at once with that reason,
 //! and when the run loop ends every waiting call gets [`GripperError::Stopped`].
 
 use std::sync::{Arc, Mutex};
@@ -61,7 +62,9 @@ pub enum CommandKind {
 enum Command {
     Grasp(GraspRequest, oneshot::Sender<GraspOutcome>),
     Release,
-    Stop,
+    /// Hold where they are; a waiting grasp resolves with the reason (`stopped`, or
+    /// `watchdog` when the run loop's watchdog stopped the motion).
+    Stop(&'static str),
     Estop,
 }
 
@@ -147,7 +150,7 @@ impl std::fmt::Debug for Command {
         f.write_str(match self {
             Command::Grasp(..) => "Grasp",
             Command::Release => "Release",
-            Command::Stop => "Stop",
+            Command::Stop(_) => "Stop",
             Command::Estop => "Estop",
         })
     }
@@ -241,7 +244,14 @@ impl GripperHandle {
 
     /// Every finger holds where it is.
     pub fn stop(&self) -> Result<(), GripperError> {
-        self.send(Command::Stop)
+        self.send(Command::Stop("stopped"))
+    }
+
+    /// The run loop's watchdog fired (no gated set in time): every finger holds where it
+    /// is, as for [`GripperHandle::stop`], and a waiting grasp resolves with the reason
+    /// `watchdog`.
+    pub fn stop_on_watchdog(&self) -> Result<(), GripperError> {
+        self.send(Command::Stop("watchdog"))
     }
 
     /// Every finger holds where it is at the minimum current.
@@ -330,7 +340,9 @@ impl GripperService {
                 (Command::Grasp(request.clone(), reply), Vec::new())
             }
             AppliedCommand::Release => (Command::Release, Vec::new()),
-            AppliedCommand::Stop { positions_deg } => (Command::Stop, positions_deg.clone()),
+            AppliedCommand::Stop { positions_deg } => {
+                (Command::Stop("stopped"), positions_deg.clone())
+            }
             AppliedCommand::Estop { positions_deg } => (Command::Estop, positions_deg.clone()),
         };
         self.apply(command, &positions)
@@ -399,7 +411,7 @@ impl GripperService {
         self.last_command = Some(match &command {
             Command::Grasp(..) => CommandKind::Grasp,
             Command::Release => CommandKind::Release,
-            Command::Stop => CommandKind::Stop,
+            Command::Stop(_) => CommandKind::Stop,
             Command::Estop => CommandKind::Estop,
         });
         if let Some(log) = self.log.as_mut() {
@@ -408,7 +420,7 @@ impl GripperService {
                     request: request.clone(),
                 },
                 Command::Release => AppliedCommand::Release,
-                Command::Stop => AppliedCommand::Stop {
+                Command::Stop(_) => AppliedCommand::Stop {
                     positions_deg: positions.to_vec(),
                 },
                 Command::Estop => AppliedCommand::Estop {
@@ -435,8 +447,8 @@ impl GripperService {
                 self.ctl.get_or_insert(idle).release();
                 false
             }
-            Command::Stop => {
-                self.end_waiting("stopped");
+            Command::Stop(reason) => {
+                self.end_waiting(reason);
                 let idle = self.idle_controller();
                 self.ctl.get_or_insert(idle).stop(positions);
                 true

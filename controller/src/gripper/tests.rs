@@ -224,3 +224,41 @@ async fn no_call_outlives_the_run_loop() {
     assert_eq!(handle.grasp(request(1.0)).await, Err(GripperError::Stopped));
     assert_eq!(handle.estop(), Err(GripperError::Stopped));
 }
+
+#[test]
+fn a_grasp_stopped_by_a_call_or_the_watchdog_says_which() {
+    for (stop, reason) in [
+        (
+            GripperHandle::stop as fn(&GripperHandle) -> Result<(), GripperError>,
+            "stopped",
+        ),
+        (GripperHandle::stop_on_watchdog, "watchdog"),
+    ] {
+        let (mut svc, handle) = service();
+        let mut pending = handle.start_grasp(request(2.0)).expect("valid");
+        assert!(
+            !svc.apply_commands(&[0.0, 0.0, 0.0]),
+            "a grasp is not urgent"
+        );
+        stop(&handle).expect("running");
+        assert!(
+            svc.apply_commands(&[4.0, 5.0, 6.0]),
+            "a stop is written at once"
+        );
+        let outcome = pending.try_outcome().expect("resolved").expect("outcome");
+        assert_eq!(outcome.reason, reason);
+        assert!(!outcome.grasped);
+        assert_eq!(svc.last_command(), Some(CommandKind::Stop));
+        let held: Vec<f64> = svc
+            .goals()
+            .expect("goals")
+            .iter()
+            .map(|g| g.position_deg)
+            .collect();
+        assert_eq!(
+            held,
+            vec![4.0, 5.0, 6.0],
+            "{reason}: the fingers hold where they are"
+        );
+    }
+}
