@@ -125,12 +125,7 @@ fn stop_estop_and_release_take_effect_and_resolve_a_waiting_grasp() {
     assert_eq!(phases, Some(vec![Phase::Open; 3]));
     handle.stop().expect("running");
     assert!(svc.apply_commands(&[1.0, 2.0, 3.0]));
-    let held: Vec<f64> = svc
-        .goals()
-        .expect("goals")
-        .iter()
-        .map(|g| g.position_deg)
-        .collect();
+    let held = goal_positions(&svc);
     assert_eq!(held, vec![1.0, 2.0, 3.0]);
 }
 
@@ -249,16 +244,17 @@ fn a_grasp_stopped_by_a_call_or_the_watchdog_says_which() {
         assert_eq!(outcome.reason, reason);
         assert!(!outcome.grasped);
         assert_eq!(svc.last_command(), Some(CommandKind::Stop));
-        let held: Vec<f64> = svc
-            .goals()
-            .expect("goals")
-            .iter()
-            .map(|g| g.position_deg)
-            .collect();
+        let held = goal_positions(&svc);
         assert_eq!(
             held,
             vec![4.0, 5.0, 6.0],
             "{reason}: the fingers hold where they are"
         );
     }
+}
+
+/// The goal positions the service writes, deg.
+fn goal_positions(svc: &GripperService) -> Vec<f64> {
+    let goals = svc.goals().expect("goals");
+    goals.iter().map(|g| g.position_deg).collect()
 }
