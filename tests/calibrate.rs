@@ -64,6 +64,34 @@ fn collect_train_eval_round_trip() {
     assert!(depth < 0.05, "depth error {depth} mm: {eval}");
     let none = eval_with("none");
     assert!(none["depth_mae_mm"].is_null(), "{none}");
+
+    // `bench pipeline --model-file`: every sensor runs the file's model, and nothing is
+    // collected or trained for it.
+    let out = gelgrip(&[
+        "bench",
+        "pipeline",
+        "--sensors",
+        "2",
+        "--sets",
+        "3",
+        "--model-file",
+        s(&model),
+        "--json",
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    let bench = json(&out);
+    assert!(
+        !stderr.contains("calibrating"),
+        "presses collected: {stderr}"
+    );
+    let rows = bench["per_sensor"].as_array().expect("per_sensor");
+    assert_eq!(rows.len(), 2, "{bench}");
+    assert!(
+        rows.iter().all(|r| r["area_mm2"]
+            .as_f64()
+            .is_some_and(|a| a.is_finite() && a > 0.0)),
+        "{bench}"
+    );
 }
 
 #[test]

@@ -5,8 +5,9 @@
 //! Every sensor is pressed by a ball, 6 mm and 0.5 mm deep unless `--ball-mm` and
 //! `--press-depth-mm` say otherwise (a broad press gives the large depth windows of a
 //! grasp). Each sensor is calibrated first, as it
-//! would be on hardware: 50 simulated presses, a LUT trained on them, then a 20-frame
-//! no-contact capture for the reference and the noise thresholds. The timed loop processes
+//! would be on hardware: 50 simulated presses, a LUT trained on them (none with
+//! `--model-file`: every sensor uses that model), then a 20-frame no-contact capture for the
+//! reference and the noise thresholds. The timed loop processes
 //! the sensors of each set in parallel (`process_set`: rayon, one task per sensor) and
 //! measures wall-clock time per set.
 
@@ -23,6 +24,8 @@ use gelgrip_plugins::mlp::train::TrainOptions;
 use gelgrip_plugins::mlp::transfer::Fit;
 use gelgrip_plugins::pipeline::{Needs, SensorPipeline, StageChoice, process_set};
 use gelgrip_plugins::poisson::{PoissonPlan, Solver};
+use gelgrip_sim::config::SimConfig;
+use gelgrip_sim::pool::SensorCamera;
 use gelgrip_sim::scene::HeightMap;
 
 use crate::cli::{BenchPipelineArgs, ModelKind};
@@ -134,21 +137,37 @@ pub fn run(args: BenchPipelineArgs) -> anyhow::Result<u8> {
     } else {
         MlpPlan::None
     };
-    let hand = sensor_models::calibrate_hand(&config, CALIBRATION_PRESSES, &tmp, plan)?;
+    // With a model file every sensor uses it: nothing to collect or train.
+    let sensors: Vec<(String, SensorCamera, SimConfig, GradientModel)> = match &fixed {
+        Some(m) => config
+            .layout
+            .sensors
+            .iter()
+            .map(|spec| {
+                let id = spec.id.to_string();
+                let (cam, sim) = simcam::camera(&config, &id)?;
+                Ok((id, cam, sim, m.clone()))
+            })
+            .collect::<anyhow::Result<_>>()?,
+        None => sensor_models::calibrate_hand(&config, CALIBRATION_PRESSES, &tmp, plan)?
+            .into_iter()
+            .map(|sensor| {
+                let model = match sensor.mlp {
+                    Some(m) if mlp_mode == "baked" => {
+                        GradientModel::lut(bake(&m, BakeOptions::default())?)
+                    }
+                    Some(m) => GradientModel::mlp(m, mode)?,
+                    None => GradientModel::lut(sensor.lut),
+                };
+                Ok((sensor.id, sensor.cam, sensor.sim, model))
+            })
+            .collect::<anyhow::Result<_>>()?,
+    };
     let mut model_name = "lut";
     let mut pipes = Vec::new();
     let mut frames = Vec::new();
     let mut truths = Vec::new();
-    for sensor in hand {
-        let (id, cam, sim) = (sensor.id, sensor.cam, sensor.sim);
-        let model = match (&fixed, sensor.mlp) {
-            (Some(m), _) => m.clone(),
-            (None, Some(m)) if mlp_mode == "baked" => {
-                GradientModel::lut(bake(&m, BakeOptions::default())?)
-            }
-            (None, Some(m)) => GradientModel::mlp(m, mode)?,
-            (None, None) => GradientModel::lut(sensor.lut),
-        };
+    for (id, cam, sim, model) in sensors {
         model_name = model.name();
         let stages = SensorStages {
             decode_scale: args.scale(),
