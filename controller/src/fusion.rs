@@ -8,6 +8,15 @@
 
 use crate::layout::{HandLayout, Placement};
 
+/// Standard gravity, m/s².
+pub const STANDARD_GRAVITY_M_S2: f64 = 9.806_65;
+
+/// The load of a weight of `grams` at rest, N (what a known weight presses a pad with, in
+/// force calibration and in the emulator that plays it).
+pub fn weight_force_n(grams: f64) -> f64 {
+    grams / 1000.0 * STANDARD_GRAVITY_M_S2
+}
+
 /// What the sensing pipeline made of one sensor's frame.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct SensorReading {

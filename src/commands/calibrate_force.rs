@@ -61,7 +61,7 @@ const INDENTERS: [Indenter; 5] = [
 ];
 /// Presses below this true force are left out of the worst-case error (their relative
 /// error is dominated by the sensor's noise floor), N.
-const WORST_CASE_FROM_N: f64 = 0.1;
+pub const WORST_CASE_FROM_N: f64 = 0.1;
 
 #[derive(Debug, Serialize)]
 struct ForceReport {
@@ -113,6 +113,13 @@ pub struct Pair {
     pub force_n: f64,
 }
 
+impl Pair {
+    /// The proxy's error under stiffness `k` (N/mm³), % of the true force.
+    pub fn err_pct(&self, k: f64) -> f64 {
+        (k * self.volume_mm3 - self.force_n) / self.force_n * 100.0
+    }
+}
+
 /// [`IndenterError`] of each group of `pairs`, in the order of `groups`, for stiffness `k`.
 fn per_group(pairs: &[Pair], groups: &[String], k: f64) -> Vec<IndenterError> {
     groups
@@ -121,12 +128,7 @@ fn per_group(pairs: &[Pair], groups: &[String], k: f64) -> Vec<IndenterError> {
             let errors: Vec<(f64, f64)> = pairs
                 .iter()
                 .filter(|p| p.group == *group && p.force_n >= WORST_CASE_FROM_N)
-                .map(|p| {
-                    (
-                        p.force_n,
-                        (k * p.volume_mm3 - p.force_n) / p.force_n * 100.0,
-                    )
-                })
+                .map(|p| (p.force_n, p.err_pct(k)))
                 .collect();
             let all: Vec<f64> = errors.iter().map(|(_, e)| *e).collect();
             let light: Vec<f64> = errors
@@ -250,7 +252,6 @@ fn fit(
         );
     }
     let k = a / b;
-    let rel_err = |p: &Pair| (k * p.volume_mm3 - p.force_n) / p.force_n * 100.0;
     let mean_f = pairs.iter().map(|p| p.force_n).sum::<f64>() / n as f64;
     let ss_res: f64 = pairs
         .iter()
@@ -268,11 +269,11 @@ fn fit(
             0.0
         },
         rmse_n: (ss_res / n as f64).sqrt(),
-        worst_abs_err_pct: above().map(|p| rel_err(p).abs()).fold(0.0, f64::max),
+        worst_abs_err_pct: above().map(|p| p.err_pct(k).abs()).fold(0.0, f64::max),
         mean_abs_err_pct: pairs
             .iter()
             .filter(|p| p.force_n > 0.0)
-            .map(|p| rel_err(p).abs())
+            .map(|p| p.err_pct(k).abs())
             .sum::<f64>()
             / n as f64,
         force_range_n: pairs.iter().fold([f64::MAX, 0.0], |[lo, hi], p| {

@@ -20,17 +20,16 @@ use tokio::sync::mpsc;
 
 use gelgrip_controller::acquire::Acquisition;
 use gelgrip_controller::config::AppConfig;
+use gelgrip_controller::fusion::weight_force_n;
 use gelgrip_plugins::config::PipelineConfig;
 use gelgrip_plugins::pipeline::Needs;
 
 use crate::cli::{ClockArg, ForceArgs};
-use crate::commands::calibrate_force::Pair;
+use crate::commands::calibrate_force::{Pair, WORST_CASE_FROM_N};
 use crate::wiring;
 
 /// The report's group name for the weights.
 pub const KNOWN_WEIGHTS: &str = "known weights";
-/// Standard gravity, m/s².
-const STANDARD_GRAVITY_M_S2: f64 = 9.806_65;
 /// Sets discarded after each Enter: those triggered before it (the acquisition keeps two
 /// in flight) and one more for the gel to settle.
 const SETTLE_SETS: usize = 3;
@@ -68,8 +67,7 @@ impl WeightReading {
 
     /// The reading with its error under stiffness `k`, N/mm³.
     pub fn with_fit(mut self, k: f64) -> Self {
-        self.err_pct = (self.force_n >= 0.1)
-            .then(|| (k * self.volume_mm3 - self.force_n) / self.force_n * 100.0);
+        self.err_pct = (self.force_n >= WORST_CASE_FROM_N).then(|| self.pair().err_pct(k));
         self
     }
 }
@@ -151,7 +149,7 @@ fn reading(grams: f64, volumes: &[(bool, f64)]) -> WeightReading {
     let var = volumes.iter().map(|(_, v)| (v - mean).powi(2)).sum::<f64>() / n;
     WeightReading {
         weight_g: grams,
-        force_n: grams / 1000.0 * STANDARD_GRAVITY_M_S2,
+        force_n: weight_force_n(grams),
         volume_mm3: mean,
         volume_sd_mm3: var.sqrt(),
         frames: volumes.len(),

@@ -14,6 +14,7 @@ use bytes::Bytes;
 use thiserror::Error;
 
 use gelgrip_controller::camera::BoardCameras;
+use gelgrip_controller::fusion::{STANDARD_GRAVITY_M_S2, weight_force_n};
 use gelgrip_controller::layout::HandLayout;
 
 use crate::config::SimConfig;
@@ -23,8 +24,6 @@ use crate::scene::HeightMap;
 
 /// Diameter of the ball a weight rests on, mm (a common calibration indenter).
 pub const WEIGHT_INDENTER_MM: f64 = 30.0;
-/// Standard gravity, m/s².
-pub const STANDARD_GRAVITY_M_S2: f64 = 9.806_65;
 /// Deepest indentation a weight may make, mm (the gel is about 2 mm thick).
 const MAX_DEPTH_MM: f64 = 1.5;
 
@@ -111,7 +110,7 @@ impl WeightControl {
             board,
             boards: self.cameras.len(),
         })?;
-        let force_n = grams / 1000.0 * STANDARD_GRAVITY_M_S2;
+        let force_n = weight_force_n(grams);
         let max_n = load_n(cam, MAX_DEPTH_MM);
         if !grams.is_finite() || grams < 0.0 || force_n > max_n {
             return Err(WeightError::OutOfRange {
