@@ -238,17 +238,7 @@ pub struct EmulateServosArgs {
     pub baud: u32,
 }
 
-/// A usage error found after parsing (exit code 2).
-#[derive(Debug)]
-pub struct UsageError(pub String);
-
-impl std::fmt::Display for UsageError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.0)
-    }
-}
-
-impl std::error::Error for UsageError {}
+pub use gelgrip::UsageError;
 
 /// `gelgrip calibrate …`.
 #[derive(Debug, Subcommand)]
@@ -870,5 +860,14 @@ fn parse_duration(s: &str) -> Result<f64, String> {
         Ok(v)
     } else {
         Err(format!("`{s}`: expected seconds in (0, 1e7]"))
+    }
+}
+
+impl From<ClockArg> for gelgrip_controller::clock::ClockKind {
+    fn from(arg: ClockArg) -> Self {
+        match arg {
+            ClockArg::Real => Self::Real,
+            ClockArg::Virtual => Self::Virtual,
+        }
     }
 }

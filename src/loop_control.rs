@@ -7,25 +7,24 @@ use std::sync::Arc;
 
 use gelgrip_controller::clock::Clock;
 use gelgrip_controller::config::AppConfig;
+use gelgrip_controller::runtime::control::{LoopRequest, Refusal, ServoFaultName, SimFaults};
+use gelgrip_controller::runtime::driver::Driver;
+use gelgrip_controller::runtime::ports::ControlHandler;
 use gelgrip_sim::config::SensorFaults;
 use gelgrip_sim::scene_spec::SceneSpec;
 use gelgrip_sim::world::SharedWorld;
-use gelgrip_web::control::{LoopCommand, LoopRequest, Refusal, ServoFaultName, SimFaults};
 use gelgrip_web::live::{SensorFaultView, SimView};
-use tokio::sync::mpsc;
 
 use crate::catalog::{self, Kind};
-use crate::script_task::load_script;
-use crate::tasks::Task;
-
-/// Requests queued by the page before the loop answers them.
-const QUEUE: usize = 8;
+use crate::observers::dashboard::SharedSimView;
+use crate::scripts::load_script;
 /// A finger within this of its open position counts as open, degrees.
 const OPEN_DEG: f64 = 5.0;
 
 /// The run loop's request handler.
+#[derive(Debug)]
 pub struct LoopControl {
-    rx: mpsc::Receiver<LoopCommand>,
+    view: SharedSimView,
     config: AppConfig,
     world: Option<SharedWorld>,
     scene: String,
@@ -34,39 +33,39 @@ pub struct LoopControl {
 }
 
 impl LoopControl {
-    /// A handler for a run on `config`, whose simulator (if any) is `world`; and the sender
-    /// the dashboard uses.
+    /// A handler for a run on `config`, whose simulator (if any) is `world`; it keeps
+    /// `view` (what the page shows of the simulator's controls) up to date.
     pub fn new(
         config: &AppConfig,
         world: Option<SharedWorld>,
         clock: Arc<dyn Clock>,
-    ) -> (Self, mpsc::Sender<LoopCommand>) {
-        let (tx, rx) = mpsc::channel(QUEUE);
+        view: SharedSimView,
+    ) -> Self {
         let scene = world
             .as_ref()
             .and_then(|w| w.lock().ok()?.scene().map(|s| s.name.clone()))
             .unwrap_or_else(|| "none".into());
         let control = Self {
-            rx,
+            view,
             faults: vec![SimFaults::default(); config.layout.sensors.len()],
             config: config.clone(),
             world,
             scene,
             clock,
         };
-        (control, tx)
+        control.publish_view();
+        control
     }
 
-    /// The next request (pending forever once every sender is gone).
-    pub async fn recv(&mut self) -> LoopCommand {
-        match self.rx.recv().await {
-            Some(command) => command,
-            None => std::future::pending().await,
+    fn publish_view(&self) {
+        if let Ok(mut v) = self.view.lock() {
+            *v = self.sim_view();
         }
     }
+}
 
-    /// Carry out `request` for the run's `task`, and answer it.
-    pub fn handle(&mut self, (request, reply): LoopCommand, task: Option<&mut Task>) {
+impl ControlHandler for LoopControl {
+    fn handle(&mut self, request: LoopRequest, task: Option<&mut Driver>) -> Result<(), Refusal> {
         let answer = match request {
             LoopRequest::Task { name } => self.start_task(&name, task),
             LoopRequest::SimFault { sensor, faults } => self.inject(sensor, faults),
@@ -74,25 +73,25 @@ impl LoopControl {
             LoopRequest::SimUnplug { ms } => self.unplug(ms),
             LoopRequest::SimServoFault { finger, kind } => self.servo_fault(finger, kind),
         };
-        if let Err(refusal) = &answer {
-            tracing::warn!(?refusal, "dashboard request refused");
-        }
-        let _ = reply.send(answer);
+        self.publish_view();
+        answer
     }
+}
 
-    fn start_task(&mut self, name: &str, task: Option<&mut Task>) -> Result<(), Refusal> {
+impl LoopControl {
+    fn start_task(&mut self, name: &str, task: Option<&mut Driver>) -> Result<(), Refusal> {
         let gripper = match task {
             None => {
                 return Err(Refusal::Unavailable(
                     "this run has no finger servos to run a task on".into(),
                 ));
             }
-            Some(Task::Grasp(_)) => {
+            Some(Driver::GentleGrasp(_)) => {
                 return Err(Refusal::Busy(
                     "task `gentle-grasp` is driving the gripper: stop it first".into(),
                 ));
             }
-            Some(Task::Gripper { gripper, .. }) => gripper,
+            Some(Driver::Commanded { gripper, .. }) => gripper,
         };
         if let Some(running) = gripper.running_script() {
             return Err(Refusal::Busy(format!(
@@ -171,7 +170,7 @@ impl LoopControl {
         Ok(())
     }
 
-    fn switch_scene(&mut self, name: &str, task: Option<&mut Task>) -> Result<(), Refusal> {
+    fn switch_scene(&mut self, name: &str, task: Option<&mut Driver>) -> Result<(), Refusal> {
         let world = self.world()?.clone();
         let spec = if name == "none" {
             None
@@ -191,19 +190,19 @@ impl LoopControl {
         };
         // The object appears where the fingers close: they must be open.
         match task {
-            Some(Task::Grasp(_)) => {
+            Some(Driver::GentleGrasp(_)) => {
                 return Err(Refusal::Busy(
                     "task `gentle-grasp` is driving the gripper: stop it first".into(),
                 ));
             }
-            Some(Task::Gripper { gripper, .. }) => {
+            Some(Driver::Commanded { gripper, .. }) => {
                 if let Some(running) = gripper.running_script() {
                     return Err(Refusal::Busy(format!(
                         "task `{running}` is driving the gripper: stop it first"
                     )));
                 }
                 let closed: Vec<String> = gripper
-                    .io()
+                    .plant()
                     .states()
                     .iter()
                     .zip(&self.config.layout.fingers)
@@ -230,7 +229,7 @@ impl LoopControl {
     }
 
     /// The simulator's controls for the page (`None` off the simulator).
-    pub fn sim_view(&self) -> Option<SimView> {
+    fn sim_view(&self) -> Option<SimView> {
         self.world.as_ref()?;
         let mut scenes = vec!["none".to_string()];
         scenes.extend(catalog::names(Kind::Scene));

@@ -1,31 +1,10 @@
 //! `gelgrip`: the command-line entry point. Parses arguments, sets up logging and hands off to
-//! a command; all wiring of concrete adapters lives in [`wiring`].
+//! a command; the wiring of concrete adapters lives in the `gelgrip` library.
 
-mod bench_config;
-mod catalog;
-mod cdc_hub;
-mod ch347_hub;
 mod cli;
 mod commands;
-mod dashboard;
-mod embedded;
-mod grasp_task;
-mod gripper_loop;
-mod loop_control;
-mod output;
-mod plot;
-mod progress;
-mod recording;
-mod replay_hub;
-mod scene_report;
-mod script_task;
-mod sensor_models;
-mod servo_loop;
-mod simcam;
-mod tactile;
-mod task_io;
-mod tasks;
-mod wiring;
+
+use gelgrip::wiring;
 
 use std::process::ExitCode;
 

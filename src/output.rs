@@ -4,6 +4,7 @@
 use serde::Serialize;
 
 use gelgrip_controller::gate::{GateStats, ReasonCounts};
+use gelgrip_controller::runtime::outcome::EndReason;
 
 /// One servo's last state in `run --json`.
 #[derive(Debug, Serialize)]
@@ -50,7 +51,7 @@ pub struct RunReport {
     /// Sets rejected by reason.
     pub sets_rejected: ReasonCounts,
     /// Why the run ended.
-    pub end_reason: &'static str,
+    pub end_reason: EndReason,
     /// Transport name.
     pub transport: String,
     /// Trigger mode.
@@ -85,7 +86,7 @@ pub struct RunReport {
     pub recording: Option<gelgrip_record::writer::RecorderStats>,
     /// The task fields (a task run).
     #[serde(flatten, skip_serializing_if = "Option::is_none")]
-    pub task: Option<crate::grasp_task::TaskReport>,
+    pub task: Option<gelgrip_controller::runtime::task_report::TaskReport>,
     /// p99 set latency, ms.
     pub set_latency_ms_p99: Option<f64>,
     /// Frames (valid or corrupt) received.

@@ -19,6 +19,7 @@ use anyhow::Context;
 use gelgrip_controller::config::AppConfig;
 use gelgrip_controller::frame::FrameSet;
 use gelgrip_controller::fusion::SensorReading;
+use gelgrip_controller::runtime::ports::{DepthWindow, Sensing};
 use gelgrip_plugins::calibrate;
 use gelgrip_plugins::config::PipelineConfig;
 use gelgrip_plugins::contact::ContactSummary;
@@ -188,6 +189,30 @@ impl Tactile {
     }
 }
 
+impl Sensing for Tactile {
+    fn process(&mut self, set: &FrameSet) -> Vec<Option<SensorReading>> {
+        Tactile::process(self, set)
+    }
+
+    fn reference_sets_missing(&self) -> usize {
+        Tactile::reference_sets_missing(self)
+    }
+
+    fn offer_reference(&mut self, set: &FrameSet) {
+        Tactile::offer_reference(self, set);
+    }
+
+    fn depth_window(&self, index: usize) -> Option<DepthWindow> {
+        let (depth_mm, width, height, contact_mm) = Tactile::depth_window(self, index)?;
+        Some(DepthWindow {
+            depth_mm,
+            width,
+            height,
+            contact_mm,
+        })
+    }
+}
+
 /// The cache file of sensor `id`'s calibration on camera `cam` under `sim`.
 fn cache_file(id: &str, cam: &SensorCamera, sim: &SimConfig) -> PathBuf {
     // Everything the calibration depends on is in the key, so a changed camera or recipe
@@ -347,7 +372,7 @@ pub fn unreferenced_pipeline(
         .context("sensor index out of range")?;
     let stages = pipeline.sensors[index].clone();
     let Some(path) = stages.model.clone() else {
-        anyhow::bail!(crate::cli::UsageError(format!(
+        anyhow::bail!(crate::UsageError(format!(
             "{}: sensor {} has no gradient model file; on a hardware hub the pipeline cannot \
              calibrate a LUT on a simulated camera: train one on this sensor's presses \
              (`gelgrip calibrate train`, docs/calibration.md) and set it with \

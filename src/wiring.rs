@@ -9,7 +9,7 @@ use anyhow::Context;
 
 use gelgrip_controller::acquire::{Acquisition, make_gate};
 use gelgrip_controller::actuator::ServoBus;
-use gelgrip_controller::clock::{Clock, RealClock, VirtualClock};
+use gelgrip_controller::clock::{Clock, ClockKind, RealClock, VirtualClock};
 use gelgrip_controller::config::{
     AppConfig, CapturingFiles, ConfigError, DiskFiles, FileSource, MemoryFiles,
 };
@@ -24,7 +24,6 @@ use gelgrip_sim::world::{SharedWorld, World};
 
 use crate::cdc_hub::CdcFactory;
 use crate::ch347_hub::Ch347Factory;
-use crate::cli::ClockArg;
 use crate::embedded;
 use crate::replay_hub::ReplayFactory;
 
@@ -56,7 +55,7 @@ pub fn open_world(
 ) -> anyhow::Result<Option<SharedWorld>> {
     let sim_hub = config.hub.transport == "sim";
     if scene_override.is_some() && !sim_hub {
-        return Err(crate::cli::UsageError(format!(
+        return Err(crate::UsageError(format!(
             "--scene needs hub.transport = \"sim\" (this config uses \"{}\")",
             config.hub.transport
         ))
@@ -75,7 +74,7 @@ pub fn open_world(
         None => None,
     };
     if scene.is_some() && config.layout.fingers.is_empty() {
-        return Err(crate::cli::UsageError(format!(
+        return Err(crate::UsageError(format!(
             "a scene needs finger mechanics, and layout {} declares no [[fingers]]",
             config.layout.name
         ))
@@ -163,7 +162,7 @@ fn check_servo_count(config: &AppConfig) -> anyhow::Result<()> {
     if fingers == 0 || config.servos.ids.len() == fingers {
         return Ok(());
     }
-    Err(crate::cli::UsageError(format!(
+    Err(crate::UsageError(format!(
         "{}: servos.ids lists {} servos for the {} fingers of layout {}",
         config.file,
         config.servos.ids.len(),
@@ -181,11 +180,11 @@ fn servo_faults(
     gelgrip_sim::servo_fault_plan::parse(&check, &config.servos.sim, &config.servos.ids)
 }
 
-/// The clock for `arg`.
-pub fn make_clock(arg: ClockArg) -> Arc<dyn Clock> {
-    match arg {
-        ClockArg::Real => Arc::new(RealClock::new()),
-        ClockArg::Virtual => VirtualClock::new(),
+/// A new clock of `kind`.
+pub fn make_clock(kind: ClockKind) -> Arc<dyn Clock> {
+    match kind {
+        ClockKind::Real => Arc::new(RealClock::new()),
+        ClockKind::Virtual => VirtualClock::new(),
     }
 }
 
@@ -228,7 +227,7 @@ pub async fn open_acquisition(
 pub fn is_config_error(err: &anyhow::Error) -> bool {
     err.chain().any(|e| {
         e.downcast_ref::<ConfigError>().is_some()
-            || e.downcast_ref::<crate::cli::UsageError>().is_some()
+            || e.downcast_ref::<crate::UsageError>().is_some()
             || matches!(e.downcast_ref::<OpenError>(), Some(OpenError::Config(_)))
     })
 }

@@ -23,4 +23,5 @@ pub mod layout;
 #[cfg(test)]
 mod parser_fuzz;
 pub mod registry;
+pub mod runtime;
 pub mod task;

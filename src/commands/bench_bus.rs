@@ -32,7 +32,7 @@ use gelgrip_sim::board_cameras::SimCameras;
 use gelgrip_sim::config::SimConfig;
 
 use crate::cli::{BenchBusArgs, BusTransportArg, ClockArg, TriggerArg, UsbArg};
-use crate::wiring;
+use gelgrip::wiring;
 
 /// The SPI clock of the emulated CDC hub's boards by default, Hz.
 const CDC_SPI_CLOCK_HZ: u32 = 40_000_000;
@@ -187,7 +187,7 @@ async fn measure(row: RowSpec, args: &BenchBusArgs) -> anyhow::Result<BusRow> {
         BusTransportArg::CdcPty => Some(start_cdc_emulator(&config, row, &link)?),
         _ => None,
     };
-    let clock = wiring::make_clock(args.clock);
+    let clock = wiring::make_clock(args.clock.into());
     let mut acq = wiring::open_acquisition(&config, &registry, clock.clone()).await?;
     let prediction = acq.hub().describe().prediction;
     let give_up = clock.now_us() + (args.seconds * 1e6) as u64 + 10_000_000;
@@ -306,7 +306,7 @@ pub async fn run(args: BenchBusArgs) -> anyhow::Result<u8> {
     };
     let usbs: Vec<Option<UsbSpeed>> = match (args.usb, args.transport) {
         (Some(_), BusTransportArg::Sim | BusTransportArg::Ch347Emu) => {
-            return Err(crate::cli::UsageError(
+            return Err(gelgrip::UsageError(
                 "--usb applies to --transport cdc-pty only (the CH347 is high speed)".into(),
             )
             .into());

@@ -26,7 +26,7 @@ use gelgrip_plugins::mlp::transfer::{Fit, transfer};
 use gelgrip_sim::config::SimConfig;
 
 use crate::cli::BenchCalibrationArgs;
-use crate::{progress, simcam, wiring};
+use gelgrip::{progress, simcam, wiring};
 
 #[derive(Debug, Serialize)]
 struct Column {

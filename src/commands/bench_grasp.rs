@@ -18,8 +18,8 @@ use std::process::Command;
 use anyhow::Context;
 use serde_json::Value;
 
-use crate::bench_config::{BenchDir, load, load_config, section};
 use crate::cli::{BenchGraspArgs, GraspSweep};
+use gelgrip::bench_config::{BenchDir, load, load_config, section};
 
 /// The configuration a sweep starts from.
 const BASE_CONFIG: &str = "configs/gelgripper-sim.toml";
@@ -239,9 +239,9 @@ pub fn gentle_grasp(
 pub fn run(args: BenchGraspArgs) -> anyhow::Result<u8> {
     if let Some(plot) = &args.plot {
         if args.sweep.is_none() {
-            return Err(crate::cli::UsageError("--plot needs --sweep".into()).into());
+            return Err(gelgrip::UsageError("--plot needs --sweep".into()).into());
         }
-        crate::plot::Format::of(plot)?;
+        gelgrip::plot::Format::of(plot)?;
     }
     let scenes = scenes(&args)?;
     let dir = BenchDir::new("bench-grasp")?;
@@ -286,7 +286,7 @@ pub fn run(args: BenchGraspArgs) -> anyhow::Result<u8> {
         add_budget(r, pipeline_p99);
     }
     if let Some(plot) = &args.plot {
-        crate::plot::save(&sweep_figure(&rows, args.target_force), plot)?;
+        gelgrip::plot::save(&sweep_figure(&rows, args.target_force), plot)?;
         eprintln!("plot: {}", plot.display());
     }
     if args.json {
@@ -344,7 +344,7 @@ pub fn run(args: BenchGraspArgs) -> anyhow::Result<u8> {
 }
 
 /// Overshoot against set rate, one line per object (its three resolutions).
-fn sweep_figure(rows: &[Value], target_n: f64) -> crate::plot::Figure {
+fn sweep_figure(rows: &[Value], target_n: f64) -> gelgrip::plot::Figure {
     let mut names: Vec<String> = rows
         .iter()
         .filter_map(|r| r["scene"].as_str().map(str::to_string))
@@ -361,13 +361,13 @@ fn sweep_figure(rows: &[Value], target_n: f64) -> crate::plot::Figure {
                 .filter_map(|r| Some((r["set_rate_hz"].as_f64()?, r["overshoot_pct"].as_f64())))
                 .collect();
             points.sort_by(|a, b| a.0.total_cmp(&b.0));
-            crate::plot::Series {
+            gelgrip::plot::Series {
                 name: name.clone(),
                 points,
             }
         })
         .collect();
-    crate::plot::Figure {
+    gelgrip::plot::Figure {
         title: format!(
             "Gentle grasp ({target_n} N) at 320x240, 160x120, 80x60: overshoot against set rate"
         ),

@@ -29,8 +29,8 @@ use gelgrip_sim::pool::SensorCamera;
 use gelgrip_sim::scene::HeightMap;
 
 use crate::cli::{BenchPipelineArgs, ModelKind};
-use crate::sensor_models::{self, MlpPlan};
-use crate::{simcam, wiring};
+use gelgrip::sensor_models::{self, MlpPlan};
+use gelgrip::{simcam, wiring};
 
 /// Presses collected to calibrate each sensor.
 const CALIBRATION_PRESSES: usize = 50;

@@ -14,9 +14,9 @@ use anyhow::Context;
 use serde::Serialize;
 use serde_json::Value;
 
-use crate::bench_config::{BenchDir, load_config, section};
 use crate::cli::{BenchSyncArgs, UsageError};
 use crate::commands::bench_grasp::gentle_grasp;
+use gelgrip::bench_config::{BenchDir, load_config, section};
 
 /// The configuration every run starts from.
 const BASE_CONFIG: &str = "configs/gelgripper-sim.toml";
@@ -108,7 +108,7 @@ fn row(delay_ms: f64, gating: bool, target_n: f64, report: &Value) -> SyncRow {
 /// Run the bench; returns the exit code.
 pub fn run(args: BenchSyncArgs) -> anyhow::Result<u8> {
     if let Some(plot) = &args.plot {
-        crate::plot::Format::of(plot)?;
+        gelgrip::plot::Format::of(plot)?;
     }
     if !args.scene.exists() {
         return Err(UsageError(format!(
@@ -139,7 +139,7 @@ pub fn run(args: BenchSyncArgs) -> anyhow::Result<u8> {
         }
     }
     if let Some(plot) = &args.plot {
-        crate::plot::save(&figure(&rows, &args), plot)?;
+        gelgrip::plot::save(&figure(&rows, &args), plot)?;
         eprintln!("plot: {}", plot.display());
     }
     if args.json {
@@ -150,8 +150,8 @@ pub fn run(args: BenchSyncArgs) -> anyhow::Result<u8> {
     Ok(0)
 }
 
-fn figure(rows: &[SyncRow], args: &BenchSyncArgs) -> crate::plot::Figure {
-    let series = |gating: bool, name: &str| crate::plot::Series {
+fn figure(rows: &[SyncRow], args: &BenchSyncArgs) -> gelgrip::plot::Figure {
+    let series = |gating: bool, name: &str| gelgrip::plot::Series {
         name: name.to_string(),
         points: rows
             .iter()
@@ -159,7 +159,7 @@ fn figure(rows: &[SyncRow], args: &BenchSyncArgs) -> crate::plot::Figure {
             .map(|r| (r.delay_ms, r.overshoot_pct))
             .collect(),
     };
-    crate::plot::Figure {
+    gelgrip::plot::Figure {
         title: format!(
             "Gentle grasp ({}, {} N) with {} capturing late: true force overshoot",
             args.scene

@@ -26,9 +26,9 @@ use gelgrip_plugins::poisson::Solver;
 use gelgrip_sim::scene::HeightMap;
 
 use crate::cli::BenchTradeoffArgs;
-use crate::plot::{Figure, Series};
-use crate::sensor_models::{self, MlpPlan};
-use crate::{simcam, wiring};
+use gelgrip::plot::{Figure, Series};
+use gelgrip::sensor_models::{self, MlpPlan};
+use gelgrip::{simcam, wiring};
 
 /// One configuration's result.
 #[derive(Debug, Clone, Serialize)]
@@ -148,7 +148,7 @@ impl Score {
 /// Run the command; returns the exit code.
 pub fn run(args: BenchTradeoffArgs) -> anyhow::Result<u8> {
     if let Some(path) = &args.plot {
-        crate::plot::Format::of(path)?;
+        gelgrip::plot::Format::of(path)?;
     }
     let registry = wiring::registry();
     let config = wiring::load_config(None, &registry)?;
@@ -335,7 +335,7 @@ fn plot(rows: &[Row], path: &Path) -> anyhow::Result<()> {
         markers: true,
         ..Figure::default()
     };
-    crate::plot::save(&fig, path)
+    gelgrip::plot::save(&fig, path)
 }
 
 fn print_table(rows: &[Row]) {

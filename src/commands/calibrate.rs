@@ -16,7 +16,7 @@ use gelgrip_plugins::poisson::Solver;
 use crate::cli::{
     BakeArgs, CalibrateCommand, CollectArgs, EvalArgs, ModelKind, TrainArgs, TransferArgs,
 };
-use crate::{progress, simcam, wiring};
+use gelgrip::{progress, simcam, wiring};
 
 /// Run a calibrate subcommand; returns the exit code.
 pub async fn run(cmd: CalibrateCommand) -> anyhow::Result<u8> {

@@ -28,7 +28,7 @@ use gelgrip_controller::config::AppConfig;
 
 use crate::cli::ForceArgs;
 use crate::commands::calibrate_force_hw::{KNOWN_WEIGHTS, WeightReading, weigh};
-use crate::{tactile, wiring};
+use gelgrip::{tactile, wiring};
 
 /// What presses the pad, in turn.
 #[derive(Debug, Clone, Copy)]
@@ -152,7 +152,7 @@ pub async fn run(args: ForceArgs) -> anyhow::Result<u8> {
     let registry = wiring::registry();
     let config = wiring::load_config(args.config.as_deref(), &registry)?;
     let index = config.layout.index_of(&args.sensor).ok_or_else(|| {
-        crate::cli::UsageError(format!(
+        gelgrip::UsageError(format!(
             "no sensor `{}` in layout {}; sensors: {}",
             args.sensor,
             config.layout.name,

@@ -26,7 +26,7 @@ use gelgrip_plugins::pipeline::Needs;
 
 use crate::cli::{ClockArg, ForceArgs};
 use crate::commands::calibrate_force::{Pair, WORST_CASE_FROM_N};
-use crate::wiring;
+use gelgrip::wiring;
 
 /// The report's group name for the weights.
 pub const KNOWN_WEIGHTS: &str = "known weights";
@@ -80,9 +80,9 @@ pub async fn weigh(
     index: usize,
 ) -> anyhow::Result<Vec<WeightReading>> {
     let id = args.sensor.as_str();
-    let mut pipe = crate::tactile::unreferenced_pipeline(config, pipeline, index)?;
+    let mut pipe = gelgrip::tactile::unreferenced_pipeline(config, pipeline, index)?;
     let registry = wiring::registry();
-    let clock = wiring::make_clock(ClockArg::Real);
+    let clock = wiring::make_clock(ClockArg::Real.into());
     let mut acq = wiring::open_acquisition(config, &registry, clock.clone())
         .await
         .with_context(|| format!("opening the {} hub", config.hub.transport))?;

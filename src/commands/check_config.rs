@@ -2,7 +2,7 @@
 //! the allowed range, and exit 2.
 
 use crate::cli::CheckConfigArgs;
-use crate::wiring;
+use gelgrip::wiring;
 
 /// Run the command; returns the exit code.
 pub fn run(args: CheckConfigArgs) -> anyhow::Result<u8> {

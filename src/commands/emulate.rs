@@ -99,7 +99,7 @@ pub async fn run(args: EmulateServosArgs) -> anyhow::Result<u8> {
     });
     let link = Path::new(&args.link);
     if link.symlink_metadata().is_ok() {
-        anyhow::bail!(crate::cli::UsageError(format!(
+        anyhow::bail!(gelgrip::UsageError(format!(
             "{} already exists; remove it or choose another --link",
             link.display()
         )));

@@ -22,7 +22,7 @@ use gelgrip_sim::config::SimConfig;
 use gelgrip_sim::weights::{WeightControl, weighted_cameras};
 
 use crate::cli::{EmulateHubArgs, UsageError, UsbArg};
-use crate::wiring;
+use gelgrip::wiring;
 
 /// Run the command; returns the exit code.
 pub async fn run(args: EmulateHubArgs) -> anyhow::Result<u8> {

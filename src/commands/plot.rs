@@ -7,7 +7,7 @@ use std::path::Path;
 use anyhow::Context;
 
 use crate::cli::{PlotArgs, UsageError};
-use crate::plot::{Band, Figure, Series, save};
+use gelgrip::plot::{Band, Figure, Series, save};
 
 const SIGNAL_SUFFIX: &str = "_deformation_mm3";
 
@@ -147,7 +147,7 @@ pub fn figure(log: &TaskLog, title: &str) -> Figure {
 
 /// Run the command.
 pub fn run(args: PlotArgs) -> anyhow::Result<u8> {
-    crate::plot::Format::of(&args.out)?;
+    gelgrip::plot::Format::of(&args.out)?;
     let log = read_log(&args.log)?;
     let title = args.title.unwrap_or_else(|| {
         format!(

@@ -22,7 +22,7 @@ use gelgrip_record::reader::Recording;
 
 use crate::cli::{RecordExportArgs, ReplaySpeed};
 use crate::commands::replay::{ReplayedGate, recorded_config};
-use crate::tactile::Tactile;
+use gelgrip::tactile::Tactile;
 
 /// Each sensor's fields in a state record, as CSV columns.
 const SENSOR_FIELDS: [&str; 5] = [
@@ -221,7 +221,7 @@ async fn export_npy(recording: &Recording, out: &Path) -> anyhow::Result<u64> {
 /// Run the command; returns the exit code.
 pub async fn run(args: RecordExportArgs) -> anyhow::Result<u8> {
     if args.frames.is_none() && args.csv.is_none() && args.npy.is_none() {
-        return Err(crate::cli::UsageError(
+        return Err(gelgrip::UsageError(
             "nothing to export: give --frames OUT, --csv FILE and/or --npy OUT".into(),
         )
         .into());

@@ -30,8 +30,8 @@ use gelgrip_record::reader::Recording;
 use gelgrip_record::replay::{ReplayHub, Speed, prediction_for_limits};
 
 use crate::cli::{ReplayArgs, ReplaySpeed};
-use crate::tactile::Tactile;
-use crate::wiring;
+use gelgrip::tactile::Tactile;
+use gelgrip::wiring;
 
 /// The replayed gate's decisions (set, outcome) and the hub events counted.
 pub type Seen = (Vec<(u32, &'static str)>, u64);
@@ -359,7 +359,7 @@ fn pipelines(args: &ReplayArgs, recorded: &AppConfig) -> anyhow::Result<Vec<Tact
     };
     for c in &configs {
         if c.layout.sensors.len() != recorded.layout.sensors.len() {
-            anyhow::bail!(crate::cli::UsageError(format!(
+            anyhow::bail!(gelgrip::UsageError(format!(
                 "{}: {} sensors, the recording {}",
                 c.file,
                 c.layout.sensors.len(),

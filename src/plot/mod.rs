@@ -71,7 +71,7 @@ impl Format {
         {
             Some("svg") => Ok(Self::Svg),
             Some("png") => Ok(Self::Png),
-            _ => Err(crate::cli::UsageError(format!(
+            _ => Err(crate::UsageError(format!(
                 "{}: the figure's format comes from its extension: .svg or .png",
                 path.display()
             ))

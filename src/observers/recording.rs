@@ -8,15 +8,15 @@ use std::sync::Arc;
 use gelgrip_controller::acquire::AcquisitionTap;
 use gelgrip_controller::config::AppConfig;
 use gelgrip_controller::gate::{GateLimits, SetDecision};
-use gelgrip_controller::gripper::ServiceEvent;
 use gelgrip_controller::hub::{HubDescription, HubEvent};
+use gelgrip_controller::runtime::plant::phase_name;
+use gelgrip_controller::runtime::ports::{Observer, ObserverError};
+use gelgrip_controller::runtime::report::SetReport;
 use gelgrip_record::format::{FrameRecord, Meta, Record};
 use gelgrip_record::writer::{HeaderInfo, Recorder, RecorderOptions, RecorderStats};
 use serde::Serialize;
 
 use crate::output::ServoReport;
-use crate::task_io::phase_name;
-use crate::tasks::Task;
 
 /// A run's recorder.
 #[derive(Debug, Clone)]
@@ -148,43 +148,60 @@ impl RunRecorder {
         Box::new(Tap(self.recorder.clone()))
     }
 
-    /// Record the state after set `trigger_seq` (servos, fingers, sensors, task stage) and
-    /// the grasp-API service's `controller` events since the last set (its commands and
-    /// steps, with their inputs and goals).
-    pub fn snapshot(
-        &self,
-        host_us: u64,
-        trigger_seq: u32,
-        task: Option<&Task>,
-        controller: Vec<ServiceEvent>,
-    ) {
-        let Some(task) = task else { return };
-        let io = task.io();
-        // Only this set's readings: a set the task did not sense gets none.
-        let sensors: Option<Vec<Option<SensorSnapshot>>> = io
-            .last_fused()
-            .filter(|_| io.last_sensed_seq() == Some(trigger_seq))
+    /// The observer that records the state after every set.
+    pub fn snapshots(&self) -> Box<dyn Observer> {
+        Box::new(Snapshots(self.recorder.clone()))
+    }
+
+    /// Close the recording (the acquisition's tap must be dropped first).
+    pub fn finish(self, host_us: u64) -> RecorderStats {
+        match Arc::try_unwrap(self.recorder) {
+            Ok(r) => r.finish(host_us),
+            Err(shared) => {
+                tracing::warn!("the recorder is still shared; flushing without an end record");
+                shared.stats()
+            }
+        }
+    }
+}
+
+/// The state after every set (servos, fingers, each sensor's fused reading, the goals
+/// written for it, the grasp-API service's events, the task's stage). Lossless: the
+/// recorder queues every record or counts it as dropped under backpressure, and never
+/// blocks the loop.
+struct Snapshots(Arc<Recorder>);
+
+impl Observer for Snapshots {
+    fn observe(&mut self, report: &SetReport<'_>) -> Result<(), ObserverError> {
+        let (Some(set), Some(g)) = (report.set, report.gripper.as_ref()) else {
+            return Ok(());
+        };
+        let trigger_seq = set.trigger_seq;
+        // Only this set's readings: a set the driver did not sense gets none.
+        let sensors: Option<Vec<Option<SensorSnapshot>>> = g
+            .fused
+            .filter(|_| g.sensed_seq == Some(trigger_seq))
             .map(|f| {
                 f.sensors
                     .iter()
                     .map(|r| r.as_ref().map(SensorSnapshot::from))
                     .collect()
             });
-        let fingers: Vec<_> = task
-            .fingers()
-            .into_iter()
-            .map(|(phase, force_n, target_force_n)| {
+        let fingers: Vec<_> = g
+            .fingers
+            .iter()
+            .map(|f| {
                 serde_json::json!({
-                    "phase": phase_name(phase),
-                    "force_n": force_n,
-                    "target_force_n": target_force_n,
+                    "phase": phase_name(f.phase),
+                    "force_n": f.force_n,
+                    "target_force_n": f.target_force_n,
                 })
             })
             .collect();
-        let servos: Vec<ServoReport> = task.states().iter().map(ServoReport::from).collect();
+        let servos: Vec<ServoReport> = g.servos.iter().map(ServoReport::from).collect();
         // The goals written for this set (none when the controller left the servos alone).
-        let commands: Option<Vec<serde_json::Value>> = io
-            .last_goals()
+        let commands: Option<Vec<serde_json::Value>> = g
+            .goals
             .filter(|(seq, _)| *seq == Some(trigger_seq))
             .map(|(_, goals)| {
                 goals
@@ -198,28 +215,20 @@ impl RunRecorder {
                     })
                     .collect()
             });
-        let stage = task.view().map(|v| v.stage);
+        let stage = g.task.as_ref().map(|t| t.stage.clone());
         let state = serde_json::json!({
             "trigger_seq": trigger_seq,
             "sensors": sensors,
             "fingers": fingers,
             "servos": servos,
             "commands": commands,
-            "controller": controller,
+            "controller": g.controller_events,
             "stage": stage,
         });
-        self.recorder
-            .record(Record::Meta(Meta::State { host_us, state }));
-    }
-
-    /// Close the recording (the acquisition's tap must be dropped first).
-    pub fn finish(self, host_us: u64) -> RecorderStats {
-        match Arc::try_unwrap(self.recorder) {
-            Ok(r) => r.finish(host_us),
-            Err(shared) => {
-                tracing::warn!("the recorder is still shared; flushing without an end record");
-                shared.stats()
-            }
-        }
+        self.0.record(Record::Meta(Meta::State {
+            host_us: report.now_us,
+            state,
+        }));
+        Ok(())
     }
 }

@@ -1,25 +1,27 @@
-//! What drives the gripper in a run: the built-in gentle grasp, or the
-//! [`GripperLoop`] (the grasp API, and the task scripts that `--task` or the dashboard
-//! start); behind one face for the run loop.
+//! What drives the gripper in a run, behind one face for the runtime: the built-in gentle
+//! grasp, or the [`CommandedGripper`] (the grasp API, and the task scripts that `--task` or
+//! the dashboard start).
 
-use gelgrip_controller::actuator::ServoState;
-use gelgrip_controller::frame::FrameSet;
+use crate::actuator::ServoState;
+use crate::frame::FrameSet;
+use crate::grasp::Phase;
+use crate::gripper::{GripperHandle, GripperService, ServiceEvent};
+use crate::runtime::RuntimeError;
+use crate::runtime::commanded::CommandedGripper;
+use crate::runtime::gentle_grasp::GentleGrasp;
+use crate::runtime::outcome::{EndReason, ScriptEnd};
+use crate::runtime::plant::Plant;
+use crate::runtime::task_report::{TaskReport, TaskStatus};
 
-use gelgrip_controller::grasp::Phase;
-
-use crate::grasp_task::{GraspTask, TaskReport};
-use crate::gripper_loop::{GripperLoop, ScriptEnd};
-use crate::task_io::TaskIo;
-use gelgrip_web::live::TaskView;
-
-/// A running task.
-pub enum Task {
+/// Whoever drives the fingers in a run.
+#[derive(Debug)]
+pub enum Driver {
     /// `--task gentle-grasp`.
-    Grasp(Box<GraspTask>),
+    GentleGrasp(Box<GentleGrasp>),
     /// The grasp API and task scripts.
-    Gripper {
+    Commanded {
         /// The gripper (boxed: it carries the running and the last script).
-        gripper: Box<GripperLoop>,
+        gripper: Box<CommandedGripper>,
         /// `--task FILE|NAME`: the run ends with the script (else it goes on, and the
         /// dashboard drives the gripper).
         script_ends_run: bool,
@@ -27,27 +29,23 @@ pub enum Task {
 }
 
 /// The run's end reason when a script ended, if it ends the run.
-fn script_end_reason(end: Option<ScriptEnd>, ends_run: bool) -> Option<&'static str> {
+fn script_end_reason(end: Option<ScriptEnd>, ends_run: bool) -> Option<EndReason> {
     match end? {
-        ScriptEnd::Estop => Some("estop").filter(|_| ends_run),
-        ScriptEnd::Finished | ScriptEnd::Interrupted => Some("done").filter(|_| ends_run),
+        ScriptEnd::Estop => Some(EndReason::Estop).filter(|_| ends_run),
+        ScriptEnd::Finished | ScriptEnd::Interrupted => Some(EndReason::Done).filter(|_| ends_run),
     }
 }
 
-impl Task {
-    /// The task's pipelines.
-    pub fn tactile_mut(&mut self) -> &mut crate::tactile::Tactile {
-        match self {
-            Self::Grasp(t) => t.io_mut().tactile_mut(),
-            Self::Gripper { gripper, .. } => gripper.io_mut().tactile_mut(),
-        }
-    }
-
+impl Driver {
     /// Handle one gated set; returns an end reason when the task ends.
-    pub fn on_set(&mut self, set: &FrameSet, now_us: u64) -> anyhow::Result<Option<&'static str>> {
+    pub fn on_set(
+        &mut self,
+        set: &FrameSet,
+        now_us: u64,
+    ) -> Result<Option<EndReason>, RuntimeError> {
         match self {
-            Self::Grasp(t) => t.on_set(set, now_us),
-            Self::Gripper {
+            Self::GentleGrasp(t) => t.on_set(set, now_us),
+            Self::Commanded {
                 gripper,
                 script_ends_run,
             } => Ok(script_end_reason(
@@ -59,10 +57,10 @@ impl Task {
 
     /// Commands queued between sets are applied now; returns an end reason when they
     /// ended the run's script.
-    pub fn apply_urgent(&mut self) -> Option<&'static str> {
+    pub fn apply_urgent(&mut self) -> Option<EndReason> {
         match self {
-            Self::Grasp(_) => None,
-            Self::Gripper {
+            Self::GentleGrasp(_) => None,
+            Self::Commanded {
                 gripper,
                 script_ends_run,
             } => script_end_reason(gripper.apply_urgent(), *script_ends_run),
@@ -74,12 +72,12 @@ impl Task {
     /// holds until sets come back and carries on (it fires once per silence).
     pub fn watchdog(&mut self, now_us: u64) -> Option<(String, bool)> {
         match self {
-            Self::Grasp(t) => t.watchdog(now_us).map(|f| (f, true)),
-            Self::Gripper {
+            Self::GentleGrasp(t) => t.watchdog(now_us).map(|f| (f, true)),
+            Self::Commanded {
                 gripper,
                 script_ends_run,
             } => {
-                let silent_ms = gripper.io_mut().watchdog_silence_ms(now_us)?;
+                let silent_ms = gripper.plant_mut().watchdog_silence_ms(now_us)?;
                 if !*script_ends_run && gripper.watchdog_holding {
                     return None;
                 }
@@ -95,78 +93,79 @@ impl Task {
     /// E-stop: hold at the minimum current.
     pub fn estop(&mut self) {
         match self {
-            Self::Grasp(t) => t.estop(),
-            Self::Gripper { gripper, .. } => gripper.estop(),
+            Self::GentleGrasp(t) => t.estop(),
+            Self::Commanded { gripper, .. } => gripper.estop(),
         }
     }
 
     /// The safe state at the end of the run: torque off (the springs open the fingers).
     pub fn finish(&mut self) {
-        if let Self::Gripper { gripper, .. } = self {
+        if let Self::Commanded { gripper, .. } = self {
             gripper.interrupt();
         }
-        self.io_mut().finish();
+        self.plant_mut().finish();
     }
 
     /// Recovered servo faults (taken).
     pub fn take_recovered(&mut self) -> Vec<String> {
-        std::mem::take(&mut self.io_mut().recovered)
+        std::mem::take(&mut self.plant_mut().recovered)
     }
 
     /// The servos' last states.
     pub fn states(&self) -> &[ServoState] {
-        self.io().states()
+        self.plant().states()
     }
 
-    /// The hardware side.
-    pub fn io(&self) -> &TaskIo {
+    /// The plant.
+    pub fn plant(&self) -> &Plant {
         match self {
-            Self::Grasp(t) => t.io(),
-            Self::Gripper { gripper, .. } => gripper.io(),
+            Self::GentleGrasp(t) => t.plant(),
+            Self::Commanded { gripper, .. } => gripper.plant(),
         }
     }
 
-    fn io_mut(&mut self) -> &mut TaskIo {
+    /// The plant, mutably.
+    pub fn plant_mut(&mut self) -> &mut Plant {
         match self {
-            Self::Grasp(t) => t.io_mut(),
-            Self::Gripper { gripper, .. } => gripper.io_mut(),
+            Self::GentleGrasp(t) => t.plant_mut(),
+            Self::Commanded { gripper, .. } => gripper.plant_mut(),
         }
     }
 
-    /// The task fields of the run report (none without `--task`).
+    /// The task fields of the run report (none without a task).
     pub fn report(&self) -> Option<TaskReport> {
         match self {
-            Self::Grasp(t) => Some(t.report()),
-            Self::Gripper {
+            Self::GentleGrasp(t) => Some(t.report()),
+            Self::Commanded {
                 gripper,
                 script_ends_run: true,
             } => gripper.script_report(),
-            Self::Gripper { .. } => None,
+            Self::Commanded { .. } => None,
         }
     }
 
     /// Each finger's phase, regulated force and target, N.
     pub fn fingers(&self) -> Vec<(Phase, f64, f64)> {
         match self {
-            Self::Grasp(t) => t.fingers(),
-            Self::Gripper { gripper, .. } => gripper.fingers(),
+            Self::GentleGrasp(t) => t.fingers(),
+            Self::Commanded { gripper, .. } => gripper.fingers(),
         }
     }
 
     /// The task for the page (the running or last script's; none before any).
-    pub fn view(&self) -> Option<TaskView> {
+    pub fn status(&self) -> Option<TaskStatus> {
         match self {
-            Self::Grasp(t) => {
+            Self::GentleGrasp(t) => {
                 let stage = t.stage_label();
-                Some(TaskView {
+                Some(TaskStatus {
                     name: "gentle-grasp".into(),
                     stage: stage.into(),
                     running: stage != "done",
                     outcome: (stage == "done").then(|| t.report().reason),
                 })
             }
-            Self::Gripper { gripper, .. } => {
-                gripper.stage().map(|(name, stage, outcome)| TaskView {
+            Self::Commanded { gripper, .. } => {
+                gripper.stage().map(|(name, stage, outcome)| TaskStatus {
                     name,
                     stage,
                     running: gripper.running_script().is_some(),
@@ -176,10 +175,10 @@ impl Task {
         }
     }
 
-    fn service_mut(&mut self) -> &mut gelgrip_controller::gripper::GripperService {
+    fn service_mut(&mut self) -> &mut GripperService {
         match self {
-            Self::Grasp(t) => t.service_mut(),
-            Self::Gripper { gripper, .. } => gripper.service_mut(),
+            Self::GentleGrasp(t) => t.service_mut(),
+            Self::Commanded { gripper, .. } => gripper.service_mut(),
         }
     }
 
@@ -189,15 +188,15 @@ impl Task {
     }
 
     /// The service's commands and steps since the last call (empty when not logging).
-    pub fn take_controller_events(&mut self) -> Vec<gelgrip_controller::gripper::ServiceEvent> {
+    pub fn take_controller_events(&mut self) -> Vec<ServiceEvent> {
         self.service_mut().take_events()
     }
 
     /// The grasp API's handle.
-    pub fn handle(&self) -> gelgrip_controller::gripper::GripperHandle {
+    pub fn handle(&self) -> GripperHandle {
         match self {
-            Self::Grasp(t) => t.handle(),
-            Self::Gripper { gripper, .. } => gripper.handle(),
+            Self::GentleGrasp(t) => t.handle(),
+            Self::Commanded { gripper, .. } => gripper.handle(),
         }
     }
 }

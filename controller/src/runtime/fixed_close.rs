@@ -1,13 +1,14 @@
-//! The fixed servo programme of `gelgrip run` until the grasp controller arrives: with a
-//! scene, close every finger with a goal current that ramps to `--close-current-ma` over
+//! The fixed servo programme of a run without a grasp driver (`gelgrip run --headless` on a
+//! scene): with a scene, close every finger with a goal current that ramps to `--close-current-ma` over
 //! [`RAMP_S`] and then holds; without one, hold the fingers where they are. Every tick
 //! reads the servos back, collects recovered faults, and stops on an unrecovered one.
 //!
 //! Safe state at the end of a run (and after a fault): torque off, so the return springs
 //! open the fingers and nothing is squeezed blindly.
 
-use gelgrip_controller::actuator::{FingerGoal, ServoBus, ServoError, ServoState};
-use gelgrip_controller::layout::HandLayout;
+use crate::actuator::{FingerGoal, ServoBus, ServoError, ServoState};
+use crate::layout::HandLayout;
+use crate::runtime::plant::off_executor;
 
 /// Time to ramp the goal current to its cap, s.
 pub const RAMP_S: f64 = 2.0;
@@ -17,7 +18,7 @@ pub const ESTOP_CURRENT_MA: f64 = 20.0;
 pub const PERIOD_US: u64 = 20_000;
 
 /// Drives the servos.
-pub struct ServoLoop {
+pub struct FixedClose {
     bus: Box<dyn ServoBus>,
     close_to_deg: Option<Vec<f64>>,
     close_current_ma: f64,
@@ -29,7 +30,7 @@ pub struct ServoLoop {
     pub recovered: Vec<String>,
 }
 
-impl ServoLoop {
+impl FixedClose {
     /// Configure `bus`; close on a scene when `close` (to each finger's full servo range).
     pub fn start(
         mut bus: Box<dyn ServoBus>,
@@ -38,7 +39,7 @@ impl ServoLoop {
         close_current_ma: f64,
         now_us: u64,
     ) -> Result<Self, ServoError> {
-        bus.configure()?;
+        off_executor(|| bus.configure())?;
         let close_to_deg = close.then(|| {
             layout
                 .fingers
@@ -73,11 +74,17 @@ impl ServoLoop {
                     profile_velocity_rpm: 0.0,
                 })
                 .collect();
-            self.bus.write_goals(&goals)?;
+            let bus = &mut self.bus;
+            off_executor(|| bus.write_goals(&goals))?;
         }
-        self.last = self.bus.read_state()?;
+        let bus = &mut self.bus;
+        let (states, recovered) = off_executor(|| {
+            let states = bus.read_state()?;
+            Ok::<_, ServoError>((states, bus.take_recovered()))
+        })?;
+        self.last = states;
         self.recovered
-            .extend(self.bus.take_recovered().iter().map(ToString::to_string));
+            .extend(recovered.iter().map(ToString::to_string));
         Ok(())
     }
 
@@ -93,7 +100,7 @@ impl ServoLoop {
             })
             .collect();
         if goals.len() == self.bus.fingers()
-            && let Err(e) = self.bus.write_goals(&goals)
+            && let Err(e) = off_executor(|| self.bus.write_goals(&goals))
         {
             tracing::error!("e-stop: could not write the hold goals: {e}");
         }
@@ -102,6 +109,6 @@ impl ServoLoop {
 
     /// The safe state: torque off.
     pub fn stop(&mut self) -> Result<(), ServoError> {
-        self.bus.set_torque(false)
+        off_executor(|| self.bus.set_torque(false))
     }
 }

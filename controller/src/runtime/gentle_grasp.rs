@@ -1,29 +1,25 @@
 //! The built-in `gentle-grasp` task: every gated set goes through the tactile pipelines,
 //! is fused per finger, and steps the grasp controller through the grasp API
-//! ([`gelgrip_controller::gripper`]: the task asks for the grasp, stop and e-stop through
-//! its handle, as the dashboard will), whose goals are written to the servos at once. When
-//! the grasp is stable (and after `--hold`), the task tests the hold on the simulator (the
+//! ([`crate::gripper`]: the task asks for the grasp, stop and e-stop through its handle, as
+//! the dashboard does), whose goals are written to the servos at once. When the grasp is
+//! stable (and after `hold_s`), the task tests the hold where there is a ground truth (the
 //! object is let go and pulled with twice its weight for 1 s; held = it slips less than
 //! 1 mm), then ends.
 //!
 //! Safety: the controller acts only on gated sets; a finger with a missing sensor holds; a
 //! watchdog stops all motion (hold at the present position) when no set arrives within
-//! [`crate::task_io::WATCHDOG_MS`]; an unrecovered servo fault ends the run. Loop latency is wall-clock
-//! time from the gate handing over the set to the servo write; capture-to-command adds the
-//! set's age at emission.
+//! [`WATCHDOG_MS`](crate::runtime::plant::WATCHDOG_MS); an unrecovered servo fault ends the
+//! run. Loop latency is wall-clock time from the gate handing over the set to the servo
+//! write; capture-to-command adds the set's age at emission.
 
-use std::path::Path;
+use crate::frame::FrameSet;
+use crate::grasp::{GraspOutcome, GraspRequest, Phase};
+use crate::gripper::{CommandKind, GripperError, GripperHandle, GripperService, PendingGrasp};
+use crate::runtime::RuntimeError;
+use crate::runtime::outcome::EndReason;
+use crate::runtime::plant::{Plant, TaskStep};
+use crate::runtime::task_report::TaskReport;
 
-use serde::Serialize;
-
-use gelgrip_controller::actuator::ServoBus;
-use gelgrip_controller::config::AppConfig;
-use gelgrip_controller::frame::FrameSet;
-use gelgrip_controller::grasp::{FingerStatus, GraspOutcome, GraspRequest};
-use gelgrip_controller::gripper::{CommandKind, GripperHandle, GripperService, PendingGrasp};
-use gelgrip_sim::world::SharedWorld;
-
-use crate::task_io::{LogRow, TaskIo};
 /// Length of the hold test, s.
 const HOLD_TEST_S: f64 = 1.0;
 /// Weight multiple of the hold test.
@@ -32,7 +28,7 @@ const HOLD_TEST_FACTOR: f64 = 2.0;
 const HELD_SLIP_MM: f64 = 1.0;
 
 /// The task's options.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct GraspOptions {
     /// Force per finger, N.
     pub target_force_n: f64,
@@ -44,53 +40,7 @@ pub struct GraspOptions {
     pub hold_s: f64,
 }
 
-/// Task fields of `run --json` (CONTRACTS.md) and a few more.
-#[derive(Debug, Serialize)]
-pub struct TaskReport {
-    /// Task name.
-    pub task: String,
-    /// The grasp succeeded (stable contact on at least two of fingers and palm) and, on the
-    /// simulator, the object was held through the hold test.
-    pub grasped: bool,
-    /// Peak force of any finger during the grasp (and the `--hold` that follows it, before
-    /// the hold test), as the controller regulates it (the fused force, median of three
-    /// sets against one-set outliers, averaged), N.
-    pub peak_force_n: f64,
-    /// The same during the hold test, where slip may re-tighten a finger (simulator only).
-    pub hold_test_peak_force_n: Option<f64>,
-    /// The simulator's ground truth: peak force of any finger (the sum over its pads)
-    /// during the grasp and the hold, N (simulator only).
-    pub true_peak_force_n: Option<f64>,
-    /// The requested force per finger, N.
-    pub target_force_n: f64,
-    /// From the task start to a stable grasp, s (null if never stable).
-    pub time_to_stable_s: Option<f64>,
-    /// Median loop latency, ms.
-    pub loop_latency_ms_p50: Option<f64>,
-    /// p99 loop latency, ms.
-    pub loop_latency_ms_p99: Option<f64>,
-    /// p99 capture-to-command latency, ms.
-    pub capture_to_command_ms_p99: Option<f64>,
-    /// p99 of the tactile pipelines' share of the loop (JPEG to contact, every sensor),
-    /// ms: the loop's own overhead is the loop latency less this.
-    pub pipeline_ms_p99: Option<f64>,
-    /// Total fused force (fingers and palm) when the grasp ended, as the grasp API returns
-    /// it, N (null when it never ended).
-    pub final_force_n: Option<f64>,
-    /// Why the grasp ended (`stable`, `force_limited`: held at what the current limit
-    /// allows, `no_object`, `timeout …`, `watchdog …`).
-    pub reason: String,
-    /// Per finger: `moving`, `contact_closing`, `at_goal` or `no_object`.
-    pub finger_status: Vec<FingerStatus>,
-    /// Slip during the hold test, mm (simulator only).
-    pub hold_slip_mm: Option<f64>,
-    /// A task script's stages in the order they ran: name, start and end (s since the
-    /// task's start), how each ended (`exit`, `fail`, `timeout`, `interrupted`) and the
-    /// conditions that ended it.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub stages: Option<Vec<gelgrip_controller::task::StageRecord>>,
-}
-
+#[derive(Debug)]
 enum Stage {
     Grasp,
     Hold { until_s: f64 },
@@ -99,12 +49,13 @@ enum Stage {
 }
 
 /// The running task.
-pub struct GraspTask {
+#[derive(Debug)]
+pub struct GentleGrasp {
     /// The grasp API: the service this task steps, its handle, and the grasp it asked for.
-    gripper: GripperService,
+    service: GripperService,
     handle: GripperHandle,
     pending: Option<PendingGrasp>,
-    io: TaskIo,
+    plant: Plant,
     stage: Stage,
     start_s: Option<f64>,
     outcome: Option<GraspOutcome>,
@@ -119,35 +70,31 @@ pub struct GraspTask {
     interrupt_reason: Option<&'static str>,
 }
 
-impl GraspTask {
-    /// Set up the task: pipelines, controller, servos (configured) and the CSV log.
+impl GentleGrasp {
+    /// Start the task on `plant`, whose currents stop at `current_limit_ma`: the grasp is
+    /// asked for at once (a bad request is refused here).
     pub fn start(
-        config: &AppConfig,
-        bus: Box<dyn ServoBus>,
-        world: Option<SharedWorld>,
+        plant: Plant,
+        current_limit_ma: f64,
         options: &GraspOptions,
-        log: Option<&Path>,
-    ) -> anyhow::Result<Self> {
-        let io = TaskIo::open(config, bus, world, log)?;
-        let layout = &io.layout;
+    ) -> Result<Self, GripperError> {
+        let layout = &plant.layout;
         let request = GraspRequest {
             target_force_n: options.target_force_n,
             speed_deg_s: options.speed_deg_s,
-            current_limit_ma: config.servos.current_limit_ma,
+            current_limit_ma,
             fingers: (0..layout.fingers.len()).collect(),
             timeout_s: options.timeout_s,
         };
-        let (gripper, handle) = GripperService::for_hand(layout, config.servos.current_limit_ma);
-        let pending = handle
-            .start_grasp(request)
-            .map_err(|e| crate::cli::UsageError(e.to_string()))?;
+        let (service, handle) = GripperService::for_hand(layout, current_limit_ma);
+        let pending = handle.start_grasp(request)?;
         // Other clients (the dashboard) may stop or e-stop this grasp, never start another.
         handle.set_busy(Some("gentle-grasp"));
         Ok(Self {
-            gripper,
+            service,
             handle,
             pending: Some(pending),
-            io,
+            plant,
             stage: Stage::Grasp,
             start_s: None,
             outcome: None,
@@ -163,28 +110,31 @@ impl GraspTask {
     }
 
     fn slip_mm(&self) -> Option<f64> {
-        let w = self.io.world()?.lock().ok()?;
-        w.object().map(|o| o.slip_mm)
+        self.plant.truth()?.slip_mm()
     }
 
     /// Handle one gated set at host time `now_us`; returns an end reason when the task ends.
-    pub fn on_set(&mut self, set: &FrameSet, now_us: u64) -> anyhow::Result<Option<&'static str>> {
+    pub fn on_set(
+        &mut self,
+        set: &FrameSet,
+        now_us: u64,
+    ) -> Result<Option<EndReason>, RuntimeError> {
         let t_s = now_us as f64 / 1e6;
         let start = *self.start_s.get_or_insert(t_s);
-        let sensed = self.io.drive(&mut self.gripper, set, now_us)?;
+        let sensed = self.plant.drive(&mut self.service, set, now_us)?;
         if let Some(end) = self.interrupted() {
-            self.io.remember(sensed.fused);
+            self.plant.remember(sensed.fused);
             return Ok(Some(end));
         }
-        let truth = self.io.true_forces_n();
+        let truth = self.plant.true_forces_n();
         let regulated = self
-            .gripper
+            .service
             .controller()
             .map_or(0.0, |c| c.forces_n().into_iter().fold(0.0, f64::max));
         match self.stage {
             Stage::Grasp | Stage::Hold { .. } => {
                 self.peak_force_n = self.peak_force_n.max(regulated);
-                if let Some(peak) = self.io.true_finger_peak_n(&truth) {
+                if let Some(peak) = self.plant.true_finger_peak_n(&truth) {
                     self.true_peak_force_n = Some(self.true_peak_force_n.unwrap_or(0.0).max(peak));
                 }
             }
@@ -195,25 +145,25 @@ impl GraspTask {
             Stage::Done => {}
         }
         let (phases, goals) = self
-            .gripper
+            .service
             .controller()
             .map(|c| (c.phases(), c.goals()))
             .unwrap_or_default();
-        self.io.log(&LogRow {
+        self.plant.record_step(TaskStep {
+            trigger_seq: set.trigger_seq,
             t_s: t_s - start,
-            stage: self.stage_name(),
-            fused: &sensed.fused,
-            truth: &truth,
-            phases: &phases,
-            goals: &goals,
-        })?;
-        self.io.remember(sensed.fused);
+            stage: self.stage_label().to_string(),
+            truth_n: truth,
+            phases,
+            goals,
+        });
+        self.plant.remember(sensed.fused);
         match self.stage {
             Stage::Grasp => {
                 let ended = self.pending.as_mut().and_then(PendingGrasp::try_outcome);
                 if let Some(outcome) = ended {
                     self.pending = None;
-                    let outcome = outcome.map_err(|e| anyhow::anyhow!("grasp: {e}"))?;
+                    let outcome = outcome.map_err(RuntimeError::Grasp)?;
                     let stable = matches!(outcome.reason.as_str(), "stable" | "force_limited");
                     if stable {
                         self.time_to_stable_s = Some(t_s - start);
@@ -237,25 +187,25 @@ impl GraspTask {
                 if t_s - since_s >= HOLD_TEST_S {
                     self.hold_slip_mm = self.slip_mm().map(|s| (s - slip0_mm).abs());
                     self.stage = Stage::Done;
-                    return Ok(Some("done"));
+                    return Ok(Some(EndReason::Done));
                 }
             }
-            Stage::Done => return Ok(Some("done")),
+            Stage::Done => return Ok(Some(EndReason::Done)),
         }
         Ok(None)
     }
 
     /// A release, stop or e-stop from another client (its own grasp is the first command)
     /// ends the task: `estop` for an e-stop, else `done`, with the command as the reason.
-    fn interrupted(&mut self) -> Option<&'static str> {
-        if self.gripper.commands_applied() <= 1 || matches!(self.stage, Stage::Done) {
+    fn interrupted(&mut self) -> Option<EndReason> {
+        if self.service.commands_applied() <= 1 || matches!(self.stage, Stage::Done) {
             return None;
         }
-        let command = self.gripper.last_command()?;
+        let command = self.service.last_command()?;
         let (reason, end) = match command {
-            CommandKind::Estop => ("estop", "estop"),
-            CommandKind::Stop => ("stopped", "done"),
-            CommandKind::Release => ("released", "done"),
+            CommandKind::Estop => ("estop", EndReason::Estop),
+            CommandKind::Stop => ("stopped", EndReason::Done),
+            CommandKind::Release => ("released", EndReason::Done),
             CommandKind::Grasp => return None,
         };
         tracing::warn!(reason, "gentle grasp interrupted through the grasp API");
@@ -269,24 +219,23 @@ impl GraspTask {
         Some(end)
     }
 
-    /// The grasp API's handle (the dashboard's commands reach this task through it).
     /// The grasp-API service (to log its events for a recording).
     pub fn service_mut(&mut self) -> &mut GripperService {
-        &mut self.gripper
+        &mut self.service
     }
 
+    /// The grasp API's handle (the dashboard's commands reach this task through it).
     pub fn handle(&self) -> GripperHandle {
         self.handle.clone()
     }
 
-    /// After a stable grasp, on the simulator: let the object go and pull it (the hold
+    /// After a stable grasp, with a ground truth: let the object go and pull it (the hold
     /// test); otherwise the task ends (returns the end reason).
-    fn begin_hold_test(&mut self, stable: bool, t_s: f64) -> Option<&'static str> {
-        match (stable, self.io.world().cloned(), self.slip_mm()) {
-            (true, Some(world), Some(slip0)) => {
-                if let Ok(mut w) = world.lock() {
-                    w.load_test(HOLD_TEST_FACTOR);
-                }
+    fn begin_hold_test(&mut self, stable: bool, t_s: f64) -> Option<EndReason> {
+        let slip0 = self.slip_mm();
+        match (stable, self.plant.truth_mut(), slip0) {
+            (true, Some(truth), Some(slip0)) => {
+                truth.pull_object(HOLD_TEST_FACTOR);
                 self.stage = Stage::HoldTest {
                     since_s: t_s,
                     slip0_mm: slip0,
@@ -295,7 +244,7 @@ impl GraspTask {
             }
             _ => {
                 self.stage = Stage::Done;
-                Some("done")
+                Some(EndReason::Done)
             }
         }
     }
@@ -303,7 +252,7 @@ impl GraspTask {
     /// Check the watchdog at host time `now_us`; returns a fault description when it fires
     /// (all motion stopped: every finger holds where it is).
     pub fn watchdog(&mut self, now_us: u64) -> Option<String> {
-        let silent_ms = self.io.watchdog_silence_ms(now_us)?;
+        let silent_ms = self.plant.watchdog_silence_ms(now_us)?;
         let _ = self.handle.stop_on_watchdog();
         self.hold_now();
         Some(format!(
@@ -313,33 +262,28 @@ impl GraspTask {
 
     /// E-stop: every finger holds where it is at the minimum current; torque stays on.
     pub fn estop(&mut self) {
-        self.io.flush();
-        self.io.refresh_states();
+        self.plant.refresh_states();
         let _ = self.handle.estop();
         self.hold_now();
     }
 
     /// Apply the queued stop or e-stop and write its hold goals at once.
     fn hold_now(&mut self) {
-        self.gripper.apply_commands(&self.io.positions());
-        if let Some(goals) = self.gripper.goals() {
-            self.io.write_now(&goals);
+        self.service.apply_commands(&self.plant.positions());
+        if let Some(goals) = self.service.goals() {
+            self.plant.write_now(&goals);
         }
     }
 
     /// Each finger's phase, regulated force and target, N.
-    pub fn fingers(&self) -> Vec<(gelgrip_controller::grasp::Phase, f64, f64)> {
-        self.gripper
+    pub fn fingers(&self) -> Vec<(Phase, f64, f64)> {
+        self.service
             .controller()
             .map_or_else(Vec::new, |c| c.finger_states())
     }
 
     /// The stage now (`grasp`, `hold`, `hold_test`, `done`).
     pub fn stage_label(&self) -> &'static str {
-        self.stage_name()
-    }
-
-    fn stage_name(&self) -> &'static str {
         match self.stage {
             Stage::Grasp => "grasp",
             Stage::Hold { .. } => "hold",
@@ -348,21 +292,21 @@ impl GraspTask {
         }
     }
 
-    /// The hardware side.
-    pub fn io(&self) -> &TaskIo {
-        &self.io
+    /// The plant.
+    pub fn plant(&self) -> &Plant {
+        &self.plant
     }
 
-    /// The hardware side, mutably.
-    pub fn io_mut(&mut self) -> &mut TaskIo {
-        &mut self.io
+    /// The plant, mutably.
+    pub fn plant_mut(&mut self) -> &mut Plant {
+        &mut self.plant
     }
 
     /// The task fields.
     pub fn report(&self) -> TaskReport {
         let outcome = self.outcome.clone();
         let held = self.hold_slip_mm.is_none_or(|s| s < HELD_SLIP_MM);
-        let lat = self.io.latencies();
+        let lat = self.plant.latencies();
         TaskReport {
             task: "gentle-grasp".into(),
             grasped: outcome.as_ref().is_some_and(|o| o.grasped) && held,

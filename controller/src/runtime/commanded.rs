@@ -8,33 +8,22 @@
 //!   act at once. Until a command arrives the fingers stay where they are (no goal is
 //!   written); when a script ends they keep its last goals.
 
-use gelgrip_controller::actuator::ServoBus;
-use gelgrip_controller::config::AppConfig;
-use gelgrip_controller::frame::FrameSet;
-use gelgrip_controller::grasp::Phase;
-use gelgrip_controller::gripper::{CommandKind, GripperHandle, GripperService};
-use gelgrip_controller::task::TaskScript;
-use gelgrip_sim::world::SharedWorld;
+use crate::frame::FrameSet;
+use crate::grasp::Phase;
+use crate::gripper::{CommandKind, GripperHandle, GripperService};
+use crate::runtime::RuntimeError;
+use crate::runtime::outcome::ScriptEnd;
+use crate::runtime::plant::Plant;
+use crate::runtime::script_run::ScriptRun;
+use crate::runtime::task_report::TaskReport;
+use crate::task::TaskScript;
 
-use crate::grasp_task::TaskReport;
-use crate::script_task::ScriptRun;
-use crate::task_io::TaskIo;
-
-/// How a set or a command left a script that was running.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum ScriptEnd {
-    /// It reached `done` or aborted on its own.
-    Finished,
-    /// A release or stop from the grasp API interrupted it.
-    Interrupted,
-    /// An e-stop from the grasp API interrupted it.
-    Estop,
-}
-
-/// The gripper: its hardware, the grasp API's service and the script it may be running.
-pub struct GripperLoop {
-    io: TaskIo,
-    gripper: GripperService,
+/// The gripper commanded through the grasp API and task scripts: its plant, the grasp
+/// API's service and the script it may be running.
+#[derive(Debug)]
+pub struct CommandedGripper {
+    plant: Plant,
+    service: GripperService,
     handle: GripperHandle,
     current_limit_ma: f64,
     script: Option<ScriptRun>,
@@ -44,35 +33,27 @@ pub struct GripperLoop {
     pub watchdog_holding: bool,
 }
 
-impl GripperLoop {
-    /// Open the pipelines and the servos (with the CSV log at `log`), and the grasp API's
-    /// service.
-    pub fn start(
-        config: &AppConfig,
-        bus: Box<dyn ServoBus>,
-        world: Option<SharedWorld>,
-        log: Option<&std::path::Path>,
-    ) -> anyhow::Result<Self> {
-        let io = TaskIo::open(config, bus, world, log)?;
-        let (gripper, handle) =
-            GripperService::for_hand(&io.layout, config.servos.current_limit_ma);
-        Ok(Self {
-            io,
-            gripper,
+impl CommandedGripper {
+    /// The gripper on `plant`, whose currents stop at `current_limit_ma`.
+    pub fn new(plant: Plant, current_limit_ma: f64) -> Self {
+        let (service, handle) = GripperService::for_hand(&plant.layout, current_limit_ma);
+        Self {
+            plant,
+            service,
             handle,
-            current_limit_ma: config.servos.current_limit_ma,
+            current_limit_ma,
             script: None,
             last_script: None,
             watchdog_holding: false,
-        })
+        }
+    }
+
+    /// The grasp-API service (to log its events for a recording).
+    pub fn service_mut(&mut self) -> &mut GripperService {
+        &mut self.service
     }
 
     /// The grasp API's handle.
-    /// The grasp-API service (to log its events for a recording).
-    pub fn service_mut(&mut self) -> &mut GripperService {
-        &mut self.gripper
-    }
-
     pub fn handle(&self) -> GripperHandle {
         self.handle.clone()
     }
@@ -90,8 +71,8 @@ impl GripperLoop {
         }
         // Commands queued before the start belong to the service, not to the script.
         self.apply_urgent();
-        self.gripper.forget();
-        let run = ScriptRun::new(script, &self.io, self.current_limit_ma);
+        self.service.forget();
+        let run = ScriptRun::new(script, &self.plant, self.current_limit_ma);
         tracing::info!(task = run.name(), "task script running");
         self.handle.set_busy(Some(run.name()));
         self.script = Some(run);
@@ -99,7 +80,11 @@ impl GripperLoop {
     }
 
     /// Handle one gated set at host time `now_us`; reports how a script ended on it.
-    pub fn on_set(&mut self, set: &FrameSet, now_us: u64) -> anyhow::Result<Option<ScriptEnd>> {
+    pub fn on_set(
+        &mut self,
+        set: &FrameSet,
+        now_us: u64,
+    ) -> Result<Option<ScriptEnd>, RuntimeError> {
         if std::mem::take(&mut self.watchdog_holding) {
             tracing::info!("synchronized sets are back; the fingers held meanwhile");
         }
@@ -107,14 +92,14 @@ impl GripperLoop {
             return Ok(Some(end));
         }
         if let Some(script) = self.script.as_mut() {
-            if script.on_set(&mut self.io, set, now_us)? {
+            if script.on_set(&mut self.plant, set, now_us)? {
                 self.end_script();
                 return Ok(Some(ScriptEnd::Finished));
             }
             return Ok(None);
         }
-        let sensed = self.io.drive(&mut self.gripper, set, now_us)?;
-        self.io.remember(sensed.fused);
+        let sensed = self.plant.drive(&mut self.service, set, now_us)?;
+        self.plant.remember(sensed.fused);
         Ok(None)
     }
 
@@ -125,10 +110,10 @@ impl GripperLoop {
             return Some(end);
         }
         if self.script.is_none()
-            && self.gripper.apply_commands(&self.io.positions())
-            && let Some(goals) = self.gripper.goals()
+            && self.service.apply_commands(&self.plant.positions())
+            && let Some(goals) = self.service.goals()
         {
-            self.io.write_now(&goals);
+            self.plant.write_now(&goals);
         }
         None
     }
@@ -137,13 +122,13 @@ impl GripperLoop {
     /// and the service carries it out from where the fingers are.
     fn check_interruption(&mut self) -> Option<ScriptEnd> {
         self.script.as_ref()?;
-        let before = self.gripper.commands_applied();
-        self.gripper.apply_commands(&self.io.positions());
-        if self.gripper.commands_applied() == before {
+        let before = self.service.commands_applied();
+        self.service.apply_commands(&self.plant.positions());
+        if self.service.commands_applied() == before {
             return None;
         }
-        let estop = self.gripper.last_command() == Some(CommandKind::Estop);
-        let command = match self.gripper.last_command() {
+        let estop = self.service.last_command() == Some(CommandKind::Estop);
+        let command = match self.service.last_command() {
             Some(CommandKind::Grasp) => "grasp",
             Some(CommandKind::Release) => "release",
             Some(CommandKind::Stop) => "stop",
@@ -152,11 +137,11 @@ impl GripperLoop {
         let reason = format!("interrupted: {command} through the grasp API");
         let reason = if estop { "estop".to_string() } else { reason };
         if let Some(script) = self.script.as_mut() {
-            script.interrupt(&self.io, &reason);
+            script.interrupt(&self.plant, &reason);
             tracing::warn!(task = script.name(), reason, "task script interrupted");
         }
-        if let Some(goals) = self.gripper.goals() {
-            self.io.write_now(&goals);
+        if let Some(goals) = self.service.goals() {
+            self.plant.write_now(&goals);
         }
         self.end_script_keeping_service();
         Some(if estop {
@@ -168,7 +153,7 @@ impl GripperLoop {
 
     /// The script ended on its own: the fingers keep its last goals.
     fn end_script(&mut self) {
-        self.gripper.forget();
+        self.service.forget();
         self.end_script_keeping_service();
     }
 
@@ -181,7 +166,7 @@ impl GripperLoop {
     /// script ends; a waiting grasp call resolves with the reason `watchdog`).
     pub fn hold(&mut self, reason: &str) {
         if let Some(script) = self.script.as_mut() {
-            script.hold_now(&mut self.io, reason);
+            script.hold_now(&mut self.plant, reason);
             self.end_script();
             return;
         }
@@ -192,11 +177,11 @@ impl GripperLoop {
     /// E-stop: every finger holds where it is at the minimum current.
     pub fn estop(&mut self) {
         if let Some(script) = self.script.as_mut() {
-            script.estop(&mut self.io);
+            script.estop(&mut self.plant);
             self.end_script();
             return;
         }
-        self.io.refresh_states();
+        self.plant.refresh_states();
         let _ = self.handle.estop();
         self.apply_urgent();
     }
@@ -204,7 +189,7 @@ impl GripperLoop {
     /// The end of the run: a running script is recorded as interrupted.
     pub fn interrupt(&mut self) {
         if let Some(script) = self.script.as_mut() {
-            script.interrupt(&self.io, "the run ended first");
+            script.interrupt(&self.plant, "the run ended first");
             self.end_script();
         }
     }
@@ -214,8 +199,8 @@ impl GripperLoop {
         if let Some(script) = &self.script {
             return script.fingers();
         }
-        let n = self.io.layout.fingers.len();
-        self.gripper
+        let n = self.plant.layout.fingers.len();
+        self.service
             .controller()
             .map_or_else(|| vec![(Phase::Open, 0.0, 0.0); n], |c| c.finger_states())
     }
@@ -233,16 +218,16 @@ impl GripperLoop {
         self.script
             .as_ref()
             .or(self.last_script.as_ref())
-            .map(|s| s.report(&self.io))
+            .map(|s| s.report(&self.plant))
     }
 
-    /// The hardware side.
-    pub fn io(&self) -> &TaskIo {
-        &self.io
+    /// The plant.
+    pub fn plant(&self) -> &Plant {
+        &self.plant
     }
 
-    /// The hardware side, mutably.
-    pub fn io_mut(&mut self) -> &mut TaskIo {
-        &mut self.io
+    /// The plant, mutably.
+    pub fn plant_mut(&mut self) -> &mut Plant {
+        &mut self.plant
     }
 }

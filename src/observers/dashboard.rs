@@ -1,28 +1,27 @@
 //! Serving the dashboard from a run: bind the `[http]` address (or `--http`), serve the web
-//! crate's app on it, print the URL, and publish each set's frames, state and depth maps.
+//! crate's app on it, print the URL, and, as an observer of the runtime, publish each
+//! pass's frames, state and depth maps.
 
 use std::net::SocketAddr;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 use anyhow::Context;
 
 use gelgrip_controller::actuator::hardware_error_names;
 use gelgrip_controller::config::AppConfig;
-use gelgrip_controller::frame::FrameSet;
-use gelgrip_controller::gate::GateStats;
 use gelgrip_controller::gripper::GripperHandle;
-use gelgrip_web::control::LoopCommand;
-use gelgrip_web::live::{DepthImage, FingerView, SensorView, ServoView, SimView, SyncView};
+use gelgrip_controller::runtime::control::LoopCommand;
+use gelgrip_controller::runtime::plant::phase_name;
+use gelgrip_controller::runtime::ports::{Observer, ObserverError};
+use gelgrip_controller::runtime::report::SetReport;
+use gelgrip_web::live::{
+    DepthImage, FingerView, SensorView, ServoView, SimView, SyncView, TaskView,
+};
 use gelgrip_web::{AppState, Live, Snapshot};
 use tokio::sync::mpsc;
 
-use crate::task_io::phase_name;
-use crate::tasks::Task;
-
 /// Depth maps are copied for the images at most this often, µs.
 const DEPTH_PERIOD_US: u64 = 200_000;
-/// Without sets, the state is still published this often, µs.
-const QUIET_PERIOD_US: u64 = 100_000;
 
 /// A served dashboard.
 pub struct Dashboard {
@@ -32,18 +31,23 @@ pub struct Dashboard {
     transport: String,
     calibration: String,
     last_depth_us: Option<u64>,
-    last_state_us: Option<u64>,
     tasks_available: Vec<String>,
-    /// The simulator's controls as the page shows them (`None` off the simulator).
-    pub sim: Option<SimView>,
+    finger_ids: Vec<String>,
+    /// The simulator's controls as the page shows them (`None` off the simulator), kept
+    /// up to date by the run's control handler.
+    sim: SharedSimView,
 }
+
+/// The simulator's controls as the page shows them, shared between the control handler
+/// that changes them and the dashboard that shows them.
+pub type SharedSimView = Arc<Mutex<Option<SimView>>>;
 
 /// `bind` must be loopback unless a token is configured (config or `GELGRIP_HTTP_TOKEN`).
 pub fn check_bind(bind: SocketAddr, token: Option<&str>) -> anyhow::Result<()> {
     if bind.ip().is_loopback() || token.is_some_and(|t| !t.is_empty()) {
         return Ok(());
     }
-    Err(crate::cli::UsageError(format!(
+    Err(crate::UsageError(format!(
         "refusing to serve the dashboard on {bind} without a token: set http.token or \
          GELGRIP_HTTP_TOKEN, or bind a loopback address"
     ))
@@ -59,6 +63,7 @@ impl Dashboard {
         gripper: Option<GripperHandle>,
         control: Option<mpsc::Sender<LoopCommand>>,
         transport: String,
+        sim: SharedSimView,
     ) -> anyhow::Result<Self> {
         let has_control = control.is_some() && gripper.is_some();
         check_bind(bind, config.http.token.as_deref())?;
@@ -95,54 +100,27 @@ impl Dashboard {
             transport,
             calibration: calibration_text(config),
             last_depth_us: None,
-            last_state_us: None,
+            finger_ids: config.layout.fingers.iter().map(|f| f.id.clone()).collect(),
             tasks_available: if has_control {
                 crate::catalog::names(crate::catalog::Kind::Task)
             } else {
                 Vec::new()
             },
-            sim: None,
+            sim,
         })
     }
 
-    /// Publish one gated set: its frames (as the hub sent them), the state, and (at most
-    /// every 200 ms) the depth maps.
-    pub fn publish(
-        &mut self,
-        set: &FrameSet,
-        task: Option<&Task>,
-        stats: &GateStats,
-        t_s: f64,
-        now_us: u64,
-    ) {
-        for (i, f) in set.frames.iter().enumerate() {
-            self.live.publish_frame(i, f.frame.jpeg.clone());
+    /// Publish one pass: a gated set's frames (as the hub sent them), the state, and (at
+    /// most every 200 ms) the depth maps.
+    fn publish(&mut self, report: &SetReport<'_>) {
+        if let Some(set) = report.set {
+            for (i, f) in set.frames.iter().enumerate() {
+                self.live.publish_frame(i, f.frame.jpeg.clone());
+            }
         }
-        self.publish_state(task, stats, t_s, now_us);
-    }
-
-    /// Publish the state when no set has been published for 100 ms (the gate refuses sets,
-    /// or the hub is silent): the page still sees the counters move and the fingers hold.
-    pub fn publish_if_quiet(
-        &mut self,
-        task: Option<&Task>,
-        stats: &GateStats,
-        t_s: f64,
-        now_us: u64,
-    ) {
-        if self
-            .last_state_us
-            .is_none_or(|last| now_us.saturating_sub(last) >= QUIET_PERIOD_US)
-        {
-            self.publish_state(task, stats, t_s, now_us);
-        }
-    }
-
-    fn publish_state(&mut self, task: Option<&Task>, stats: &GateStats, t_s: f64, now_us: u64) {
-        self.last_state_us = Some(now_us);
         let ids = self.live.ids().to_vec();
-        let io = task.map(Task::io);
-        let fused = io.and_then(|io| io.last_fused());
+        let gripper = report.gripper.as_ref();
+        let fused = gripper.and_then(|g| g.fused);
         let sensors = ids
             .iter()
             .enumerate()
@@ -159,33 +137,24 @@ impl Dashboard {
                 }
             })
             .collect();
-        let fingers = task.map_or_else(Vec::new, |t| {
-            let ids = io
-                .map(|io| {
-                    io.layout
-                        .fingers
-                        .iter()
-                        .map(|f| f.id.clone())
-                        .collect::<Vec<_>>()
-                })
-                .unwrap_or_default();
-            t.fingers()
-                .into_iter()
-                .zip(ids)
-                .map(|((phase, force_n, target), id)| FingerView {
-                    id,
-                    phase: phase_name(phase).to_string(),
-                    force_n,
-                    target_force_n: target,
+        let fingers = gripper.map_or_else(Vec::new, |g| {
+            g.fingers
+                .iter()
+                .zip(&self.finger_ids)
+                .map(|(f, id)| FingerView {
+                    id: id.clone(),
+                    phase: phase_name(f.phase).to_string(),
+                    force_n: f.force_n,
+                    target_force_n: f.target_force_n,
                 })
                 .collect()
         });
-        let servos = io.map_or_else(Vec::new, |io| {
-            io.states()
+        let servos = gripper.map_or_else(Vec::new, |g| {
+            g.servos
                 .iter()
-                .zip(&io.layout.fingers)
-                .map(|(s, f)| ServoView {
-                    finger: f.id.clone(),
+                .zip(&self.finger_ids)
+                .map(|(s, id)| ServoView {
+                    finger: id.clone(),
                     position_deg: s.position_deg,
                     current_ma: s.current_ma,
                     temperature_c: s.temperature_c,
@@ -196,8 +165,9 @@ impl Dashboard {
                 })
                 .collect()
         });
+        let stats = report.gate;
         self.live.publish(Snapshot {
-            t_s,
+            t_s: report.t_s,
             transport: self.transport.clone(),
             sensors,
             fingers,
@@ -209,32 +179,47 @@ impl Dashboard {
                 spread_histogram_us: stats.spread_buckets(),
                 drops: stats.drops,
                 sets_rejected: stats.sets_rejected,
-                loop_latency_ms_p99: io.and_then(|io| io.latencies().loop_p99),
+                loop_latency_ms_p99: gripper.and_then(|g| g.latencies.loop_p99),
             },
             calibration: self.calibration.clone(),
-            task: task.and_then(Task::view),
+            task: gripper.and_then(|g| g.task.as_ref()).map(|t| TaskView {
+                name: t.name.clone(),
+                stage: t.stage.clone(),
+                running: t.running,
+                outcome: t.outcome.clone(),
+            }),
             tasks_available: self.tasks_available.clone(),
-            sim: self.sim.clone(),
+            sim: self.sim.lock().ok().and_then(|s| s.clone()),
         });
+        let now_us = report.now_us;
         let due = self
             .last_depth_us
             .is_none_or(|last| now_us.saturating_sub(last) >= DEPTH_PERIOD_US);
-        if due && let Some(io) = io {
+        if due && let Some(g) = gripper {
             self.last_depth_us = Some(now_us);
             for i in 0..ids.len() {
-                if let Some((depth_mm, width, height, contact_mm)) = io.tactile().depth_window(i) {
+                if let Some(w) = g.depth_window(i) {
                     self.live.publish_depth(
                         i,
                         DepthImage {
-                            width,
-                            height,
-                            depth_mm,
-                            contact_mm,
+                            width: w.width,
+                            height: w.height,
+                            depth_mm: w.depth_mm,
+                            contact_mm: w.contact_mm,
                         },
                     );
                 }
             }
         }
+    }
+}
+
+impl Observer for Dashboard {
+    /// Never fails and never waits: the page's channels keep only the latest state and
+    /// frames, so a slow browser drops what it could not take.
+    fn observe(&mut self, report: &SetReport<'_>) -> Result<(), ObserverError> {
+        self.publish(report);
+        Ok(())
     }
 }
 

@@ -1,0 +1,561 @@
+//! The run loop as a library: one [`Runtime`] that the CLI, the benches, the tests, the
+//! examples and other programs embed.
+//!
+//! One pass: the [`Acquisition`] steps the hub and the gate; a gated set goes to the
+//! [`Driver`] (the gentle grasp, or the grasp API and task scripts), which senses it through
+//! the [`Sensing`](ports::Sensing) port, fuses it, steps the controller and writes the
+//! servos through the [`Plant`](plant::Plant); then the safety checks run (queued stops and
+//! e-stops, the watchdog, the fixed servo programme's faults), and every
+//! [`Observer`](ports::Observer) gets the pass's typed [`SetReport`](report::SetReport).
+//!
+//! [`Runtime::step`] serves callers that own the timing; [`Runtime::run`] serves the CLI,
+//! whose signals arrive as [`RuntimeEvent`]s. [`Runtime::finish`] brings the hardware to
+//! its safe state: torque off at the end of a run, or a hold at the minimum current after
+//! an e-stop.
+
+pub mod commanded;
+pub mod control;
+pub mod driver;
+pub mod fixed_close;
+pub mod gentle_grasp;
+pub mod latency;
+pub mod outcome;
+pub mod plant;
+pub mod ports;
+pub mod report;
+pub mod script_run;
+pub mod task_report;
+
+use std::sync::Arc;
+
+use thiserror::Error;
+use tokio::sync::mpsc;
+
+use crate::acquire::Acquisition;
+use crate::actuator::{ServoError, ServoState};
+use crate::clock::{Clock, ClockKind};
+use crate::frame::FrameSet;
+use crate::gripper::{GripperError, GripperHandle};
+use crate::hub::HubError;
+use crate::runtime::control::LoopCommand;
+use crate::runtime::driver::Driver;
+use crate::runtime::fixed_close::FixedClose;
+use crate::runtime::outcome::EndReason;
+use crate::runtime::ports::{ControlHandler, Observer};
+use crate::runtime::report::{FingerState, GripperReport, SetReport};
+use crate::runtime::task_report::TaskReport;
+
+/// A failure inside the loop, typed so the loop can tell a hub from a servo from a log.
+#[derive(Debug, Error)]
+pub enum RuntimeError {
+    /// The servo bus failed (a timeout, a corrupt reply, a fault that was not recovered).
+    #[error("servo fault: {0}")]
+    Servo(#[from] ServoError),
+    /// Configuring the servos failed.
+    #[error("configuring the servos: {0}")]
+    Configure(ServoError),
+    /// The hub failed.
+    #[error("hub fault: {0}")]
+    Hub(#[from] HubError),
+    /// The grasp API failed.
+    #[error("grasp: {0}")]
+    Grasp(GripperError),
+    /// A driver needs fingers and the layout has none.
+    #[error("a task needs finger mechanics; layout {layout} declares no [[fingers]]")]
+    NoFingers {
+        /// The layout's name.
+        layout: String,
+    },
+    /// An observer that may not drop failed (the task log, the recorder).
+    #[error("{0}")]
+    Observer(ports::ObserverError),
+    /// The sensors' references could not be taken in time on a hardware hub.
+    #[error(
+        "no synchronized set from the {transport} hub in {timeout_s} s: the sensors' \
+         references could not be taken (gate: {gate})"
+    )]
+    NoReference {
+        /// The transport.
+        transport: String,
+        /// The wait, s.
+        timeout_s: u64,
+        /// The gate's statistics then.
+        gate: String,
+    },
+}
+
+/// What the embedding program tells a running [`Runtime::run`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RuntimeEvent {
+    /// Stop: bring the hardware to its safe state and end with `signal`.
+    Shutdown,
+    /// E-stop: hold at the minimum current and end with `estop`.
+    Estop,
+}
+
+/// Requests queued by the page before the loop answers them.
+const CONTROL_QUEUE: usize = 8;
+/// Longest wait for the untouched sets of a hardware hub's references, s.
+const REFERENCE_TIMEOUT_S: u64 = 10;
+/// Rejected-late sets, with none emitted, before the run says why.
+const LATE_HINT_SETS: u64 = 20;
+/// Without sets, observers still get a report this often, µs.
+const QUIET_PERIOD_US: u64 = 100_000;
+
+/// What a run ended with, once the hardware is safe.
+#[derive(Debug, Clone)]
+pub struct RunSummary {
+    /// Why it ended.
+    pub end_reason: EndReason,
+    /// Faults, recovered ones first.
+    pub faults: Vec<String>,
+    /// The task fields (none without a task).
+    pub task: Option<TaskReport>,
+    /// The servos' last states, in finger order (none without servos).
+    pub servos: Option<Vec<ServoState>>,
+    /// Run time on the runtime's clock, from [`Runtime::run`]'s start (or the first step).
+    pub elapsed_s: f64,
+}
+
+struct Progress {
+    last_log_us: u64,
+    last_sets: u64,
+    hinted_late: bool,
+}
+
+/// The gripper's run loop.
+pub struct Runtime {
+    acq: Acquisition,
+    clock: Arc<dyn Clock>,
+    driver: Option<Driver>,
+    fixed: Option<FixedClose>,
+    observers: Vec<Box<dyn Observer>>,
+    control: Option<(Box<dyn ControlHandler>, mpsc::Receiver<LoopCommand>)>,
+    faults: Vec<String>,
+    start_us: u64,
+    run_start_us: Option<u64>,
+    deadline_us: Option<u64>,
+    last_report_us: Option<u64>,
+    progress: Progress,
+}
+
+impl std::fmt::Debug for Runtime {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Runtime")
+            .field("acquisition", &self.acq)
+            .field("driver", &self.driver)
+            .field("observers", &self.observers.len())
+            .finish_non_exhaustive()
+    }
+}
+
+impl Runtime {
+    /// A runtime on `acquisition`, timed by `clock`, with no driver yet.
+    pub fn new(acquisition: Acquisition, clock: Arc<dyn Clock>) -> Self {
+        let start_us = clock.now_us();
+        Self {
+            acq: acquisition,
+            clock,
+            driver: None,
+            fixed: None,
+            observers: Vec::new(),
+            control: None,
+            faults: Vec::new(),
+            start_us,
+            run_start_us: None,
+            deadline_us: None,
+            last_report_us: None,
+            progress: Progress {
+                last_log_us: start_us,
+                last_sets: 0,
+                hinted_late: false,
+            },
+        }
+    }
+
+    /// Drive the gripper with `driver`.
+    pub fn with_driver(mut self, driver: Driver) -> Self {
+        self.driver = Some(driver);
+        self
+    }
+
+    /// Run the fixed servo programme (no grasp driver).
+    pub fn with_fixed_close(mut self, fixed: FixedClose) -> Self {
+        self.fixed = Some(fixed);
+        self
+    }
+
+    /// Show every pass's report to `observer`.
+    pub fn observe(&mut self, observer: Box<dyn Observer>) {
+        self.observers.push(observer);
+    }
+
+    /// Let `handler` carry out the dashboard's requests; returns where they are sent.
+    pub fn control(&mut self, handler: Box<dyn ControlHandler>) -> mpsc::Sender<LoopCommand> {
+        let (tx, rx) = mpsc::channel(CONTROL_QUEUE);
+        self.control = Some((handler, rx));
+        tx
+    }
+
+    /// The acquisition (its hub and gate).
+    pub fn acquisition(&self) -> &Acquisition {
+        &self.acq
+    }
+
+    /// The acquisition, mutably (to take a recorder's tap back at the end).
+    pub fn acquisition_mut(&mut self) -> &mut Acquisition {
+        &mut self.acq
+    }
+
+    /// The driver, if any.
+    pub fn driver(&self) -> Option<&Driver> {
+        self.driver.as_ref()
+    }
+
+    /// The driver, mutably (to start a task script).
+    pub fn driver_mut(&mut self) -> Option<&mut Driver> {
+        self.driver.as_mut()
+    }
+
+    /// The grasp API's handle (none without a driver).
+    pub fn gripper(&self) -> Option<GripperHandle> {
+        self.driver.as_ref().map(Driver::handle)
+    }
+
+    /// The clock.
+    pub fn clock(&self) -> &Arc<dyn Clock> {
+        &self.clock
+    }
+
+    /// On a hardware hub, take the sensors' references on the first gated sets, before the
+    /// loop (nothing touches the sensors: the gripper starts open). Nothing to do on the
+    /// simulator.
+    pub async fn reference_sensors(&mut self) -> Result<(), RuntimeError> {
+        let Some(driver) = self.driver.as_mut() else {
+            return Ok(());
+        };
+        let missing = driver.plant().sensing().reference_sets_missing();
+        if missing == 0 {
+            return Ok(());
+        }
+        tracing::info!(sets = missing, "referencing the sensors on untouched sets");
+        let give_up = self.clock.now_us() + REFERENCE_TIMEOUT_S * 1_000_000;
+        while driver.plant().sensing().reference_sets_missing() > 0 {
+            let Some(set) = self.acq.next_set_before(give_up).await? else {
+                return Err(RuntimeError::NoReference {
+                    transport: self.acq.hub().describe().transport.clone(),
+                    timeout_s: REFERENCE_TIMEOUT_S,
+                    gate: format!("{:?}", self.acq.gate().stats()),
+                });
+            };
+            driver.plant_mut().sensing_mut().offer_reference(&set);
+        }
+        Ok(())
+    }
+
+    /// Start the run's clock: `duration_s` (if any) counts from now.
+    pub fn begin(&mut self, duration_s: Option<f64>) {
+        let now = self.clock.now_us();
+        self.run_start_us = Some(now);
+        self.deadline_us = duration_s.map(|s| now + (s * 1e6) as u64);
+    }
+
+    /// One pass: process one hub event (waiting for it on the clock) and, when it completes
+    /// a gated set, drive the gripper with it; then the safety checks and the observers.
+    /// Returns the end reason when the run ends.
+    pub async fn step(&mut self) -> Option<EndReason> {
+        if self.run_start_us.is_none() {
+            self.begin(None);
+        }
+        let step = self.acq.step().await;
+        if let Some(end) = self.on_step(step) {
+            return Some(end);
+        }
+        self.after_pass()
+    }
+
+    /// Run until `events` says stop, the duration (see [`Runtime::begin`]) passes, the task
+    /// ends or a fault stops it. The hub's silence does not stall the loop: it wakes every
+    /// 100 ms so the watchdog and the observers still run.
+    pub async fn run(&mut self, mut events: mpsc::Receiver<RuntimeEvent>) -> EndReason {
+        if self.run_start_us.is_none() {
+            self.begin(None);
+        }
+        let timer = real_deadline(self.clock.clone(), self.deadline_us);
+        tokio::pin!(timer);
+        let mut tick = tokio::time::interval(std::time::Duration::from_millis(100));
+        tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+        let mut events_open = true;
+        loop {
+            let control = self.control.as_mut().map(|(_, rx)| rx);
+            let pass = tokio::select! {
+                biased;
+                event = next_event(&mut events, events_open) => Pass::Event(event),
+                _ = &mut timer => Pass::Deadline,
+                _ = tick.tick() => Pass::Tick,
+                request = next_request(control) => Pass::Request(request),
+                step = self.acq.step() => Pass::Step(step),
+            };
+            let end = match pass {
+                Pass::Event(Some(RuntimeEvent::Estop)) => {
+                    tracing::error!("e-stop: fingers hold at minimum current");
+                    self.faults.push("e-stop requested (SIGUSR1)".to_string());
+                    Some(EndReason::Estop)
+                }
+                Pass::Event(Some(RuntimeEvent::Shutdown)) => Some(EndReason::Signal),
+                Pass::Event(None) => {
+                    events_open = false;
+                    None
+                }
+                Pass::Deadline => Some(EndReason::Duration),
+                Pass::Tick => None,
+                Pass::Request(Some((request, reply))) => {
+                    if let Some((handler, _)) = self.control.as_mut() {
+                        let answer = handler.handle(request, self.driver.as_mut());
+                        if let Err(refusal) = &answer {
+                            tracing::warn!(?refusal, "dashboard request refused");
+                        }
+                        let _ = reply.send(answer);
+                    }
+                    None
+                }
+                Pass::Request(None) => {
+                    self.control = None;
+                    None
+                }
+                Pass::Step(step) => self.on_step(step),
+            };
+            if let Some(end) = end.or_else(|| self.after_pass()) {
+                return end;
+            }
+        }
+    }
+
+    /// What a hub step brought: a set for the driver, an end, or nothing.
+    fn on_step(&mut self, step: Result<Option<FrameSet>, HubError>) -> Option<EndReason> {
+        match step {
+            Err(HubError::Finished { detail }) => {
+                tracing::info!("{detail}");
+                Some(EndReason::Done)
+            }
+            Err(e) => {
+                tracing::error!("hub fault: {e}");
+                self.faults.push(e.to_string());
+                Some(EndReason::Fault)
+            }
+            Ok(Some(set)) => self.on_set(&set),
+            Ok(None) => None,
+        }
+    }
+
+    fn on_set(&mut self, set: &FrameSet) -> Option<EndReason> {
+        let now = self.clock.now_us();
+        let outcome = match self.driver.as_mut() {
+            Some(driver) => driver.on_set(set, now),
+            None => Ok(None),
+        };
+        if let Err(e) = self.report(Some(set), now) {
+            return Some(self.fault(e));
+        }
+        match outcome {
+            Ok(end) => end,
+            Err(e) => Some(self.fault(e)),
+        }
+    }
+
+    fn fault(&mut self, e: RuntimeError) -> EndReason {
+        tracing::error!("{e}");
+        self.faults.push(e.to_string());
+        EndReason::Fault
+    }
+
+    /// The checks after every pass: queued commands, the watchdog, the fixed programme,
+    /// the quiet report, the duration, the progress log.
+    fn after_pass(&mut self) -> Option<EndReason> {
+        let now = self.clock.now_us();
+        if let Some(end) = self.driver.as_mut().and_then(Driver::apply_urgent) {
+            return Some(end);
+        }
+        if let Some((fault, ends_run)) = self.driver.as_mut().and_then(|d| d.watchdog(now)) {
+            tracing::error!("{fault}");
+            self.faults.push(fault);
+            if ends_run {
+                return Some(EndReason::Fault);
+            }
+        }
+        if let Some(s) = self.fixed.as_mut()
+            && let Err(e) = s.tick(now)
+        {
+            tracing::error!("servo fault: {e}");
+            self.faults.push(format!("servo fault: {e}"));
+            return Some(EndReason::Fault);
+        }
+        let quiet = self
+            .last_report_us
+            .is_none_or(|last| now.saturating_sub(last) >= QUIET_PERIOD_US);
+        if quiet && let Err(e) = self.report(None, now) {
+            return Some(self.fault(e));
+        }
+        if self.deadline_us.is_some_and(|d| now >= d) {
+            return Some(EndReason::Duration);
+        }
+        self.log_progress(now);
+        None
+    }
+
+    /// Give every observer this pass's report.
+    fn report(&mut self, set: Option<&FrameSet>, now_us: u64) -> Result<(), RuntimeError> {
+        if self.observers.is_empty() {
+            if let Some(d) = self.driver.as_mut() {
+                d.plant_mut().take_step();
+                d.take_controller_events();
+            }
+            return Ok(());
+        }
+        self.last_report_us = Some(now_us);
+        let (step, events) = match self.driver.as_mut() {
+            Some(d) => (d.plant_mut().take_step(), d.take_controller_events()),
+            None => (None, Vec::new()),
+        };
+        let gripper = self.driver.as_ref().map(|d| {
+            let plant = d.plant();
+            GripperReport {
+                fused: plant.last_fused(),
+                sensed_seq: plant.last_sensed_seq(),
+                fingers: d
+                    .fingers()
+                    .into_iter()
+                    .map(|(phase, force_n, target_force_n)| FingerState {
+                        phase,
+                        force_n,
+                        target_force_n,
+                    })
+                    .collect(),
+                servos: plant.states(),
+                goals: plant.last_goals(),
+                task: d.status(),
+                latencies: plant.latencies(),
+                step: step.as_ref(),
+                controller_events: &events,
+                sensing: plant.sensing(),
+            }
+        });
+        let report = SetReport {
+            now_us,
+            t_s: now_us.saturating_sub(self.start_us) as f64 / 1e6,
+            set,
+            gate: self.acq.gate().stats(),
+            gripper,
+        };
+        for observer in &mut self.observers {
+            observer.observe(&report).map_err(RuntimeError::Observer)?;
+        }
+        Ok(())
+    }
+
+    fn log_progress(&mut self, now_us: u64) {
+        let p = &mut self.progress;
+        if now_us < p.last_log_us + 1_000_000 {
+            return;
+        }
+        let stats = self.acq.gate().stats();
+        let window_s = (now_us - p.last_log_us) as f64 / 1e6;
+        let rate = (stats.sets - p.last_sets) as f64 / window_s;
+        tracing::info!(
+            sets = stats.sets,
+            rate_hz = format!("{rate:.1}"),
+            spread_us_p99 = stats.spread_us_p99().unwrap_or(0),
+            frames_dropped = stats.drops.total(),
+            sets_rejected = stats.sets_rejected.total(),
+            "acquisition"
+        );
+        p.last_log_us = now_us;
+        p.last_sets = stats.sets;
+        if !p.hinted_late && stats.sets == 0 && stats.sets_rejected.late >= LATE_HINT_SETS {
+            p.hinted_late = true;
+            tracing::warn!(
+                rejected_late = stats.sets_rejected.late,
+                max_age_ms = self.acq.gate().limits().max_age_us as f64 / 1e3,
+                "every set so far arrived older than the gate's max age: the bus model \
+                 underestimates the latency. Check the hub's section (a full-speed CDC hub \
+                 needs [hub.cdc] usb = \"fs\") or set [gate] max_age_ms"
+            );
+        }
+    }
+
+    /// Bring the hardware to its safe state for `end` (torque off; after an e-stop, a hold
+    /// at the minimum current), let the observers flush, and sum the run up.
+    pub fn finish(&mut self, end: EndReason) -> RunSummary {
+        let mut faults = std::mem::take(&mut self.faults);
+        if let Some(s) = self.fixed.as_mut() {
+            faults.splice(0..0, s.recovered.drain(..));
+            if end == EndReason::Estop {
+                s.estop();
+            } else if let Err(e) = s.stop() {
+                tracing::warn!("could not turn servo torque off: {e}");
+            }
+        }
+        if let Some(d) = self.driver.as_mut() {
+            faults.splice(0..0, d.take_recovered());
+            if end == EndReason::Estop {
+                d.estop();
+            } else {
+                d.finish();
+            }
+        }
+        // The observers go with the run: a recorder's snapshots let go of it.
+        for mut observer in self.observers.drain(..) {
+            if let Err(e) = observer.finish() {
+                tracing::error!("{e}");
+                faults.push(e.to_string());
+            }
+        }
+        let now = self.clock.now_us();
+        RunSummary {
+            end_reason: end,
+            faults,
+            task: self.driver.as_ref().and_then(Driver::report),
+            servos: self
+                .fixed
+                .as_ref()
+                .map(|s| s.last.clone())
+                .or_else(|| self.driver.as_ref().map(|d| d.states().to_vec())),
+            elapsed_s: now.saturating_sub(self.run_start_us.unwrap_or(self.start_us)) as f64 / 1e6,
+        }
+    }
+}
+
+enum Pass {
+    Event(Option<RuntimeEvent>),
+    Deadline,
+    Tick,
+    Request(Option<LoopCommand>),
+    Step(Result<Option<FrameSet>, HubError>),
+}
+
+/// The next event; pending forever once the sender is gone (the run goes on).
+async fn next_event(events: &mut mpsc::Receiver<RuntimeEvent>, open: bool) -> Option<RuntimeEvent> {
+    if open {
+        events.recv().await
+    } else {
+        std::future::pending().await
+    }
+}
+
+/// The dashboard's next request; never without a dashboard. `None` once every sender is
+/// gone.
+async fn next_request(control: Option<&mut mpsc::Receiver<LoopCommand>>) -> Option<LoopCommand> {
+    match control {
+        Some(rx) => rx.recv().await,
+        None => std::future::pending().await,
+    }
+}
+
+/// Resolves at `deadline_us` on a real clock; never on a virtual one (whose time only moves
+/// with the work, so the loop checks it after each pass instead).
+async fn real_deadline(clock: Arc<dyn Clock>, deadline_us: Option<u64>) {
+    match deadline_us {
+        Some(d) if clock.kind() == ClockKind::Real => clock.sleep_until(d).await,
+        _ => std::future::pending().await,
+    }
+}

@@ -1,0 +1,328 @@
+//! The plant: what every driver of the gripper shares with the hardware. The tactile
+//! pipelines (the [`Sensing`] port), the servo bus, the simulator's ground truth when there
+//! is one, the watchdog's clock, the loop's latency histograms, and the record of what the
+//! driver did with the last set (for the observers: the task CSV, the recorder).
+//!
+//! Servo and pipeline calls block (dynamixel2 and the pipelines are synchronous), so on a
+//! multi-threaded executor they run through [`off_executor`], which hands the worker's other
+//! tasks (the dashboard, the network) to another thread meanwhile.
+
+use std::time::Instant;
+
+use crate::actuator::{FingerGoal, ServoBus, ServoError, ServoState};
+use crate::frame::FrameSet;
+use crate::fusion::{FusedSet, fuse};
+use crate::grasp::Phase;
+use crate::gripper::GripperService;
+use crate::layout::HandLayout;
+use crate::runtime::RuntimeError;
+use crate::runtime::latency::{Latencies, LoopLatency};
+use crate::runtime::ports::{GroundTruth, Sensing};
+
+/// No gated set for this long stops all motion, ms.
+pub const WATCHDOG_MS: u64 = 500;
+
+/// Run blocking work (a servo transaction, the pipelines) without stalling the executor: on
+/// tokio's multi-threaded runtime through `block_in_place`, elsewhere inline.
+pub fn off_executor<R>(work: impl FnOnce() -> R) -> R {
+    use tokio::runtime::{Handle, RuntimeFlavor};
+    match Handle::try_current() {
+        Ok(h) if h.runtime_flavor() == RuntimeFlavor::MultiThread => {
+            tokio::task::block_in_place(work)
+        }
+        _ => work(),
+    }
+}
+
+/// The name of a finger phase, as the CSV, the recorder and the page write it.
+pub fn phase_name(p: Phase) -> &'static str {
+    match p {
+        Phase::Open => "open",
+        Phase::Approach => "approach",
+        Phase::Contact => "contact",
+        Phase::Squeeze => "squeeze",
+        Phase::Hold => "hold",
+        Phase::Release => "release",
+        Phase::Fault => "fault",
+    }
+}
+
+/// A set sensed: the fused set and when the gate handed it over.
+#[derive(Debug)]
+pub struct Sensed {
+    /// The fused set.
+    pub fused: FusedSet,
+    /// Wall-clock instant the driver got the set (the loop latency's start).
+    pub handed_over: Instant,
+    /// The set's age at emission, ms.
+    pub set_age_ms: f64,
+}
+
+/// What a driver did with one set: a row of the task log.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TaskStep {
+    /// The set's trigger sequence.
+    pub trigger_seq: u32,
+    /// Seconds since the task's start.
+    pub t_s: f64,
+    /// The stage's name.
+    pub stage: String,
+    /// The simulator's force per pad (empty off the simulator), N.
+    pub truth_n: Vec<f64>,
+    /// Each finger's phase.
+    pub phases: Vec<Phase>,
+    /// Each finger's goal.
+    pub goals: Vec<FingerGoal>,
+}
+
+/// The shared hardware side of every driver.
+pub struct Plant {
+    sensing: Box<dyn Sensing>,
+    bus: Box<dyn ServoBus>,
+    truth: Option<Box<dyn GroundTruth>>,
+    /// The hand.
+    pub layout: HandLayout,
+    states: Vec<ServoState>,
+    last_set_us: Option<u64>,
+    /// The trigger sequence of the last set sensed.
+    last_sensed_seq: Option<u32>,
+    /// The goals last written, and the set they answered (`None` for a stop or e-stop).
+    last_goals: Option<(Option<u32>, Vec<FingerGoal>)>,
+    latency: LoopLatency,
+    last: Option<FusedSet>,
+    step: Option<TaskStep>,
+    /// Recovered servo faults, described.
+    pub recovered: Vec<String>,
+}
+
+impl std::fmt::Debug for Plant {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Plant")
+            .field("layout", &self.layout.name)
+            .field("states", &self.states)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Plant {
+    /// A plant on `layout`'s fingers: configures the servos.
+    pub fn open(
+        layout: HandLayout,
+        sensing: Box<dyn Sensing>,
+        mut bus: Box<dyn ServoBus>,
+        truth: Option<Box<dyn GroundTruth>>,
+    ) -> Result<Self, RuntimeError> {
+        if layout.fingers.is_empty() {
+            return Err(RuntimeError::NoFingers {
+                layout: layout.name.clone(),
+            });
+        }
+        off_executor(|| bus.configure()).map_err(RuntimeError::Configure)?;
+        Ok(Self {
+            sensing,
+            bus,
+            truth,
+            layout,
+            states: Vec::new(),
+            last_set_us: None,
+            last_sensed_seq: None,
+            last_goals: None,
+            latency: LoopLatency::default(),
+            last: None,
+            step: None,
+            recovered: Vec::new(),
+        })
+    }
+
+    /// The simulator's ground truth, if the plant is simulated.
+    pub fn truth(&self) -> Option<&dyn GroundTruth> {
+        self.truth.as_deref()
+    }
+
+    /// The simulator's ground truth, mutably.
+    pub fn truth_mut(&mut self) -> Option<&mut (dyn GroundTruth + 'static)> {
+        self.truth.as_deref_mut()
+    }
+
+    /// Run every sensor's pipeline on `set` (received at host time `now_us`) and fuse.
+    pub fn sense(&mut self, set: &FrameSet, now_us: u64) -> Result<Sensed, RuntimeError> {
+        let handed_over = Instant::now();
+        self.last_set_us = Some(now_us);
+        self.last_sensed_seq = Some(set.trigger_seq);
+        let sensing = &mut self.sensing;
+        let readings = off_executor(|| sensing.process(set));
+        self.latency
+            .pipeline_ms
+            .record_ms(handed_over.elapsed().as_secs_f64() * 1e3);
+        if self.states.is_empty() {
+            self.states = self.read()?;
+        }
+        Ok(Sensed {
+            fused: fuse(&self.layout, &readings),
+            handed_over,
+            set_age_ms: set.latency_us() as f64 / 1e3,
+        })
+    }
+
+    /// Keep the last fused set (for the observers).
+    pub fn remember(&mut self, fused: FusedSet) {
+        self.last = Some(fused);
+    }
+
+    /// Record what the driver did with the last set (a row of the task log).
+    pub fn record_step(&mut self, step: TaskStep) {
+        self.step = Some(step);
+    }
+
+    /// What the driver did with the last set, once.
+    pub fn take_step(&mut self) -> Option<TaskStep> {
+        self.step.take()
+    }
+
+    /// The goals last written and the set they answered (`None`: a stop or e-stop).
+    pub fn last_goals(&self) -> Option<&(Option<u32>, Vec<FingerGoal>)> {
+        self.last_goals.as_ref()
+    }
+
+    /// The trigger sequence of the last set sensed.
+    pub fn last_sensed_seq(&self) -> Option<u32> {
+        self.last_sensed_seq
+    }
+
+    /// The last fused set remembered.
+    pub fn last_fused(&self) -> Option<&FusedSet> {
+        self.last.as_ref()
+    }
+
+    /// The pipelines.
+    pub fn sensing(&self) -> &dyn Sensing {
+        self.sensing.as_ref()
+    }
+
+    /// The pipelines, to reference them before the loop.
+    pub fn sensing_mut(&mut self) -> &mut dyn Sensing {
+        self.sensing.as_mut()
+    }
+
+    /// The servos' last states.
+    pub fn states(&self) -> &[ServoState] {
+        &self.states
+    }
+
+    /// The servos' last positions, degrees.
+    pub fn positions(&self) -> Vec<f64> {
+        self.states.iter().map(|s| s.position_deg).collect()
+    }
+
+    /// Write `goals` (if any) for the set `sensed`, record the latencies, and read the
+    /// servos back.
+    pub fn command(
+        &mut self,
+        sensed: &Sensed,
+        goals: Option<&[FingerGoal]>,
+    ) -> Result<(), RuntimeError> {
+        if let Some(goals) = goals {
+            tracing::debug!(?goals, "goals");
+            self.last_goals = Some((self.last_sensed_seq, goals.to_vec()));
+            let bus = &mut self.bus;
+            off_executor(|| bus.write_goals(goals))?;
+        }
+        let loop_ms = sensed.handed_over.elapsed().as_secs_f64() * 1e3;
+        self.latency.loop_ms.record_ms(loop_ms);
+        self.latency
+            .capture_ms
+            .record_ms(sensed.set_age_ms + loop_ms);
+        self.states = self.read()?;
+        Ok(())
+    }
+
+    /// One step of the grasp API on `set`: sense, apply the queued commands, step the
+    /// controller and write its goals.
+    pub fn drive(
+        &mut self,
+        gripper: &mut GripperService,
+        set: &FrameSet,
+        now_us: u64,
+    ) -> Result<Sensed, RuntimeError> {
+        let sensed = self.sense(set, now_us)?;
+        gripper.apply_commands(&self.positions());
+        let goals = gripper.step(now_us as f64 / 1e6, Some(&sensed.fused), self.states());
+        self.command(&sensed, goals.as_deref())?;
+        Ok(sensed)
+    }
+
+    /// Write hold goals at once (stop, e-stop, watchdog); a failure is logged, since the
+    /// caller is already on its way to a safe state.
+    pub fn write_now(&mut self, goals: &[FingerGoal]) {
+        self.last_goals = Some((None, goals.to_vec()));
+        let bus = &mut self.bus;
+        if let Err(e) = off_executor(|| bus.write_goals(goals)) {
+            tracing::error!("could not write the hold goals: {e}");
+        }
+    }
+
+    /// Refresh the servo states before an e-stop (kept as they were on failure).
+    pub fn refresh_states(&mut self) {
+        let bus = &mut self.bus;
+        if let Ok(states) = off_executor(|| bus.read_state()) {
+            self.states = states;
+        }
+    }
+
+    fn read(&mut self) -> Result<Vec<ServoState>, ServoError> {
+        let bus = &mut self.bus;
+        let (states, recovered) = off_executor(|| {
+            let states = bus.read_state()?;
+            Ok::<_, ServoError>((states, bus.take_recovered()))
+        })?;
+        self.recovered
+            .extend(recovered.iter().map(ToString::to_string));
+        Ok(states)
+    }
+
+    /// Milliseconds without a gated set at host time `now_us`, when that exceeds the
+    /// watchdog limit.
+    pub fn watchdog_silence_ms(&mut self, now_us: u64) -> Option<u64> {
+        let last = *self.last_set_us.get_or_insert(now_us);
+        let silent_ms = now_us.saturating_sub(last) / 1000;
+        (silent_ms >= WATCHDOG_MS).then_some(silent_ms)
+    }
+
+    /// The simulator's ground-truth force on every pad, N (empty off the simulator, and
+    /// when the frames come from a hardware hub).
+    pub fn true_forces_n(&self) -> Vec<f64> {
+        self.truth
+            .as_ref()
+            .map_or_else(Vec::new, |t| t.pad_forces_n())
+    }
+
+    /// The largest finger force (the sum over each finger's pads) of the simulator's pad
+    /// forces `pads`, N (`None` off the simulator).
+    pub fn true_finger_peak_n(&self, pads: &[f64]) -> Option<f64> {
+        if pads.is_empty() {
+            return None;
+        }
+        let mut fingers = vec![0.0; self.layout.fingers.len()];
+        for (s, f) in pads.iter().enumerate() {
+            if let Some((finger, _)) = self.layout.phalanx_of_sensor(s)
+                && let Some(sum) = fingers.get_mut(finger)
+            {
+                *sum += f;
+            }
+        }
+        Some(fingers.into_iter().fold(0.0, f64::max))
+    }
+
+    /// The safe state at the end: torque off (the springs open the fingers).
+    pub fn finish(&mut self) {
+        let bus = &mut self.bus;
+        if let Err(e) = off_executor(|| bus.set_torque(false)) {
+            tracing::warn!("could not turn servo torque off: {e}");
+        }
+    }
+
+    /// The latency figures so far.
+    pub fn latencies(&self) -> Latencies {
+        self.latency.latencies()
+    }
+}

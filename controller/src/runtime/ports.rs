@@ -1,0 +1,71 @@
+//! The runtime's own ports, beside the hub ([`crate::hub::HubTransport`]) and the servos
+//! ([`crate::actuator::ServoBus`]): what it needs from the tactile pipelines, from a
+//! simulator's ground truth, and what its observers and the dashboard's control requests
+//! get. The root `gelgrip` library implements them; the runtime depends on no adapter.
+
+use crate::frame::FrameSet;
+use crate::fusion::SensorReading;
+use crate::runtime::control::{LoopRequest, Refusal};
+use crate::runtime::driver::Driver;
+use crate::runtime::report::SetReport;
+
+/// One sensor's last reconstructed depth window.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DepthWindow {
+    /// Depth, mm, row-major.
+    pub depth_mm: Vec<f32>,
+    /// Width, px.
+    pub width: usize,
+    /// Height, px.
+    pub height: usize,
+    /// The depth above which a pixel counts as contact, mm.
+    pub contact_mm: f32,
+}
+
+/// Every sensor's tactile pipeline: frames in, contact readings out.
+pub trait Sensing: Send {
+    /// Process one gated set into per-sensor readings (`None` for a sensor whose frame
+    /// failed, or while the references are still being gathered).
+    fn process(&mut self, set: &FrameSet) -> Vec<Option<SensorReading>>;
+    /// Gated sets still needed for the sensors' references (0 when they have them).
+    fn reference_sets_missing(&self) -> usize;
+    /// Take `set` toward the references.
+    fn offer_reference(&mut self, set: &FrameSet);
+    /// Sensor `index`'s last depth window (for the dashboard's images).
+    fn depth_window(&self, index: usize) -> Option<DepthWindow>;
+}
+
+/// What a simulator knows and hardware does not: the true pad forces, the object's slip,
+/// and the hold test's pull. Absent on hardware.
+pub trait GroundTruth: Send {
+    /// The true force on every pad, N, in layout order (empty when the frames do not come
+    /// from this simulator).
+    fn pad_forces_n(&self) -> Vec<f64>;
+    /// How far the object has slipped, mm (`None` without an object).
+    fn slip_mm(&self) -> Option<f64>;
+    /// Let the object go and pull it with `factor` times its weight (the hold test).
+    fn pull_object(&mut self, factor: f64);
+}
+
+/// Why an observer failed (a lossless observer's failure is a fault of the run).
+pub type ObserverError = Box<dyn std::error::Error + Send + Sync>;
+
+/// Something that watches the loop through its per-set report: the dashboard feed, the
+/// task CSV, the recorder's state snapshots, a network publisher. It is called on the
+/// loop's thread after every set (and, with `set: None`, when the loop is quiet), so it
+/// must not block: an observer that cannot keep up drops reports and says so in its doc.
+pub trait Observer: Send {
+    /// One report.
+    fn observe(&mut self, report: &SetReport<'_>) -> Result<(), ObserverError>;
+    /// The run has ended: flush what is buffered.
+    fn finish(&mut self) -> Result<(), ObserverError> {
+        Ok(())
+    }
+}
+
+/// Carries out the dashboard's requests beyond the grasp API (task scripts, simulator
+/// controls) on the loop's thread, with the driver in reach.
+pub trait ControlHandler: Send {
+    /// Carry out `request`, or refuse it with the reason.
+    fn handle(&mut self, request: LoopRequest, driver: Option<&mut Driver>) -> Result<(), Refusal>;
+}

@@ -1,0 +1,71 @@
+//! The per-set report: everything an observer may see of one pass through the loop, typed
+//! and borrowed from the runtime for the length of the call. The same report goes to every
+//! observer (the dashboard feed, the task CSV, the recorder's snapshots, network
+//! publishers); none of them reaches into the loop.
+
+use crate::actuator::{FingerGoal, ServoState};
+use crate::frame::FrameSet;
+use crate::fusion::FusedSet;
+use crate::gate::GateStats;
+use crate::grasp::Phase;
+use crate::gripper::ServiceEvent;
+use crate::runtime::latency::Latencies;
+use crate::runtime::plant::TaskStep;
+use crate::runtime::ports::{DepthWindow, Sensing};
+use crate::runtime::task_report::TaskStatus;
+
+/// One finger as the driver sees it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FingerState {
+    /// Its phase.
+    pub phase: Phase,
+    /// The regulated force, N.
+    pub force_n: f64,
+    /// The force target, N.
+    pub target_force_n: f64,
+}
+
+/// One pass through the loop: after a gated set (`set` is `Some`), or a quiet moment
+/// (`set` is `None`: the hub is silent or the gate refuses sets).
+pub struct SetReport<'a> {
+    /// Host time, µs.
+    pub now_us: u64,
+    /// Seconds since the runtime started.
+    pub t_s: f64,
+    /// The gated set, as the hub sent it.
+    pub set: Option<&'a FrameSet>,
+    /// The gate's statistics.
+    pub gate: &'a GateStats,
+    /// The gripper's side, when a driver runs it.
+    pub gripper: Option<GripperReport<'a>>,
+}
+
+/// The gripper's side of a report.
+pub struct GripperReport<'a> {
+    /// The last fused set.
+    pub fused: Option<&'a FusedSet>,
+    /// The trigger sequence of the last set sensed (`fused` belongs to it).
+    pub sensed_seq: Option<u32>,
+    /// Each finger.
+    pub fingers: Vec<FingerState>,
+    /// The servos' last states.
+    pub servos: &'a [ServoState],
+    /// The goals last written and the set they answered (`None`: a stop or e-stop).
+    pub goals: Option<&'a (Option<u32>, Vec<FingerGoal>)>,
+    /// The task, if any.
+    pub task: Option<TaskStatus>,
+    /// The loop's latency figures so far.
+    pub latencies: Latencies,
+    /// What the driver did with this set (a row of the task log).
+    pub step: Option<&'a TaskStep>,
+    /// The grasp-API service's commands and steps on this pass (while recording).
+    pub controller_events: &'a [ServiceEvent],
+    pub(crate) sensing: &'a dyn Sensing,
+}
+
+impl GripperReport<'_> {
+    /// Sensor `index`'s last depth window (copied: call it only when it is needed).
+    pub fn depth_window(&self, index: usize) -> Option<DepthWindow> {
+        self.sensing.depth_window(index)
+    }
+}

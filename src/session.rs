@@ -1,0 +1,367 @@
+//! A run, wired from a config: the hub, the gate, the pipelines, the driver, the servos, the
+//! simulator when there is one, the recorder, the task log and the dashboard, assembled
+//! into a [`Runtime`]; and, when it ends, the `run --json` report. `gelgrip run`, the
+//! benches and the examples all run the gripper through this, in process.
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
+
+use gelgrip_controller::acquire::Acquisition;
+use gelgrip_controller::clock::ClockKind;
+use gelgrip_controller::config::AppConfig;
+use gelgrip_controller::hub::HubDescription;
+use gelgrip_controller::runtime::commanded::CommandedGripper;
+use gelgrip_controller::runtime::driver::Driver;
+use gelgrip_controller::runtime::fixed_close::FixedClose;
+use gelgrip_controller::runtime::gentle_grasp::{GentleGrasp, GraspOptions};
+use gelgrip_controller::runtime::outcome::EndReason;
+use gelgrip_controller::runtime::plant::Plant;
+use gelgrip_controller::runtime::ports::GroundTruth;
+use gelgrip_controller::runtime::{Runtime, RuntimeEvent};
+use gelgrip_sim::world::SharedWorld;
+use tokio::sync::mpsc;
+
+use crate::UsageError;
+use crate::loop_control::LoopControl;
+use crate::observers::dashboard::Dashboard;
+use crate::observers::recording::RunRecorder;
+use crate::observers::task_log::TaskLog;
+use crate::output::{RunReport, ServoReport, latency_ms};
+use crate::scene_report::SceneReport;
+use crate::scripts::load_script;
+use crate::sim_truth::SimTruth;
+use crate::tactile::Tactile;
+use crate::wiring;
+
+/// How to run: `gelgrip run`'s options, without the command line.
+#[derive(Debug, Clone)]
+pub struct RunOptions {
+    /// The config file (`None`: the embedded simulated gripper).
+    pub config: Option<PathBuf>,
+    /// A scene instead of the config's (simulated hub only).
+    pub scene: Option<PathBuf>,
+    /// Real or virtual time.
+    pub clock: ClockKind,
+    /// `gentle-grasp`, a task script's name or file, or none (the grasp API drives).
+    pub task: Option<String>,
+    /// The gentle grasp's options.
+    pub grasp: GraspOptions,
+    /// The task CSV.
+    pub log: Option<PathBuf>,
+    /// Record into this directory.
+    pub record: Option<PathBuf>,
+    /// No dashboard.
+    pub headless: bool,
+    /// The dashboard's address (else the config's).
+    pub http: Option<SocketAddr>,
+    /// The fixed programme's closing current (headless on a scene, no task), mA.
+    pub close_current_ma: f64,
+    /// Run this long after the set-up, s (on the run's clock).
+    pub duration_s: Option<f64>,
+}
+
+impl Default for RunOptions {
+    fn default() -> Self {
+        Self {
+            config: None,
+            scene: None,
+            clock: ClockKind::Real,
+            task: None,
+            grasp: GraspOptions {
+                target_force_n: 1.5,
+                speed_deg_s: 15.0,
+                timeout_s: 20.0,
+                hold_s: 0.0,
+            },
+            log: None,
+            record: None,
+            headless: false,
+            http: None,
+            close_current_ma: 800.0,
+            duration_s: None,
+        }
+    }
+}
+
+/// A run, set up and ready.
+pub struct Session {
+    /// The runtime.
+    pub runtime: Runtime,
+    config: AppConfig,
+    world: Option<SharedWorld>,
+    recorder: Option<RunRecorder>,
+    description: HubDescription,
+    dashboard_url: Option<String>,
+    clock_kind: ClockKind,
+    duration_s: Option<f64>,
+}
+
+impl std::fmt::Debug for Session {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Session")
+            .field("runtime", &self.runtime)
+            .finish_non_exhaustive()
+    }
+}
+
+/// The driver `options` ask for, on `bus`: the gentle grasp, a task script, the grasp API
+/// (with a dashboard), or none (the fixed programme runs the servos).
+fn driver(
+    options: &RunOptions,
+    config: &AppConfig,
+    world: Option<&SharedWorld>,
+    bus: Box<dyn gelgrip_controller::actuator::ServoBus>,
+) -> anyhow::Result<Driver> {
+    let truth = world.map(|w| {
+        Box::new(SimTruth::new(
+            w.clone(),
+            config.hub.transport == "sim",
+            config.layout.sensors.len(),
+        )) as Box<dyn GroundTruth>
+    });
+    let plant = Plant::open(
+        config.layout.clone(),
+        Box::new(Tactile::open(config)?),
+        bus,
+        truth,
+    )?;
+    let limit = config.servos.current_limit_ma;
+    Ok(match options.task.as_deref() {
+        Some("gentle-grasp") => Driver::GentleGrasp(Box::new(
+            GentleGrasp::start(plant, limit, &options.grasp)
+                .map_err(|e| UsageError(e.to_string()))?,
+        )),
+        Some(name) => {
+            let script = load_script(name, config)?;
+            tracing::info!(
+                task = script.name,
+                stages = script.stages.len(),
+                "task script"
+            );
+            let mut gripper = CommandedGripper::new(plant, limit);
+            gripper
+                .start_script(script)
+                .map_err(|running| anyhow::anyhow!("task {running} already running"))?;
+            Driver::Commanded {
+                gripper: Box::new(gripper),
+                script_ends_run: true,
+            }
+        }
+        None => Driver::Commanded {
+            gripper: Box::new(CommandedGripper::new(plant, limit)),
+            script_ends_run: false,
+        },
+    })
+}
+
+impl Session {
+    /// Wire a run from `options`: load the config, open the hub, the servos and the
+    /// simulator, build the driver, start the recorder and the dashboard, and take the
+    /// sensors' references (on a hardware hub).
+    pub async fn open(options: &RunOptions) -> anyhow::Result<Self> {
+        let registry = wiring::registry();
+        let (config, config_files) =
+            wiring::load_config_with_files(options.config.as_deref(), &registry)?;
+        let clock = wiring::make_clock(options.clock);
+        let world = wiring::open_world(&config, options.scene.as_deref())?;
+        let registry = match &world {
+            Some(w) => wiring::registry_with_world(w.clone()),
+            None => registry,
+        };
+        let on_scene = world
+            .as_ref()
+            .and_then(|w| w.lock().ok().map(|w| w.scene().is_some()))
+            .unwrap_or(false);
+        let mut acq = wiring::open_acquisition(&config, &registry, clock.clone()).await?;
+        let description = acq.hub().describe().clone();
+        let recorder = match &options.record {
+            Some(dir) => {
+                let r = RunRecorder::start(
+                    dir,
+                    &config,
+                    config_files,
+                    &description,
+                    acq.gate().limits(),
+                )?;
+                acq = acq.with_tap(r.tap());
+                Some(r)
+            }
+            None => None,
+        };
+        tracing::info!(
+            transport = description.transport,
+            sensors = description.sensors,
+            trigger = description.trigger.as_str(),
+            max_spread_us = acq.gate().limits().max_spread_us,
+            max_age_us = acq.gate().limits().max_age_us,
+            "acquiring"
+        );
+        let bus = wiring::open_servos(&config, world.as_ref(), clock.clone())?;
+        // The dashboard's grasp needs every sensor's pipeline; on a hardware hub without
+        // model files the dashboard still serves the cameras, sync and servos.
+        let unmodelled = crate::tactile::sensors_without_model(&config)?;
+        let dashboard_grasp = !options.headless && unmodelled.is_empty();
+        if !options.headless && options.task.is_none() && !unmodelled.is_empty() {
+            tracing::warn!(
+                sensors = unmodelled.join(", "),
+                "no gradient model file for these sensors on the {} hub: the dashboard serves \
+                 the cameras, sync and servos, without the grasp (docs/pipeline.md)",
+                config.hub.transport
+            );
+        }
+        let mut runtime = Runtime::new(acq, clock.clone());
+        match (options.task.as_deref(), bus) {
+            (Some(_), Some(bus)) => {
+                runtime = runtime.with_driver(driver(options, &config, world.as_ref(), bus)?);
+            }
+            (Some(name), None) => {
+                if name != "gentle-grasp" {
+                    load_script(name, &config)?;
+                }
+                anyhow::bail!(UsageError(format!(
+                    "task {name} needs finger servos; layout {} has no [[fingers]]",
+                    config.layout.name
+                )));
+            }
+            (None, Some(bus)) if dashboard_grasp => {
+                runtime = runtime.with_driver(driver(options, &config, world.as_ref(), bus)?);
+            }
+            (None, Some(bus)) => {
+                let fixed = FixedClose::start(
+                    bus,
+                    &config.layout,
+                    on_scene,
+                    options.close_current_ma,
+                    clock.now_us(),
+                )
+                .map_err(|e| anyhow::anyhow!("configuring the servos: {e}"))?;
+                runtime = runtime.with_fixed_close(fixed);
+            }
+            (None, None) => {}
+        }
+        if let Some(path) = &options.log
+            && runtime.driver().is_some()
+        {
+            let truth = world.is_some() && config.hub.transport == "sim";
+            runtime.observe(Box::new(TaskLog::create(path, &config.layout, truth)?));
+        }
+        if let Some(r) = &recorder {
+            if let Some(d) = runtime.driver_mut() {
+                d.log_controller();
+            }
+            runtime.observe(r.snapshots());
+        }
+        let mut dashboard_url = None;
+        if !options.headless {
+            let sim_view = Arc::new(Mutex::new(None));
+            let control = LoopControl::new(&config, world.clone(), clock.clone(), sim_view.clone());
+            let requests = runtime.control(Box::new(control));
+            let bind = options.http.unwrap_or(config.http.bind);
+            let d = Dashboard::start(
+                &config,
+                bind,
+                runtime.gripper(),
+                Some(requests),
+                description.transport.clone(),
+                sim_view,
+            )
+            .await?;
+            dashboard_url = Some(format!("http://{}/", d.addr));
+            runtime.observe(Box::new(d));
+        }
+        runtime.reference_sensors().await?;
+        Ok(Self {
+            runtime,
+            config,
+            world,
+            recorder,
+            description,
+            dashboard_url,
+            clock_kind: options.clock,
+            duration_s: options.duration_s,
+        })
+    }
+
+    /// The run's config.
+    pub fn config(&self) -> &AppConfig {
+        &self.config
+    }
+
+    /// Run until `events` says stop, the duration passes, the task ends or a fault stops
+    /// it; then bring the hardware to its safe state and report.
+    pub async fn run(mut self, events: mpsc::Receiver<RuntimeEvent>) -> RunReport {
+        // `--duration` counts from here, after the set-up (on a fresh machine the sensors'
+        // self-calibration takes seconds), so a short run still acquires for its duration.
+        self.runtime.begin(self.duration_s);
+        let end = self.runtime.run(events).await;
+        self.finish(end)
+    }
+
+    /// Bring the hardware to its safe state after `end`, close the recording, and report.
+    pub fn finish(mut self, end: EndReason) -> RunReport {
+        let summary = self.runtime.finish(end);
+        let mut faults = summary.faults;
+        let scene = self.world.as_ref().and_then(|w| {
+            let w = w.lock().ok()?;
+            SceneReport::of(&w, &self.config.layout)
+        });
+        drop(self.runtime.acquisition_mut().take_tap());
+        let now = self.runtime.clock().now_us();
+        let recording = self.recorder.take().map(|r| r.finish(now));
+        if let Some(r) = &recording {
+            if r.dropped_backpressure + r.dropped_io > 0 {
+                tracing::warn!(
+                    backpressure = r.dropped_backpressure,
+                    io = r.dropped_io,
+                    "the recorder dropped records"
+                );
+            }
+            if let Some(e) = &r.error {
+                faults.push(format!("recording: {e}"));
+            }
+        }
+        let acq: &Acquisition = self.runtime.acquisition();
+        let stats = acq.gate().stats();
+        RunReport {
+            recording,
+            sensors: self.description.sensors,
+            sets: stats.sets,
+            set_rate_hz: stats.set_rate_hz(),
+            spread_us_p99: stats.spread_us_p99(),
+            faults,
+            drops: stats.drops,
+            sets_rejected: stats.sets_rejected,
+            end_reason: summary.end_reason,
+            transport: self.description.transport.clone(),
+            trigger: self.description.trigger.as_str(),
+            clock: match self.clock_kind {
+                ClockKind::Real => "real",
+                ClockKind::Virtual => "virtual",
+            },
+            elapsed_s: summary.elapsed_s,
+            max_spread_us: acq.gate().limits().max_spread_us,
+            max_age_us: acq.gate().limits().max_age_us,
+            set_latency_ms_p50: latency_ms(stats, 0.5),
+            set_latency_ms_p99: latency_ms(stats, 0.99),
+            frames_received: stats.frames_in,
+            spread_histogram_us: stats.spread_buckets(),
+            object: scene.as_ref().map(|s| s.object.clone()),
+            crushed: scene.as_ref().map(|s| s.crushed),
+            scene,
+            servos: summary
+                .servos
+                .map(|s| s.iter().map(ServoReport::from).collect()),
+            dashboard_url: self.dashboard_url.clone(),
+            task: summary.task,
+        }
+    }
+}
+
+/// Run `options` to the end with no outside events (a task, a duration or a fault ends it):
+/// what the benches and the examples do.
+pub async fn run_to_end(options: &RunOptions) -> anyhow::Result<RunReport> {
+    let session = Session::open(options).await?;
+    let (_events, rx) = mpsc::channel(1);
+    Ok(session.run(rx).await)
+}
