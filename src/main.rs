@@ -45,8 +45,8 @@ fn main() -> ExitCode {
             Command::CheckConfig(args) => commands::check_config::run(args),
             Command::Bench(BenchCommand::Bus(args)) => commands::bench_bus::run(args).await,
             Command::Bench(BenchCommand::Pipeline(args)) => commands::bench_pipeline::run(args),
-            Command::Bench(BenchCommand::Grasp(args)) => commands::bench_grasp::run(args),
-            Command::Bench(BenchCommand::Sync(args)) => commands::bench_sync::run(args),
+            Command::Bench(BenchCommand::Grasp(args)) => commands::bench_grasp::run(args).await,
+            Command::Bench(BenchCommand::Sync(args)) => commands::bench_sync::run(args).await,
             Command::Bench(BenchCommand::Calibration(args)) => {
                 commands::bench_calibration::run(args)
             }

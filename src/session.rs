@@ -53,6 +53,9 @@ pub struct RunOptions {
     pub record: Option<PathBuf>,
     /// No dashboard.
     pub headless: bool,
+    /// Without a task, drive the fingers through the grasp API even when headless (what a
+    /// program that embeds the runtime wants; with a dashboard it always does).
+    pub grasp_api: bool,
     /// The dashboard's address (else the config's).
     pub http: Option<SocketAddr>,
     /// The fixed programme's closing current (headless on a scene, no task), mA.
@@ -77,6 +80,7 @@ impl Default for RunOptions {
             log: None,
             record: None,
             headless: false,
+            grasp_api: false,
             http: None,
             close_current_ma: 800.0,
             duration_s: None,
@@ -201,7 +205,7 @@ impl Session {
         // The dashboard's grasp needs every sensor's pipeline; on a hardware hub without
         // model files the dashboard still serves the cameras, sync and servos.
         let unmodelled = crate::tactile::sensors_without_model(&config)?;
-        let dashboard_grasp = !options.headless && unmodelled.is_empty();
+        let grasp_api = (!options.headless || options.grasp_api) && unmodelled.is_empty();
         if !options.headless && options.task.is_none() && !unmodelled.is_empty() {
             tracing::warn!(
                 sensors = unmodelled.join(", "),
@@ -224,7 +228,7 @@ impl Session {
                     config.layout.name
                 )));
             }
-            (None, Some(bus)) if dashboard_grasp => {
+            (None, Some(bus)) if grasp_api => {
                 runtime = runtime.with_driver(driver(options, &config, world.as_ref(), bus)?);
             }
             (None, Some(bus)) => {

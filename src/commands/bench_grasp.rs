@@ -1,25 +1,27 @@
 //! `gelgrip bench grasp [--scene FILE]… [--target-force N] [--sweep resolution] [--json]`:
-//! the gentle grasp on every scene object, each in its own `gelgrip run --task
-//! gentle-grasp --clock virtual` process (the same code path users run, isolated per
-//! object), one row per object with the task fields of `run --json`, the set rate, the
+//! the gentle grasp on every scene object, each run in this process on the virtual clock
+//! through the library's session (the code path `gelgrip run --task gentle-grasp` runs, a
+//! fresh runtime, hub, servos and world per object), one row per object with the task fields of `run --json`, the set rate, the
 //! true force's overshoot and the crush margin. `--sweep resolution` repeats every object
 //! at 320×240, 160×120 and 80×60: smaller frames cross the bus faster (a higher set rate)
 //! but carry less depth detail, and the rows measure what that does to the grasp.
 //!
-//! The loop-latency budget: after the grasps, `gelgrip bench pipeline` times the tactile
+//! The loop-latency budget: after the grasps, `gelgrip bench pipeline` times (in this process) the tactile
 //! pipelines alone on a grasp-like press (a 30 mm ball, 1 mm deep, on every sensor; the
 //! default 6 mm probe is a far smaller contact than a grasped object makes), and each row
 //! says whether its `loop_latency_ms_p99` is within 1 ms of that bench's `ms_per_set_p99`
 //! (the grasp issue's acceptance: fusion, control and the servo write add at most 1 ms).
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use anyhow::Context;
 use serde_json::Value;
 
 use crate::cli::{BenchGraspArgs, GraspSweep};
 use gelgrip::bench_config::{BenchDir, load, load_config, section};
+use gelgrip::session::{RunOptions, run_to_end};
+use gelgrip_controller::clock::ClockKind;
+use gelgrip_controller::runtime::gentle_grasp::GraspOptions;
 
 /// The configuration a sweep starts from.
 const BASE_CONFIG: &str = "configs/gelgripper-sim.toml";
@@ -76,28 +78,26 @@ const BUDGET_PRESS_MM: (f64, f64) = (30.0, 1.0);
 /// What the loop may add to the pipelines' p99, ms.
 const LOOP_ALLOWANCE_MS: f64 = 1.0;
 
-/// `bench pipeline`'s `ms_per_set_p99` on the budget's press (the default configuration).
+/// `bench pipeline`'s `ms_per_set_p99` on the budget's press (the default configuration),
+/// measured in this process.
 fn pipeline_p99_ms() -> anyhow::Result<f64> {
-    let exe = std::env::current_exe().context("locating the gelgrip binary")?;
-    let out = Command::new(&exe)
-        .args(["bench", "pipeline", "--json", "--sets", "200"])
-        .args(["--ball-mm", &BUDGET_PRESS_MM.0.to_string()])
-        .args(["--press-depth-mm", &BUDGET_PRESS_MM.1.to_string()])
-        .output()
-        .context("running bench pipeline")?;
-    let report: Value = serde_json::from_slice(&out.stdout).with_context(|| {
-        format!(
-            "bench pipeline: no report (exit {:?}): {}",
-            out.status.code(),
-            String::from_utf8_lossy(&out.stderr)
-                .lines()
-                .last()
-                .unwrap_or("")
-        )
-    })?;
-    report["ms_per_set_p99"]
-        .as_f64()
-        .context("bench pipeline's report has no ms_per_set_p99")
+    use clap::Parser;
+    #[derive(Parser)]
+    struct Pipeline {
+        #[command(flatten)]
+        args: crate::cli::BenchPipelineArgs,
+    }
+    let parsed = Pipeline::try_parse_from([
+        "bench-pipeline".to_string(),
+        "--sets".into(),
+        "200".into(),
+        "--ball-mm".into(),
+        BUDGET_PRESS_MM.0.to_string(),
+        "--press-depth-mm".into(),
+        BUDGET_PRESS_MM.1.to_string(),
+    ])
+    .context("the budget's bench pipeline arguments")?;
+    crate::commands::bench_pipeline::ms_per_set_p99(&parsed.args)
 }
 
 /// Add the latency budget to a row: `bench_pipeline_ms_per_set_p99`, `latency_budget_ms`
@@ -199,44 +199,38 @@ fn layout_at(config: &toml::Table, w: u32, h: u32) -> anyhow::Result<toml::Table
     Ok(layout)
 }
 
-/// One gentle grasp on `scene` (with `config`, else the default), run as `gelgrip run
-/// --task gentle-grasp --clock virtual` in its own process: its report. Shared by the
+/// One gentle grasp on `scene` (with `config`, else the default) on the virtual clock,
+/// run in this process through the library's session (what `gelgrip run --task
+/// gentle-grasp --clock virtual --headless` runs): its `run --json` report. Shared by the
 /// benches that grasp (`bench grasp`, `bench sync`).
-pub fn gentle_grasp(
+pub async fn gentle_grasp(
     scene: &Path,
     config: Option<&Path>,
     duration_s: f64,
     target_force_n: f64,
 ) -> anyhow::Result<Value> {
-    let exe = std::env::current_exe().context("locating the gelgrip binary")?;
-    let mut cmd = Command::new(&exe);
-    cmd.args(["run", "--headless", "--json", "--clock", "virtual"])
-        .args(["--task", "gentle-grasp"])
-        .arg("--scene")
-        .arg(scene)
-        .args(["--duration", &duration_s.to_string()])
-        .args(["--target-force", &target_force_n.to_string()]);
-    if let Some(c) = config {
-        cmd.arg("--config").arg(c);
-    }
-    let out = cmd
-        .output()
+    let defaults = RunOptions::default();
+    let options = RunOptions {
+        config: config.map(Path::to_path_buf),
+        scene: Some(scene.to_path_buf()),
+        clock: ClockKind::Virtual,
+        task: Some("gentle-grasp".into()),
+        grasp: GraspOptions {
+            target_force_n,
+            ..defaults.grasp.clone()
+        },
+        headless: true,
+        duration_s: Some(duration_s),
+        ..defaults
+    };
+    let report = run_to_end(&options)
+        .await
         .with_context(|| format!("running the grasp on {}", scene.display()))?;
-    serde_json::from_slice(&out.stdout).with_context(|| {
-        format!(
-            "{}: no report (exit {:?}): {}",
-            scene.display(),
-            out.status.code(),
-            String::from_utf8_lossy(&out.stderr)
-                .lines()
-                .last()
-                .unwrap_or("")
-        )
-    })
+    Ok(serde_json::to_value(&report)?)
 }
 
 /// Run the bench; returns the exit code.
-pub fn run(args: BenchGraspArgs) -> anyhow::Result<u8> {
+pub async fn run(args: BenchGraspArgs) -> anyhow::Result<u8> {
     if let Some(plot) = &args.plot {
         if args.sweep.is_none() {
             return Err(gelgrip::UsageError("--plot needs --sweep".into()).into());
@@ -267,7 +261,8 @@ pub fn run(args: BenchGraspArgs) -> anyhow::Result<u8> {
                 scene.display(),
                 resolution.map_or_else(String::new, |(w, h)| format!(" at {w}x{h}"))
             );
-            let report = gentle_grasp(scene, config.as_deref(), args.duration, args.target_force)?;
+            let report =
+                gentle_grasp(scene, config.as_deref(), args.duration, args.target_force).await?;
             rows.push(row(scene, &report, *resolution));
         }
     }

@@ -1,8 +1,9 @@
 //! `gelgrip bench sync [--json]`: the paper's synchronization experiment. One sensor
 //! captures late (`[[hub.sim.faults]] capture_delay_us`, 0–60 ms) while the gripper
 //! grasps a deformable object gently, once with the gate on (the configured limits) and
-//! once with it off (any spread, any age). Each run is its own `gelgrip run --task
-//! gentle-grasp --clock virtual` process, the code path users run.
+//! once with it off (any spread, any age). Each run is a fresh runtime in this process on
+//! the virtual clock, through the library's session: the code path `gelgrip run --task
+//! gentle-grasp` runs.
 //!
 //! Overshoot is the simulator's true peak finger force against the target: what the object
 //! felt, whatever the controller believed. A gated run whose sets all fail the gate never
@@ -106,7 +107,7 @@ fn row(delay_ms: f64, gating: bool, target_n: f64, report: &Value) -> SyncRow {
 }
 
 /// Run the bench; returns the exit code.
-pub fn run(args: BenchSyncArgs) -> anyhow::Result<u8> {
+pub async fn run(args: BenchSyncArgs) -> anyhow::Result<u8> {
     if let Some(plot) = &args.plot {
         gelgrip::plot::Format::of(plot)?;
     }
@@ -134,6 +135,7 @@ pub fn run(args: BenchSyncArgs) -> anyhow::Result<u8> {
                 &run_config(&base, &args.sensor, delay_ms, gating)?,
             )?;
             let report = gentle_grasp(&args.scene, Some(&config), args.duration, args.target_force)
+                .await
                 .with_context(|| format!("delay {delay_ms} ms, gating {gating}"))?;
             rows.push(row(delay_ms, gating, args.target_force, &report));
         }

@@ -81,6 +81,7 @@ impl From<&RunArgs> for RunOptions {
             log: args.log.clone(),
             record: args.record.clone(),
             headless: args.headless,
+            grasp_api: false,
             http: args.http,
             close_current_ma: args.close_current_ma,
             duration_s: args.duration,
