@@ -132,10 +132,12 @@ fn driver(
     )?;
     let limit = config.servos.current_limit_ma;
     Ok(match options.task.as_deref() {
-        Some("gentle-grasp") => Driver::GentleGrasp(Box::new(
-            GentleGrasp::start(plant, limit, &options.grasp)
-                .map_err(|e| UsageError(e.to_string()))?,
-        )),
+        Some("gentle-grasp") => {
+            let task = GentleGrasp::start(plant, limit, &options.grasp)
+                .map_err(|e| UsageError(e.to_string()))?;
+            tracing::info!(task = "gentle-grasp", "task running");
+            Driver::GentleGrasp(Box::new(task))
+        }
         Some(name) => {
             let script = load_script(name, config)?;
             tracing::info!(
