@@ -36,7 +36,7 @@ async fn grasp(scene: &str) -> anyhow::Result<GraspOutcome> {
     };
     tracing::info!(
         grasped = result.grasped,
-        reason = result.reason,
+        reason = %result.reason,
         "grasp done"
     );
     session.finish(EndReason::Done);

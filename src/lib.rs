@@ -12,8 +12,6 @@
 
 pub mod bench_config;
 pub mod catalog;
-pub mod cdc_hub;
-pub mod ch347_hub;
 pub mod embedded;
 mod error;
 pub mod loop_control;
@@ -21,7 +19,6 @@ pub mod observers;
 pub mod output;
 pub mod plot;
 pub mod progress;
-pub mod replay_hub;
 pub mod scene_report;
 pub mod scripts;
 pub mod sensor_models;

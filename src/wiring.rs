@@ -7,6 +7,8 @@ use std::sync::Arc;
 
 use anyhow::Context;
 
+use gelgrip_cdc::factory::CdcFactory;
+use gelgrip_ch347::factory::Ch347Factory;
 use gelgrip_controller::acquire::{Acquisition, make_gate};
 use gelgrip_controller::actuator::ServoBus;
 use gelgrip_controller::clock::{Clock, ClockKind, RealClock, VirtualClock};
@@ -16,33 +18,37 @@ use gelgrip_controller::config::{
 use gelgrip_controller::hub::SensorSettings;
 use gelgrip_controller::registry::{OpenError, OpenRequest, TransportRegistry};
 use gelgrip_dynamixel::driver::DynamixelBus;
+use gelgrip_record::factory::ReplayFactory;
 use gelgrip_sim::SimHubFactory;
+use gelgrip_sim::board_cameras::SimCameraSource;
 use gelgrip_sim::config::SimConfig;
 use gelgrip_sim::scene_spec::SceneSpec;
 use gelgrip_sim::servo_bus::SimServoBus;
 use gelgrip_sim::world::{SharedWorld, World};
 
-use crate::cdc_hub::CdcFactory;
-use crate::ch347_hub::Ch347Factory;
 use crate::embedded;
-use crate::replay_hub::ReplayFactory;
 
 /// Every transport this build can open.
 pub fn registry() -> TransportRegistry {
     let mut registry = TransportRegistry::new();
     registry.register(Box::new(SimHubFactory::default()));
-    registry.register(Box::new(Ch347Factory::default()));
-    registry.register(Box::new(CdcFactory));
+    registry.register(Box::new(ch347(None)));
+    registry.register(Box::new(CdcFactory::new(Some(thread_cpu_ns))));
     registry.register(Box::new(ReplayFactory));
     registry
+}
+
+/// The CH347 factory, its emulator's boards showing `world` (else the built-in presses).
+fn ch347(world: Option<SharedWorld>) -> Ch347Factory {
+    Ch347Factory::new(Some(thread_cpu_ns)).with_cameras(Arc::new(SimCameraSource::new(world)))
 }
 
 /// The same registry, with the simulated hub rendering `world`.
 pub fn registry_with_world(world: SharedWorld) -> TransportRegistry {
     let mut registry = TransportRegistry::new();
     registry.register(Box::new(SimHubFactory::with_world(world.clone())));
-    registry.register(Box::new(Ch347Factory::with_world(Some(world))));
-    registry.register(Box::new(CdcFactory));
+    registry.register(Box::new(ch347(Some(world))));
+    registry.register(Box::new(CdcFactory::new(Some(thread_cpu_ns))));
     registry.register(Box::new(ReplayFactory));
     registry
 }

@@ -58,3 +58,23 @@ impl BoardCameras for PatternCameras {
         Bytes::from(v)
     }
 }
+
+/// Where a hub factory's emulated boards get their cameras from, configured by the
+/// emulator's own config section (`[hub.ch347.emulator]`): the simulator implements it, so
+/// a driver's crate can host its emulator without depending on the simulator.
+pub trait CameraSource: Send + Sync + std::fmt::Debug {
+    /// Check the emulator's section for `layout`.
+    fn validate(
+        &self,
+        section: &crate::config::BackendSection,
+        layout: &crate::layout::HandLayout,
+    ) -> Result<(), crate::config::ConfigError>;
+
+    /// The boards' cameras for `layout`, and the mean frame size they send, bytes (when
+    /// known).
+    fn open(
+        &self,
+        section: &crate::config::BackendSection,
+        layout: &crate::layout::HandLayout,
+    ) -> Result<(Box<dyn BoardCameras>, Option<f64>), String>;
+}

@@ -180,6 +180,71 @@ impl Default for Tuning {
     }
 }
 
+/// Why a grasp ended. Serialises to the grasp API's `reason` strings: `stable`,
+/// `force_limited`, `no_object`, `timeout after T s`, `preempted`, `released`, `stopped`,
+/// `watchdog`, `estop`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum GraspReason {
+    /// Settled with at least two contacts at the target force.
+    Stable,
+    /// Settled with at least two contacts, held at what the current limit allows.
+    ForceLimited,
+    /// Settled without enough contact: nothing to grasp.
+    NoObject,
+    /// The request's own timeout passed first.
+    Timeout {
+        /// When, s since the grasp started.
+        after_s: f64,
+    },
+    /// Another grasp replaced it.
+    Preempted,
+    /// A release ended it.
+    Released,
+    /// A stop ended it.
+    Stopped,
+    /// The run loop's watchdog stopped the motion (no gated set in time).
+    Watchdog,
+    /// An e-stop ended it.
+    Estop,
+}
+
+impl GraspReason {
+    /// The grasp holds the object (`stable` or `force_limited`).
+    pub fn is_stable(self) -> bool {
+        matches!(self, Self::Stable | Self::ForceLimited)
+    }
+}
+
+impl std::fmt::Display for GraspReason {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Stable => f.write_str("stable"),
+            Self::ForceLimited => f.write_str("force_limited"),
+            Self::NoObject => f.write_str("no_object"),
+            Self::Timeout { after_s } => write!(f, "timeout after {after_s:.1} s"),
+            Self::Preempted => f.write_str("preempted"),
+            Self::Released => f.write_str("released"),
+            Self::Stopped => f.write_str("stopped"),
+            Self::Watchdog => f.write_str("watchdog"),
+            Self::Estop => f.write_str("estop"),
+        }
+    }
+}
+
+/// Compares with the API's string (`reason == "stable"`).
+impl PartialEq<&str> for GraspReason {
+    fn eq(&self, other: &&str) -> bool {
+        let text = self.to_string();
+        text.as_str() == *other
+    }
+}
+
+impl Serialize for GraspReason {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.collect_str(self)
+    }
+}
+
 /// How a grasp ended.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct GraspOutcome {
@@ -190,7 +255,7 @@ pub struct GraspOutcome {
     /// Total fused force at the end, N.
     pub final_force_n: f64,
     /// Why it ended.
-    pub reason: String,
+    pub reason: GraspReason,
 }
 
 /// What one step commands.
@@ -720,13 +785,13 @@ impl GraspController {
         let grasped = settled && holding >= 2;
         let limited = active.iter().any(|c| c.force_limited);
         let reason = if settled && grasped && limited {
-            "force_limited".to_string()
+            GraspReason::ForceLimited
         } else if settled && grasped {
-            "stable".to_string()
+            GraspReason::Stable
         } else if settled {
-            "no_object".to_string()
+            GraspReason::NoObject
         } else {
-            format!("timeout after {elapsed_s:.1} s")
+            GraspReason::Timeout { after_s: elapsed_s }
         };
         Some(GraspOutcome {
             grasped,

@@ -19,7 +19,9 @@ use tokio::sync::{mpsc, oneshot};
 
 use crate::actuator::{FingerGoal, ServoState};
 use crate::fusion::FusedSet;
-use crate::grasp::{FingerStatus, GraspController, GraspOutcome, GraspRequest, Tuning};
+use crate::grasp::{
+    FingerStatus, GraspController, GraspOutcome, GraspReason, GraspRequest, Tuning,
+};
 
 /// Why a grasp-API call failed.
 #[derive(Debug, Clone, PartialEq, Error)]
@@ -64,7 +66,7 @@ enum Command {
     Release,
     /// Hold where they are; a waiting grasp resolves with the reason (`stopped`, or
     /// `watchdog` when the run loop's watchdog stopped the motion).
-    Stop(&'static str),
+    Stop(GraspReason),
     Estop,
 }
 
@@ -244,14 +246,14 @@ impl GripperHandle {
 
     /// Every finger holds where it is.
     pub fn stop(&self) -> Result<(), GripperError> {
-        self.send(Command::Stop("stopped"))
+        self.send(Command::Stop(GraspReason::Stopped))
     }
 
     /// The run loop's watchdog fired (no gated set in time): every finger holds where it
     /// is, as for [`GripperHandle::stop`], and a waiting grasp resolves with the reason
     /// `watchdog`.
     pub fn stop_on_watchdog(&self) -> Result<(), GripperError> {
-        self.send(Command::Stop("watchdog"))
+        self.send(Command::Stop(GraspReason::Watchdog))
     }
 
     /// Every finger holds where it is at the minimum current.
@@ -341,7 +343,7 @@ impl GripperService {
             }
             AppliedCommand::Release => (Command::Release, Vec::new()),
             AppliedCommand::Stop { positions_deg } => {
-                (Command::Stop("stopped"), positions_deg.clone())
+                (Command::Stop(GraspReason::Stopped), positions_deg.clone())
             }
             AppliedCommand::Estop { positions_deg } => (Command::Estop, positions_deg.clone()),
         };
@@ -375,7 +377,7 @@ impl GripperService {
     }
 
     /// Resolve the waiting grasp call, if any, with `reason`.
-    fn end_waiting(&mut self, reason: &str) {
+    fn end_waiting(&mut self, reason: GraspReason) {
         if let Some(reply) = self.waiting.take() {
             let n = self.close_deg.len();
             let outcome = GraspOutcome {
@@ -388,7 +390,7 @@ impl GripperService {
                     },
                 ),
                 final_force_n: self.ctl.as_ref().map_or(0.0, |c| c.forces_n().iter().sum()),
-                reason: reason.to_string(),
+                reason,
             };
             let _ = reply.send(outcome);
         }
@@ -431,7 +433,7 @@ impl GripperService {
         }
         match command {
             Command::Grasp(request, reply) => {
-                self.end_waiting("preempted");
+                self.end_waiting(GraspReason::Preempted);
                 self.ctl = Some(GraspController::new(
                     request,
                     self.tuning.clone(),
@@ -442,7 +444,7 @@ impl GripperService {
                 false
             }
             Command::Release => {
-                self.end_waiting("released");
+                self.end_waiting(GraspReason::Released);
                 let idle = self.idle_controller();
                 self.ctl.get_or_insert(idle).release();
                 false
@@ -454,7 +456,7 @@ impl GripperService {
                 true
             }
             Command::Estop => {
-                self.end_waiting("estop");
+                self.end_waiting(GraspReason::Estop);
                 let idle = self.idle_controller();
                 self.ctl.get_or_insert(idle).estop(positions);
                 true
@@ -476,7 +478,7 @@ impl GripperService {
     /// Forget the controller: no goals until the next command (the servos keep what they
     /// were last told, e.g. by a task that just ended).
     pub fn forget(&mut self) {
-        self.end_waiting("preempted");
+        self.end_waiting(GraspReason::Preempted);
         self.ctl = None;
     }
 

@@ -7,6 +7,7 @@
 pub mod config;
 #[cfg(feature = "emulator")]
 pub mod emu;
+pub mod factory;
 pub mod hub;
 
 /// Whether an I/O error only means "not now" (a timeout, a full or empty non-blocking pty,

@@ -24,6 +24,7 @@ pub mod driver;
 #[cfg(feature = "emulator")]
 pub mod emu;
 pub mod error;
+pub mod factory;
 pub mod frames;
 pub mod hub;
 #[cfg(feature = "emulator")]

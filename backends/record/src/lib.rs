@@ -10,6 +10,7 @@
 //! - [`replay`]: [`replay::ReplayHub`], a `HubTransport` that feeds a recording's hub
 //!   events back through the gate at their recorded times.
 
+pub mod factory;
 pub mod format;
 pub mod reader;
 pub mod replay;

@@ -7,7 +7,8 @@
 
 use bytes::Bytes;
 
-use gelgrip_controller::camera::BoardCameras;
+use gelgrip_controller::camera::{BoardCameras, CameraSource};
+use gelgrip_controller::config::{BackendSection, ConfigError};
 use gelgrip_controller::layout::HandLayout;
 
 use crate::config::SimConfig;
@@ -111,5 +112,42 @@ mod tests {
         assert_eq!(a, b, "same capture, same frame");
         assert_eq!(&a[..2], &[0xFF, 0xD8]);
         assert!(cams.capture(9, 3, 1_000).is_empty(), "no such board");
+    }
+}
+
+/// The simulator as a hub factory's [`CameraSource`]: its emulator section holds the
+/// simulator's keys; the boards render `world` when there is one, else the built-in
+/// presses.
+#[derive(Debug, Clone, Default)]
+pub struct SimCameraSource {
+    world: Option<SharedWorld>,
+}
+
+impl SimCameraSource {
+    /// Boards that render `world` (shared with the simulated servos), or the built-in
+    /// presses without one.
+    pub fn new(world: Option<SharedWorld>) -> Self {
+        Self { world }
+    }
+}
+
+impl CameraSource for SimCameraSource {
+    fn validate(&self, section: &BackendSection, layout: &HandLayout) -> Result<(), ConfigError> {
+        SimConfig::from_section(section, layout).map(|_| ())
+    }
+
+    fn open(
+        &self,
+        section: &BackendSection,
+        layout: &HandLayout,
+    ) -> Result<(Box<dyn BoardCameras>, Option<f64>), String> {
+        let sim = SimConfig::from_section(section, layout).map_err(|e| e.to_string())?;
+        let cameras = match &self.world {
+            Some(w) => SimCameras::of_world(layout, &sim, w.clone()),
+            None => SimCameras::presses(layout, &sim),
+        }
+        .map_err(|e| e.to_string())?;
+        let mean = cameras.mean_jpeg_bytes();
+        Ok((Box::new(cameras), mean))
     }
 }

@@ -13,7 +13,7 @@
 //! write; capture-to-command adds the set's age at emission.
 
 use crate::frame::FrameSet;
-use crate::grasp::{GraspOutcome, GraspRequest, Phase};
+use crate::grasp::{GraspOutcome, GraspReason, GraspRequest, Phase};
 use crate::gripper::{CommandKind, GripperError, GripperHandle, GripperService, PendingGrasp};
 use crate::runtime::RuntimeError;
 use crate::runtime::outcome::EndReason;
@@ -67,7 +67,7 @@ pub struct GentleGrasp {
     time_to_stable_s: Option<f64>,
     hold_slip_mm: Option<f64>,
     /// Set when another client's command ended the task.
-    interrupt_reason: Option<&'static str>,
+    interrupt_reason: Option<GraspReason>,
 }
 
 impl GentleGrasp {
@@ -164,7 +164,7 @@ impl GentleGrasp {
                 if let Some(outcome) = ended {
                     self.pending = None;
                     let outcome = outcome.map_err(RuntimeError::Grasp)?;
-                    let stable = matches!(outcome.reason.as_str(), "stable" | "force_limited");
+                    let stable = outcome.reason.is_stable();
                     if stable {
                         self.time_to_stable_s = Some(t_s - start);
                     }
@@ -203,14 +203,14 @@ impl GentleGrasp {
         }
         let command = self.service.last_command()?;
         let (reason, end) = match command {
-            CommandKind::Estop => ("estop", EndReason::Estop),
-            CommandKind::Stop => ("stopped", EndReason::Done),
-            CommandKind::Release => ("released", EndReason::Done),
+            CommandKind::Estop => (GraspReason::Estop, EndReason::Estop),
+            CommandKind::Stop => (GraspReason::Stopped, EndReason::Done),
+            CommandKind::Release => (GraspReason::Released, EndReason::Done),
             CommandKind::Grasp => return None,
         };
-        tracing::warn!(reason, "gentle grasp interrupted through the grasp API");
+        tracing::warn!(%reason, "gentle grasp interrupted through the grasp API");
         if let Some(outcome) = self.outcome.as_mut() {
-            outcome.reason = reason.to_string();
+            outcome.reason = reason;
             outcome.grasped = false;
         }
         self.interrupt_reason = Some(reason);
@@ -321,7 +321,7 @@ impl GentleGrasp {
             pipeline_ms_p99: lat.pipeline_p99,
             final_force_n: outcome.as_ref().map(|o| o.final_force_n),
             reason: match (&outcome, self.interrupt_reason) {
-                (Some(o), _) => o.reason.clone(),
+                (Some(o), _) => o.reason.to_string(),
                 (None, Some(r)) => r.to_string(),
                 (None, None) => "not finished".into(),
             },

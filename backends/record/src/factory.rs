@@ -1,4 +1,4 @@
-//! The `replay` hub transport's registry entry: `[hub.replay] dir` (a recording made with
+//! The `replay` hub transport's factory: `[hub.replay] dir` (a recording made with
 //! `run --record`) and `speed` (a factor of the recorded pace, or `max`). The recording's
 //! gate limits become the `auto` limits, so a replay gates as the run did.
 
@@ -6,13 +6,13 @@ use std::path::PathBuf;
 
 use serde::Deserialize;
 
+use crate::format::Meta;
+use crate::reader::Recording;
+use crate::replay::{ReplayHub, Speed, prediction_for_limits};
 use gelgrip_controller::config::{BackendSection, ConfigError};
 use gelgrip_controller::hub::{HubError, HubTransport};
 use gelgrip_controller::layout::HandLayout;
 use gelgrip_controller::registry::{HubFactory, OpenError, OpenRequest};
-use gelgrip_record::format::Meta;
-use gelgrip_record::reader::Recording;
-use gelgrip_record::replay::{ReplayHub, Speed, prediction_for_limits};
 
 /// Opens recordings as hubs.
 #[derive(Debug, Clone, Copy, Default)]

@@ -1,14 +1,16 @@
-//! The `cdc` hub transport's registry entry: an MCU hub on USB-CDC at `[hub.cdc] port` (a
-//! real one, or `gelgrip emulate hub`'s link).
+//! The `cdc` hub transport's factory: an MCU hub on USB-CDC at `[hub.cdc] port` (a real
+//! one, or `gelgrip emulate hub`'s link).
 
-use gelgrip_cdc::config::{CdcSettings, UsbSpeed};
-use gelgrip_cdc::hub::{CdcHub, CdcHubConfig};
+use gelgrip_controller::acquire::CpuClock;
 use gelgrip_controller::config::{BackendSection, ConfigError};
 use gelgrip_controller::hub::{BusPrediction, HubTransport, TriggerMode};
 use gelgrip_controller::layout::HandLayout;
 use gelgrip_controller::registry::{HubFactory, OpenError, OpenRequest};
 use gelgrip_hubwire::spi_frame::{HEADER_LEN, TRAILER_LEN};
 use gelgrip_hubwire::timing::BusModel;
+
+use crate::config::{CdcSettings, UsbSpeed};
+use crate::hub::{CdcHub, CdcHubConfig};
 
 /// The frame size the bus model assumes, bytes (the paper's S).
 const MEAN_JPEG_BYTES: f64 = 20_400.0;
@@ -18,7 +20,16 @@ const LINK_FRAMING_BYTES: f64 = 100.0;
 
 /// Opens CDC hubs.
 #[derive(Debug, Clone, Copy, Default)]
-pub struct CdcFactory;
+pub struct CdcFactory {
+    cpu_clock: Option<CpuClock>,
+}
+
+impl CdcFactory {
+    /// A factory whose hubs measure their receive path's CPU time with `cpu_clock`.
+    pub fn new(cpu_clock: Option<CpuClock>) -> Self {
+        Self { cpu_clock }
+    }
+}
 
 /// The bus model's prediction; the link's time for a set's bytes (its frames and framing)
 /// sets the period when it is longer than the SPI bus's (USB full speed).
@@ -70,7 +81,7 @@ impl HubFactory for CdcFactory {
                 trigger: request.trigger,
                 reconnect_s: s.reconnect_s,
                 prediction: prediction(n, request.trigger, s.spi_clock_hz, s.usb),
-                cpu_clock: Some(crate::wiring::thread_cpu_ns),
+                cpu_clock: self.cpu_clock,
             },
             request.clock,
         )?;
