@@ -289,6 +289,11 @@ impl Session {
         })
     }
 
+    /// The dashboard's URL (none when headless).
+    pub fn dashboard_url(&self) -> Option<&str> {
+        self.dashboard_url.as_deref()
+    }
+
     /// The run's config.
     pub fn config(&self) -> &AppConfig {
         &self.config

@@ -18,6 +18,8 @@
 //! checks) and the frame decoding (the emulator's threads left out). The simulated hub does not measure its own (its work is mostly the
 //! simulation), so on sim only the gate counts.
 
+use crate::cli::{ClockArg, TriggerArg, parse_duration};
+use clap::{Args, ValueEnum};
 use std::path::PathBuf;
 
 use anyhow::Context;
@@ -31,7 +33,7 @@ use gelgrip_controller::layout::HandLayout;
 use gelgrip_sim::board_cameras::SimCameras;
 use gelgrip_sim::config::SimConfig;
 
-use crate::cli::{BenchBusArgs, BusTransportArg, ClockArg, TriggerArg, UsbArg};
+use crate::cli::UsbArg;
 use gelgrip::wiring;
 
 /// The SPI clock of the emulated CDC hub's boards by default, Hz.
@@ -354,4 +356,48 @@ pub async fn run(args: BenchBusArgs) -> anyhow::Result<u8> {
         print!("{}", table(&rows));
     }
     Ok(0)
+}
+
+/// A hub transport `bench bus` can start on its own.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum BusTransportArg {
+    /// The simulated hub.
+    Sim,
+    /// The CH347 driver and hub protocol on the chip emulator with simulated boards.
+    #[value(name = "ch347-emu")]
+    Ch347Emu,
+    /// The CDC hub transport over a pseudo-terminal to the hub firmware emulator (started by
+    /// the bench) with simulated boards.
+    #[value(name = "cdc-pty")]
+    CdcPty,
+}
+
+/// `gelgrip bench bus`.
+#[derive(Debug, Args)]
+pub struct BenchBusArgs {
+    /// Only this sensor count (default: sweep 1..=16 on sim, 7 on ch347-emu and cdc-pty).
+    #[arg(long, value_parser = clap::value_parser!(u8).range(1..=32))]
+    pub sensors: Option<u8>,
+    /// The transport to measure.
+    #[arg(long, value_enum, default_value = "sim")]
+    pub transport: BusTransportArg,
+    /// SPI clock, Hz (default: the config's on sim; 15, 30 and 60 MHz on ch347-emu, each
+    /// rounded down to a CH347 clock; 40 MHz on cdc-pty).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(400_000..=80_000_000))]
+    pub spi_clock_hz: Option<u32>,
+    /// cdc-pty only: the emulated hub's USB link (default: both, full speed then high).
+    #[arg(long, value_enum)]
+    pub usb: Option<UsbArg>,
+    /// Only this trigger mode (default: both).
+    #[arg(long, value_enum)]
+    pub trigger: Option<TriggerArg>,
+    /// Measurement time per row, in seconds.
+    #[arg(long, default_value = "2", value_parser = parse_duration)]
+    pub seconds: f64,
+    /// Time source (default real: this bench measures what the host observes).
+    #[arg(long, value_enum, default_value = "real")]
+    pub clock: ClockArg,
+    /// Print a JSON array of rows on stdout.
+    #[arg(long)]
+    pub json: bool,
 }

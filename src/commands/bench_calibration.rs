@@ -14,6 +14,7 @@
 //! sensors (every sensor but the source), pixel-weighted, with the contract's `gx_mae` and
 //! `gy_mae`. Nothing about the ordering is assumed; the table is what the data gives.
 
+use clap::Args;
 use serde::Serialize;
 
 use gelgrip_plugins::calibrate::{self, EvalReport};
@@ -25,7 +26,6 @@ use gelgrip_plugins::mlp::train::TrainOptions;
 use gelgrip_plugins::mlp::transfer::{Fit, transfer};
 use gelgrip_sim::config::SimConfig;
 
-use crate::cli::BenchCalibrationArgs;
 use gelgrip::{progress, simcam, wiring};
 
 #[derive(Debug, Serialize)]
@@ -277,4 +277,21 @@ fn print_table(r: &Report) {
     row("data used", &|c| c.data_used_presses.to_string());
     row("Gx MAE", &|c| format!("{:.4}", c.gx_mae));
     row("Gy MAE", &|c| format!("{:.4}", c.gy_mae));
+}
+
+/// `gelgrip bench calibration`.
+#[derive(Debug, Args)]
+pub struct BenchCalibrationArgs {
+    /// Presses per sensor (the last 10% held out).
+    #[arg(long, default_value = "50", value_parser = clap::value_parser!(u32).range(4..=2000))]
+    pub presses: u32,
+    /// MLP training epochs.
+    #[arg(long, default_value_t = crate::commands::calibrate::DEFAULT_EPOCHS, value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    pub epochs: u32,
+    /// MLP hidden layer width.
+    #[arg(long, default_value = "32", value_parser = clap::value_parser!(u16).range(1..=1024))]
+    pub hidden: u16,
+    /// Print one JSON object on stdout.
+    #[arg(long)]
+    pub json: bool,
 }

@@ -5,6 +5,7 @@
 //! client, each counting what it receives. Wall-clock, on this host: CPU comes from
 //! `/proc/<pid>/stat` (Linux).
 
+use clap::Args;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
@@ -13,7 +14,6 @@ use anyhow::{Context, bail};
 use serde::Serialize;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 
-use crate::cli::BenchDashboardArgs;
 use crate::commands::dashboard_child::DashboardChild;
 
 /// The bench's result.
@@ -215,4 +215,18 @@ async fn measure(
         cpu_pct_clients: cpu_clients,
         serving_cpu_pct: cpu_clients - cpu_idle,
     })
+}
+
+/// `gelgrip bench dashboard`.
+#[derive(Debug, Args)]
+pub struct BenchDashboardArgs {
+    /// MJPEG clients, one per sensor (at most one per sensor).
+    #[arg(long, default_value_t = 7)]
+    pub clients: usize,
+    /// Seconds per measuring window (one without clients, one with).
+    #[arg(long, default_value_t = 10.0)]
+    pub seconds: f64,
+    /// Print one JSON object on stdout.
+    #[arg(long)]
+    pub json: bool,
 }

@@ -12,12 +12,13 @@
 //! says whether its `loop_latency_ms_p99` is within 1 ms of that bench's `ms_per_set_p99`
 //! (the grasp issue's acceptance: fusion, control and the servo write add at most 1 ms).
 
+use crate::cli::parse_force_n;
+use clap::{Args, ValueEnum};
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use serde_json::Value;
 
-use crate::cli::{BenchGraspArgs, GraspSweep};
 use gelgrip::bench_config::{BenchDir, load, load_config, section};
 use gelgrip::session::{RunOptions, run_to_end};
 use gelgrip_controller::clock::ClockKind;
@@ -373,4 +374,35 @@ fn sweep_figure(rows: &[Value], target_n: f64) -> gelgrip::plot::Figure {
         markers: true,
         legend: Some(plotters::prelude::SeriesLabelPosition::UpperLeft),
     }
+}
+
+/// `gelgrip bench grasp`.
+#[derive(Debug, Args)]
+pub struct BenchGraspArgs {
+    /// Scene files (default: every `configs/scenes/*.toml`).
+    #[arg(long = "scene")]
+    pub scenes: Vec<PathBuf>,
+    /// Force per finger, N.
+    #[arg(long, default_value_t = 1.5, value_parser = parse_force_n)]
+    pub target_force: f64,
+    /// Simulated seconds per object at most.
+    #[arg(long, default_value_t = 25.0)]
+    pub duration: f64,
+    /// Sweep a system parameter: `resolution` runs every object at 320×240, 160×120 and
+    /// 80×60 (the sensors' `resolution` and `mm_per_px` scaled together, the pad unchanged).
+    #[arg(long)]
+    pub sweep: Option<GraspSweep>,
+    /// With `--sweep`: also draw grasp quality against set rate (`.svg` or `.png`).
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+    /// Print one JSON array on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// What `bench grasp --sweep` varies.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum GraspSweep {
+    /// Sensor resolution: 320×240, 160×120, 80×60.
+    Resolution,
 }

@@ -11,6 +11,9 @@
 //! the sensors of each set in parallel (`process_set`: rayon, one task per sensor) and
 //! measures wall-clock time per set.
 
+use crate::cli::parse_within;
+use clap::Args;
+use std::path::PathBuf;
 use std::time::Instant;
 
 use serde::Serialize;
@@ -28,7 +31,7 @@ use gelgrip_sim::config::SimConfig;
 use gelgrip_sim::pool::SensorCamera;
 use gelgrip_sim::scene::HeightMap;
 
-use crate::cli::{BenchPipelineArgs, ModelKind};
+use crate::cli::ModelKind;
 use gelgrip::sensor_models::{self, MlpPlan};
 use gelgrip::{simcam, wiring};
 
@@ -281,5 +284,61 @@ fn print_table(r: &Report) {
             s.true_volume_mm3,
             f(s.force_n)
         );
+    }
+}
+
+/// `gelgrip bench pipeline`.
+#[derive(Debug, Args)]
+pub struct BenchPipelineArgs {
+    /// Sensors per set.
+    #[arg(long, default_value = "7", value_parser = clap::value_parser!(u8).range(1..=32))]
+    pub sensors: u8,
+    /// Gradient model kind. `mlp` trains an MLP on the first sensor and transfers it to the
+    /// others from one press each (the paper's deployment).
+    #[arg(long, value_enum, default_value = "lut")]
+    pub model: ModelKind,
+    /// How the MLP runs: `contact` (pixels above the noise), `dense`, or `baked` (into a
+    /// tiled LUT).
+    #[arg(long, default_value = "contact", value_parser = ["contact", "dense", "baked"])]
+    pub mlp_mode: String,
+    /// MLP training epochs.
+    #[arg(long, default_value_t = crate::commands::calibrate::DEFAULT_EPOCHS, value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    pub epochs: u32,
+    /// Use this trained model for every sensor instead of calibrating each one.
+    #[arg(long)]
+    pub model_file: Option<PathBuf>,
+    /// Depth solver.
+    #[arg(long, default_value = "dct", value_parser = ["dst", "dct"])]
+    pub solver: String,
+    /// JPEG decode scale (1, 2 or 4).
+    #[arg(long, default_value = "1", value_parser = ["1", "2", "4"])]
+    pub scale_arg: String,
+    /// Timed sets (the median needs at least 200).
+    #[arg(long, default_value = "200", value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    pub sets: u32,
+    /// Diameter of the ball pressing every sensor, mm (6: a fingertip probe; 30 with
+    /// `--press-depth-mm 1`: a broad contact such as a grasped object makes).
+    #[arg(long, default_value_t = 6.0, value_parser = parse_ball_mm)]
+    pub ball_mm: f64,
+    /// Depth of the press, mm.
+    #[arg(long, default_value_t = 0.5, value_parser = parse_press_depth_mm)]
+    pub press_depth_mm: f64,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn parse_ball_mm(s: &str) -> Result<f64, String> {
+    parse_within(s, "a diameter", "mm", 0.5..=50.0)
+}
+
+fn parse_press_depth_mm(s: &str) -> Result<f64, String> {
+    parse_within(s, "a depth", "mm", 0.0..=3.0)
+}
+
+impl BenchPipelineArgs {
+    /// The decode scale as a number.
+    pub fn scale(&self) -> usize {
+        self.scale_arg.parse().unwrap_or(1)
     }
 }

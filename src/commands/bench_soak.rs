@@ -1,17 +1,20 @@
 //! `gelgrip bench soak --minutes N [--seed S] [--json]`: the product under random faults.
 //!
-//! It starts `gelgrip run` (the simulated gripper with its dashboard, the tennis ball in
-//! reach) and, through the dashboard's API only, injects a random fault every two seconds:
+//! It runs the simulated gripper with its dashboard in this process (the library's session,
+//! as `gelgrip run` does; the tennis ball in reach) and, through the dashboard's API only, injects a random fault every two seconds:
 //! corrupt bytes, a sensor dropping out, a slow sensor, a hub unplug, a servo overload, or a
 //! burst of HTTP commands (grasps, releases, state reads, malformed requests). Twice a
-//! second it reads the state and the process's RSS. At the end it stops the run with
-//! SIGTERM and checks the invariants: no panic; every frame the hub delivered is in a set,
+//! second it reads the state and the process's RSS. At the end it stops the run (a
+//! shutdown event, as SIGTERM gives `gelgrip run`) and checks the invariants: no panic
+//! (counted by a panic hook, and a run task that did not panic); every frame the hub delivered is in a set,
 //! dropped with a reason, or among the last sets still pending; no duplicate; RSS within
 //! bounds after warm-up; the fingers always in a documented controller phase; no 5xx
 //! answer. The exit code is 1 when an invariant fails.
 
+use clap::Args;
 use std::collections::BTreeMap;
-use std::io::Read;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
@@ -20,8 +23,10 @@ use rand_pcg::Pcg64Mcg;
 use serde::Serialize;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 
-use crate::cli::BenchSoakArgs;
-use crate::commands::dashboard_child::DashboardChild;
+use gelgrip::output::RunReport;
+use gelgrip::session::{RunOptions, Session};
+use gelgrip_controller::runtime::RuntimeEvent;
+use tokio::sync::mpsc;
 
 /// The controller phases docs/control.md documents.
 const PHASES: [&str; 7] = [
@@ -211,10 +216,59 @@ impl Soak {
 }
 
 /// Run the bench; returns the exit code.
+/// Count every panic in this process from now on (then the previous hook reports it).
+fn count_panics() -> Arc<AtomicU64> {
+    let panics = Arc::new(AtomicU64::new(0));
+    let seen = panics.clone();
+    let previous = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        seen.fetch_add(1, Ordering::Relaxed);
+        previous(info);
+    }));
+    panics
+}
+
+/// The gripper under test, running in this process with its dashboard.
+struct Gripper {
+    addr: String,
+    stop: mpsc::Sender<RuntimeEvent>,
+    run: tokio::task::JoinHandle<RunReport>,
+}
+
+impl Gripper {
+    async fn start() -> anyhow::Result<Self> {
+        let options = RunOptions {
+            http: Some(std::net::SocketAddr::from(([127, 0, 0, 1], 0))),
+            ..RunOptions::default()
+        };
+        let session = Session::open(&options).await?;
+        let addr = session
+            .dashboard_url()
+            .context("the run serves no dashboard")?
+            .trim_start_matches("http://")
+            .trim_end_matches('/')
+            .to_string();
+        let (stop, events) = mpsc::channel(1);
+        let run = tokio::spawn(session.run(events));
+        Ok(Self { addr, stop, run })
+    }
+
+    /// Stop the run and take its report (`None` if the run's task panicked).
+    async fn stop(self) -> anyhow::Result<Option<RunReport>> {
+        let _ = self.stop.send(RuntimeEvent::Shutdown).await;
+        match self.run.await {
+            Ok(report) => Ok(Some(report)),
+            Err(e) if e.is_panic() => Ok(None),
+            Err(e) => Err(e).context("the run's task"),
+        }
+    }
+}
+
 pub async fn run(args: BenchSoakArgs) -> anyhow::Result<u8> {
-    let mut child = DashboardChild::start(&["--json"], true).await?;
-    let pid = child.pid();
-    let addr = child.addr.clone();
+    let panic_count = count_panics();
+    let gripper = Gripper::start().await?;
+    let pid = std::process::id();
+    let addr = gripper.addr.clone();
     let mut soak = Soak {
         addr,
         rng: Pcg64Mcg::seed_from_u64(args.seed),
@@ -280,14 +334,15 @@ pub async fn run(args: BenchSoakArgs) -> anyhow::Result<u8> {
     }
     while soak.bursts.join_next().await.is_some() {}
     let http_status = soak.status.lock().map(|s| s.clone()).unwrap_or_default();
-    child.terminate();
-    let mut out = String::new();
-    if let Some(mut stdout) = child.child.stdout.take() {
-        stdout.read_to_string(&mut out).ok();
-    }
-    let status = child.child.wait().context("waiting for gelgrip run")?;
-    let run: serde_json::Value = serde_json::from_str(out.trim())
-        .with_context(|| format!("gelgrip run's report: {out:?}"))?;
+    let report = gripper.stop().await?;
+    // The exit code `gelgrip run` would give: 101 for a panic.
+    let exit_code = report
+        .as_ref()
+        .map_or(101, |r| i32::from(r.end_reason.exit_code()));
+    let run = match &report {
+        Some(r) => serde_json::to_value(r)?,
+        None => serde_json::Value::Null,
+    };
     let count = |key: &str| -> u64 {
         run[key]
             .as_object()
@@ -304,7 +359,7 @@ pub async fn run(args: BenchSoakArgs) -> anyhow::Result<u8> {
     } else {
         0.0
     };
-    let panics = child.panics() + u64::from(status.code() == Some(101));
+    let panics = panic_count.load(Ordering::Relaxed);
     let five_xx = http_status.get("5xx").copied().unwrap_or(0);
     let unanswered = http_status.get("none").copied().unwrap_or(0);
     let passed = panics == 0
@@ -315,7 +370,7 @@ pub async fn run(args: BenchSoakArgs) -> anyhow::Result<u8> {
         && five_xx == 0
         && unanswered == 0
         && samples > 0
-        && status.code() == Some(0);
+        && exit_code == 0;
     let report = SoakReport {
         minutes: args.minutes,
         seed: args.seed,
@@ -337,7 +392,7 @@ pub async fn run(args: BenchSoakArgs) -> anyhow::Result<u8> {
         sets_rejected: run["sets_rejected"].clone(),
         run_faults: run["faults"].as_array().map_or(0, |f| f.len() as u64),
         end_reason: run["end_reason"].as_str().unwrap_or("").to_string(),
-        exit_code: status.code(),
+        exit_code: Some(exit_code),
     };
     if args.json {
         println!("{}", serde_json::to_string(&report)?);
@@ -374,4 +429,25 @@ pub async fn run(args: BenchSoakArgs) -> anyhow::Result<u8> {
         bail!("soak invariants failed (see the report)");
     }
     Ok(0)
+}
+
+/// `gelgrip bench soak`.
+#[derive(Debug, Args)]
+pub struct BenchSoakArgs {
+    /// How long, in minutes.
+    #[arg(long, default_value = "10", value_parser = parse_minutes)]
+    pub minutes: f64,
+    /// Seed of the fault schedule.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Print one JSON object on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn parse_minutes(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if (0.1..=10_080.0).contains(&v) => Ok(v),
+        _ => Err(format!("`{s}`: expected minutes in [0.1, 10080]")),
+    }
 }

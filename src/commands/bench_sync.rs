@@ -9,13 +9,16 @@
 //! felt, whatever the controller believed. A gated run whose sets all fail the gate never
 //! squeezes, and its row says so (`grasped: false` and the reason).
 
+use crate::cli::parse_force_n;
+use clap::Args;
 use std::path::Path;
+use std::path::PathBuf;
 
 use anyhow::Context;
 use serde::Serialize;
 use serde_json::Value;
 
-use crate::cli::{BenchSyncArgs, UsageError};
+use crate::cli::UsageError;
 use crate::commands::bench_grasp::gentle_grasp;
 use gelgrip::bench_config::{BenchDir, load_config, section};
 
@@ -212,4 +215,39 @@ fn table(rows: &[SyncRow]) -> String {
         );
     }
     s
+}
+
+/// `gelgrip bench sync`.
+#[derive(Debug, Args)]
+pub struct BenchSyncArgs {
+    /// The deformable object to grasp.
+    #[arg(long, default_value = "configs/scenes/paper-cup.toml")]
+    pub scene: PathBuf,
+    /// The sensor that captures late.
+    #[arg(long, default_value = "f1.middle")]
+    pub sensor: String,
+    /// Capture delays to inject, ms (comma-separated, each in [0, 60]).
+    #[arg(long, value_delimiter = ',', default_values_t = [0.0, 1.0, 2.0, 5.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0], value_parser = parse_delay_ms)]
+    pub delays_ms: Vec<f64>,
+    /// Force per finger, N.
+    #[arg(long, default_value_t = 1.5, value_parser = parse_force_n)]
+    pub target_force: f64,
+    /// Simulated seconds per run at most.
+    #[arg(long, default_value_t = 25.0)]
+    pub duration: f64,
+    /// Also draw overshoot against delay, gating on and off (`.svg` or `.png`).
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+    /// Print one JSON array on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn parse_delay_ms(s: &str) -> Result<f64, String> {
+    let v: f64 = s.parse().map_err(|e| format!("{s:?}: {e}"))?;
+    if v.is_finite() && (0.0..=60.0).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!("{v} ms: expected a delay in [0, 60] ms"))
+    }
 }

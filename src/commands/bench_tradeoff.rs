@@ -11,7 +11,9 @@
 //! `area_iou` of the contact mask. With solver `none` the pipeline stops at the gradients:
 //! depth is null and the contact mask comes from block activity.
 
+use clap::Args;
 use std::path::Path;
+use std::path::PathBuf;
 use std::time::Instant;
 
 use serde::Serialize;
@@ -25,7 +27,6 @@ use gelgrip_plugins::pipeline::{Needs, SensorPipeline, StageChoice, process_set}
 use gelgrip_plugins::poisson::Solver;
 use gelgrip_sim::scene::HeightMap;
 
-use crate::cli::BenchTradeoffArgs;
 use gelgrip::plot::{Figure, Series};
 use gelgrip::sensor_models::{self, MlpPlan};
 use gelgrip::{simcam, wiring};
@@ -361,4 +362,24 @@ fn print_table(rows: &[Row]) {
             if r.pareto { "*" } else { "" }
         );
     }
+}
+
+/// `gelgrip bench tradeoff`.
+#[derive(Debug, Args)]
+pub struct BenchTradeoffArgs {
+    /// Timed sets per configuration.
+    #[arg(long, default_value = "30", value_parser = clap::value_parser!(u32).range(1..=10_000))]
+    pub sets: u32,
+    /// Presses per sensor for calibration.
+    #[arg(long, default_value = "50", value_parser = clap::value_parser!(u32).range(4..=2000))]
+    pub presses: u32,
+    /// MLP training epochs (the source sensor's MLP; the others are transferred).
+    #[arg(long, default_value_t = crate::commands::calibrate::DEFAULT_EPOCHS, value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    pub epochs: u32,
+    /// Write the Pareto plot here (.svg or .png).
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+    /// Print a JSON array of rows on stdout.
+    #[arg(long)]
+    pub json: bool,
 }

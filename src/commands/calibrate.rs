@@ -1,7 +1,10 @@
 //! `gelgrip calibrate collect|train|eval|transfer|bake`: press datasets, LUT and MLP
 //! training, zero-shot transfer, baking and evaluation with the contract's metrics.
 
+use crate::cli::parse_within;
+use clap::{Args, ValueEnum};
 use serde::Serialize;
+use std::path::PathBuf;
 
 use gelgrip_plugins::calibrate::{self, EvalReport};
 use gelgrip_plugins::dataset::PressDataset;
@@ -13,9 +16,7 @@ use gelgrip_plugins::mlp::train::TrainOptions;
 use gelgrip_plugins::mlp::transfer::{Fit, transfer};
 use gelgrip_plugins::poisson::Solver;
 
-use crate::cli::{
-    BakeArgs, CalibrateCommand, CollectArgs, EvalArgs, ModelKind, TrainArgs, TransferArgs,
-};
+use crate::cli::CalibrateCommand;
 use gelgrip::{progress, simcam, wiring};
 
 /// Run a calibrate subcommand; returns the exit code.
@@ -321,4 +322,151 @@ fn eval(args: EvalArgs) -> anyhow::Result<u8> {
         );
     }
     Ok(0)
+}
+
+/// `gelgrip calibrate collect`.
+#[derive(Debug, Args)]
+pub struct CollectArgs {
+    /// Sensor id (e.g. f1.tip).
+    #[arg(long)]
+    pub sensor: String,
+    /// Number of presses.
+    #[arg(long, default_value = "50", value_parser = clap::value_parser!(u32).range(1..=10_000))]
+    pub presses: u32,
+    /// Output directory.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Configuration (default: the embedded simulated gripper).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+}
+
+/// Gradient model kinds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ModelKind {
+    /// Binned colour → mean gradient.
+    Lut,
+    /// Multi-layer perceptron: RGB + x, y → (Gx, Gy), three tanh hidden layers.
+    Mlp,
+}
+
+/// `gelgrip calibrate train`.
+#[derive(Debug, Args)]
+pub struct TrainArgs {
+    /// Press dataset directory.
+    #[arg(long)]
+    pub data: PathBuf,
+    /// Model kind.
+    #[arg(long, value_enum, default_value = "lut")]
+    pub model: ModelKind,
+    /// Colour key: the difference image or the raw frame.
+    #[arg(long, default_value = "diff", value_parser = ["diff", "raw"])]
+    pub input: String,
+    /// LUT bins per channel.
+    #[arg(long, default_value = "64", value_parser = clap::value_parser!(u16).range(2..=256))]
+    pub bins: u16,
+    /// LUT: box-blur radius the frames are read through, px (default: none when the
+    /// presses' pixel noise is at most 16 grey levels RMS, else the smallest of 1, 2, 3, 4,
+    /// 6, 8 whose validation error is within 10% of the best).
+    #[arg(long, value_parser = clap::value_parser!(u8).range(0..=8))]
+    pub blur_px: Option<u8>,
+    /// Output model file (.safetensors).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// MLP: hidden layer width.
+    #[arg(long, default_value = "32", value_parser = clap::value_parser!(u16).range(1..=1024))]
+    pub hidden: u16,
+    /// MLP: passes over the training pixels.
+    #[arg(long, default_value_t = DEFAULT_EPOCHS, value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    pub epochs: u32,
+    /// MLP: dropout after each hidden layer while training.
+    #[arg(long, default_value_t = 0.05, value_parser = parse_dropout)]
+    pub dropout: f64,
+    /// MLP: initial learning rate (Adam; cosine decay to 5 % of it).
+    #[arg(long, default_value_t = 2e-3, value_parser = parse_learning_rate)]
+    pub learning_rate: f64,
+    /// MLP: seed of initialisation, shuffling and dropout.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Print one JSON object (the MAEs) on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Default MLP training epochs (about a minute for 50 presses at 320×240 on 2 cores;
+/// docs/calibration.md).
+pub const DEFAULT_EPOCHS: u32 = 40;
+
+fn parse_dropout(s: &str) -> Result<f64, String> {
+    parse_within(s, "a dropout probability", "", 0.0..=0.9)
+}
+
+fn parse_learning_rate(s: &str) -> Result<f64, String> {
+    parse_within(s, "a learning rate", "", 1e-6..=1.0)
+}
+
+/// `gelgrip calibrate transfer`.
+#[derive(Debug, Args)]
+pub struct TransferArgs {
+    /// The source sensor's MLP model file.
+    #[arg(long)]
+    pub model: PathBuf,
+    /// The target sensor's press dataset (its first press is used).
+    #[arg(long)]
+    pub data: PathBuf,
+    /// Output model file.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// What to fit: the paper's per-channel offset, or a gain as well.
+    #[arg(long, default_value = "offset", value_parser = ["offset", "offset-gain"])]
+    pub fit: String,
+    /// Print one JSON object on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `gelgrip calibrate bake`.
+#[derive(Debug, Args)]
+pub struct BakeArgs {
+    /// A difference-input MLP model file.
+    #[arg(long)]
+    pub model: PathBuf,
+    /// Output LUT model file.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Bins per colour channel.
+    #[arg(long, default_value = "64", value_parser = clap::value_parser!(u16).range(2..=128))]
+    pub bins: u16,
+    /// Spatial tiles, ACROSSxDOWN (each its own colour table, interpolated).
+    #[arg(long, default_value = "4x3", value_parser = parse_tiles)]
+    pub tiles: [usize; 2],
+}
+
+fn parse_tiles(s: &str) -> Result<[usize; 2], String> {
+    let bad = || format!("`{s}` is not tiles ACROSSxDOWN with each in 1..=16, such as 4x3");
+    let (a, d) = s.split_once('x').ok_or_else(bad)?;
+    let n = |v: &str| {
+        v.trim()
+            .parse::<usize>()
+            .ok()
+            .filter(|n| (1..=16).contains(n))
+    };
+    Ok([n(a).ok_or_else(bad)?, n(d).ok_or_else(bad)?])
+}
+
+/// `gelgrip calibrate eval`.
+#[derive(Debug, Args)]
+pub struct EvalArgs {
+    /// Model file.
+    #[arg(long)]
+    pub model: PathBuf,
+    /// Press dataset directory.
+    #[arg(long)]
+    pub data: PathBuf,
+    /// Depth solver for depth_mae_mm (`none` skips depth).
+    #[arg(long, default_value = "dst", value_parser = ["dst", "dct", "none"])]
+    pub solver: String,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
 }

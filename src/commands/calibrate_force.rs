@@ -15,9 +15,11 @@
 //! the same fit takes known weights placed on the sensor in turn
 //! ([`crate::commands::calibrate_force_hw`]).
 
+use clap::Args;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 use serde::Serialize;
+use std::path::PathBuf;
 
 use gelgrip_plugins::config::PipelineConfig;
 use gelgrip_plugins::pipeline::Needs;
@@ -26,7 +28,6 @@ use gelgrip_sim::scene::HeightMap;
 
 use gelgrip_controller::config::AppConfig;
 
-use crate::cli::ForceArgs;
 use crate::commands::calibrate_force_hw::{KNOWN_WEIGHTS, WeightReading, weigh};
 use gelgrip::{tactile, wiring};
 
@@ -332,4 +333,43 @@ fn print(report: &ForceReport, json: bool) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+/// `gelgrip calibrate force`.
+#[derive(Debug, Args)]
+pub struct ForceArgs {
+    /// Sensor id (e.g. f1.tip).
+    #[arg(long)]
+    pub sensor: String,
+    /// Simulator: presses (6, 30 and 66 mm balls and 20 and 40 mm cylinders in turn) at
+    /// depths spread over 0.1–1.0 mm.
+    #[arg(long, default_value_t = 30, value_parser = clap::value_parser!(u32).range(3..=2000))]
+    pub presses: u32,
+    /// Hardware hub: the known weights to place on the sensor in turn, g (each prompted
+    /// on stderr and confirmed with Enter on stdin).
+    #[arg(long, value_delimiter = ',', default_value = "20,50,100,200", value_parser = parse_weight_g)]
+    pub weights_g: Vec<f64>,
+    /// Hardware hub: frames read per weight (and for the untouched reference).
+    #[arg(long, default_value_t = 12, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    pub frames: u32,
+    /// Configuration (default: the embedded simulated gripper).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Print one JSON object on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn parse_weight_g(s: &str) -> Result<f64, String> {
+    let g: f64 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{s}` is not a weight in g"))?;
+    if g.is_finite() && g > 0.0 && g <= 10_000.0 {
+        Ok(g)
+    } else {
+        Err(format!(
+            "a weight of {s} g: expected more than 0 and at most 10000 g"
+        ))
+    }
 }

@@ -1,8 +1,9 @@
 //! `gelgrip check-config FILE`: validate a configuration; errors name the file, the field and
 //! the allowed range, and exit 2.
 
-use crate::cli::CheckConfigArgs;
+use clap::Args;
 use gelgrip::wiring;
+use std::path::PathBuf;
 
 /// Run the command; returns the exit code.
 pub fn run(args: CheckConfigArgs) -> anyhow::Result<u8> {
@@ -17,4 +18,11 @@ pub fn run(args: CheckConfigArgs) -> anyhow::Result<u8> {
         config.hub.trigger.as_str()
     );
     Ok(0)
+}
+
+/// `gelgrip check-config`.
+#[derive(Debug, Args)]
+pub struct CheckConfigArgs {
+    /// The file to validate.
+    pub file: PathBuf,
 }

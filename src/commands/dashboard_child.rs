@@ -1,12 +1,10 @@
 //! A `gelgrip run` child serving its dashboard, for the benches that drive one over HTTP
-//! (`bench dashboard`, `bench soak`): started with `--http 127.0.0.1:0`, its address read
-//! from the `dashboard: URL` line on its stderr, panics counted from the same stream,
-//! stopped with SIGTERM.
+//! (`bench dashboard`, whose HTTP clients must not share the server's CPU): started with `--http 127.0.0.1:0`, its address read
+//! from the `dashboard: URL` line on its stderr (panics there are echoed), stopped with
+//! SIGTERM.
 
 use std::io::{BufRead, BufReader};
 use std::process::{Child, Command, Stdio};
-use std::sync::Arc;
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Duration;
 
 use anyhow::Context;
@@ -18,7 +16,6 @@ pub struct DashboardChild {
     pub child: Child,
     /// `host:port` of its dashboard.
     pub addr: String,
-    panics: Arc<AtomicU64>,
 }
 
 impl DashboardChild {
@@ -40,8 +37,6 @@ impl DashboardChild {
             .context("starting gelgrip run")?;
         let stderr = child.stderr.take().context("stderr")?;
         let (tx, rx) = std::sync::mpsc::channel();
-        let panics = Arc::new(AtomicU64::new(0));
-        let seen = panics.clone();
         std::thread::spawn(move || {
             for line in BufReader::new(stderr).lines().map_while(Result::ok) {
                 if let Some(url) = line.strip_prefix("dashboard: ") {
@@ -49,7 +44,6 @@ impl DashboardChild {
                 }
                 if line.contains("panicked") {
                     eprintln!("gelgrip run: {line}");
-                    seen.fetch_add(1, Ordering::Relaxed);
                 }
             }
         });
@@ -61,7 +55,6 @@ impl DashboardChild {
                 let mut child = Self {
                     child,
                     addr: String::new(),
-                    panics,
                 };
                 child.terminate();
                 anyhow::bail!("gelgrip run did not print its dashboard URL");
@@ -71,21 +64,12 @@ impl DashboardChild {
             .trim_start_matches("http://")
             .trim_end_matches('/')
             .to_string();
-        Ok(Self {
-            child,
-            addr,
-            panics,
-        })
+        Ok(Self { child, addr })
     }
 
     /// The process id.
     pub fn pid(&self) -> u32 {
         self.child.id()
-    }
-
-    /// Lines of its stderr that reported a panic, so far.
-    pub fn panics(&self) -> u64 {
-        self.panics.load(Ordering::Relaxed)
     }
 
     /// Send SIGTERM (the run stops cleanly and prints its report) without waiting.

@@ -1,10 +1,10 @@
 //! `gelgrip depth --gradients G.npy --out D.npy [--solver dst|dct]`: integrate an H×W×2
 //! gradient array (channel 0 = Gx, 1 = Gy, pixel units) into an H×W depth map (`<f4`).
 
+use clap::Args;
 use gelgrip_plugins::npy;
 use gelgrip_plugins::poisson::{PoissonPlan, Solver};
-
-use crate::cli::DepthArgs;
+use std::path::PathBuf;
 
 /// Run the command; returns the exit code.
 pub fn run(args: DepthArgs) -> anyhow::Result<u8> {
@@ -22,4 +22,18 @@ pub fn run(args: DepthArgs) -> anyhow::Result<u8> {
         args.out.display()
     );
     Ok(0)
+}
+
+/// `gelgrip depth`.
+#[derive(Debug, Args)]
+pub struct DepthArgs {
+    /// Gradients, H×W×2 `<f4` or `<f8` in C order.
+    #[arg(long)]
+    pub gradients: PathBuf,
+    /// Output depth map (H×W `<f4`, pixel units).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Solver: dst (zero border) or dct (zero mean).
+    #[arg(long, default_value = "dst", value_parser = ["dst", "dct"])]
+    pub solver: String,
 }

@@ -9,6 +9,7 @@
 //! Return Delay Time. Motion comes from the simulator's XM430 motor model, stepped on the
 //! wall clock.
 
+use clap::Args;
 use std::io::{Read, Write};
 use std::path::Path;
 use std::sync::Arc;
@@ -22,8 +23,6 @@ use gelgrip_dynamixel::control_table::addr;
 use gelgrip_dynamixel::emu::{EmulatedServo, ServoBusEmulator};
 use gelgrip_dynamixel::protocol::PacketDecoder;
 use gelgrip_sim::motor::Xm430Motor;
-
-use crate::cli::EmulateServosArgs;
 
 /// Read timeout of the server loop: how often it checks for shutdown, and the idle time
 /// after which a partial packet is dropped (a servo's packet timeout).
@@ -114,4 +113,18 @@ pub async fn run(args: EmulateServosArgs) -> anyhow::Result<u8> {
     let _ = server.join();
     drop(slave);
     Ok(0)
+}
+
+/// `gelgrip emulate servos`.
+#[derive(Debug, Args)]
+pub struct EmulateServosArgs {
+    /// Symlink to create to the pseudo-terminal (removed on SIGINT/SIGTERM).
+    #[arg(long)]
+    pub link: String,
+    /// Servo ids.
+    #[arg(long, value_delimiter = ',', default_value = "1,2,3", value_parser = clap::value_parser!(u8).range(0..=252))]
+    pub ids: Vec<u8>,
+    /// Baud rate whose wire time each reply is charged.
+    #[arg(long, default_value = "1000000", value_parser = clap::value_parser!(u32).range(9600..=4_500_000))]
+    pub baud: u32,
 }

@@ -10,7 +10,9 @@
 //! symlink PATH is created, then one JSON line `{"link", "pty", "usb", "sensors"}` goes to
 //! stdout. The link is removed on SIGINT or SIGTERM.
 
+use clap::{Args, ValueEnum};
 use std::path::Path;
+use std::path::PathBuf;
 
 use anyhow::Context;
 
@@ -21,7 +23,7 @@ use gelgrip_sim::board_cameras::SimCameras;
 use gelgrip_sim::config::SimConfig;
 use gelgrip_sim::weights::{WeightControl, weighted_cameras};
 
-use crate::cli::{EmulateHubArgs, UsageError, UsbArg};
+use crate::cli::UsageError;
 use gelgrip::wiring;
 
 /// Run the command; returns the exit code.
@@ -132,4 +134,36 @@ fn place_weight(layout: &HandLayout, control: &WeightControl, line: &str) -> ser
         }),
         Err(e) => fail(e.to_string()),
     }
+}
+
+/// USB speed of an emulated hub's link.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum UsbArg {
+    /// Full speed, about 1 MB/s: less than 7 sensors × 20 KB × 34 Hz, so the link limits the rate.
+    Fs,
+    /// High speed, about 40 MB/s.
+    Hs,
+}
+
+/// `gelgrip emulate hub`.
+#[derive(Debug, Args)]
+pub struct EmulateHubArgs {
+    /// Symlink to create to the pseudo-terminal (removed on SIGINT/SIGTERM).
+    #[arg(long)]
+    pub link: String,
+    /// Configuration whose layout and `[hub.sim]` camera settings the boards use (default:
+    /// the embedded simulated gripper).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// USB speed of the link.
+    #[arg(long, value_enum, default_value = "hs")]
+    pub usb: UsbArg,
+    /// Sets kept for `Resume` after an unplug.
+    #[arg(long, default_value_t = 64)]
+    pub ring: u16,
+    /// Known weights instead of the built-in presses: every sensor starts untouched, and
+    /// each stdin line `SENSOR GRAMS` rests that weight on the sensor through a 30 mm ball
+    /// (`SENSOR 0` lifts it), answered by one JSON line on stdout (for `calibrate force`).
+    #[arg(long)]
+    pub weights_on_stdin: bool,
 }

@@ -2,11 +2,13 @@
 //! time, with the task's stages shaded and numbered, as in the paper's screwdriver panel
 //! (Fig. 6 b4).
 
+use clap::Args;
 use std::path::Path;
+use std::path::PathBuf;
 
 use anyhow::Context;
 
-use crate::cli::{PlotArgs, UsageError};
+use crate::cli::UsageError;
 use gelgrip::plot::{Band, Figure, Series, save};
 
 const SIGNAL_SUFFIX: &str = "_deformation_mm3";
@@ -170,4 +172,17 @@ pub fn run(args: PlotArgs) -> anyhow::Result<u8> {
     std::fs::metadata(&args.out)
         .with_context(|| format!("{} was not written", args.out.display()))?;
     Ok(0)
+}
+
+/// `gelgrip plot`.
+#[derive(Debug, Args)]
+pub struct PlotArgs {
+    /// The CSV log.
+    pub log: PathBuf,
+    /// The figure: `.svg` or `.png`.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Title (default: names the log).
+    #[arg(long)]
+    pub title: Option<String>,
 }

@@ -10,9 +10,11 @@
 //! - `--npy OUT`: the depth map of every sensor for every set the gate emits, through the
 //!   recorded config's pipeline, as `OUT/<sensor>/<seq>.npy` (float32, rows × columns, mm).
 
+use clap::Args;
 use std::collections::HashMap;
 use std::io::Write;
 use std::path::Path;
+use std::path::PathBuf;
 
 use anyhow::Context;
 
@@ -20,7 +22,7 @@ use gelgrip_plugins::image::RgbImage;
 use gelgrip_record::format::{Meta, Record};
 use gelgrip_record::reader::Recording;
 
-use crate::cli::{RecordExportArgs, ReplaySpeed};
+use crate::cli::ReplaySpeed;
 use crate::commands::replay::{ReplayedGate, recorded_config};
 use gelgrip::tactile::Tactile;
 
@@ -240,4 +242,20 @@ pub async fn run(args: RecordExportArgs) -> anyhow::Result<u8> {
         eprintln!("{n} depth maps as .npy in {}", out.display());
     }
     Ok(0)
+}
+
+/// `gelgrip record export`.
+#[derive(Debug, Args)]
+pub struct RecordExportArgs {
+    /// The recording's directory.
+    pub dir: PathBuf,
+    /// Every frame as `OUT/<sensor>/<seq>.png`, indexed in `OUT/frames.csv`.
+    #[arg(long, value_name = "OUT")]
+    pub frames: Option<PathBuf>,
+    /// The recorded signals (one row per set: sensors, fingers, servos, stage).
+    #[arg(long, value_name = "FILE")]
+    pub csv: Option<PathBuf>,
+    /// Each sensor's depth map for every emitted set, `OUT/<sensor>/<seq>.npy` (mm).
+    #[arg(long, value_name = "OUT")]
+    pub npy: Option<PathBuf>,
 }

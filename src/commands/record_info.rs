@@ -1,11 +1,11 @@
 //! `gelgrip record info DIR [--json]`: what a recording holds, and whether it is whole.
 
+use clap::Args;
 use serde::Serialize;
+use std::path::PathBuf;
 
 use gelgrip_record::format::Meta;
 use gelgrip_record::reader::Recording;
-
-use crate::cli::RecordInfoArgs;
 
 /// The `--json` object.
 #[derive(Debug, Serialize)]
@@ -70,4 +70,14 @@ pub fn run(args: RecordInfoArgs) -> anyhow::Result<u8> {
         );
     }
     Ok(0)
+}
+
+/// `gelgrip record info`.
+#[derive(Debug, Args)]
+pub struct RecordInfoArgs {
+    /// The recording's directory.
+    pub dir: PathBuf,
+    /// Print one JSON object on stdout.
+    #[arg(long)]
+    pub json: bool,
 }

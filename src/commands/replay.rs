@@ -8,8 +8,10 @@
 //! B` it runs both configs' pipelines on the same sets and reports how their depth, contact
 //! area and force differ.
 
+use clap::Args;
 use std::collections::HashMap;
 use std::path::Path;
+use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
@@ -29,7 +31,6 @@ use gelgrip_record::format::{Meta, Record};
 use gelgrip_record::reader::Recording;
 use gelgrip_record::replay::{ReplayHub, Speed, prediction_for_limits};
 
-use crate::cli::{ReplayArgs, ReplaySpeed};
 use gelgrip::tactile::Tactile;
 use gelgrip::wiring;
 
@@ -475,4 +476,43 @@ pub async fn run(args: ReplayArgs) -> anyhow::Result<u8> {
         }
     }
     Ok(0)
+}
+
+/// `gelgrip replay`.
+#[derive(Debug, Args)]
+pub struct ReplayArgs {
+    /// The recording's directory.
+    pub dir: PathBuf,
+    /// Replay speed: a factor of the recorded pace (on the real clock), or `max` (virtual
+    /// time, as fast as the host can; the gate sees exactly the recorded times).
+    #[arg(long, default_value = "max", value_parser = parse_speed)]
+    pub speed: ReplaySpeed,
+    /// Process the frames with this config's pipeline instead of the recorded one.
+    #[arg(long, conflicts_with = "compare")]
+    pub config: Option<PathBuf>,
+    /// Run two configs' pipelines on the same sets and report how they differ.
+    #[arg(long, num_args = 2, value_names = ["A", "B"])]
+    pub compare: Option<Vec<PathBuf>>,
+    /// Print one JSON object on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// How fast `replay` goes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ReplaySpeed {
+    /// As fast as possible, on virtual time.
+    Max,
+    /// A factor of the recorded pace, on the real clock.
+    Factor(f64),
+}
+
+fn parse_speed(s: &str) -> Result<ReplaySpeed, String> {
+    if s == "max" {
+        return Ok(ReplaySpeed::Max);
+    }
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 && v <= 1000.0 => Ok(ReplaySpeed::Factor(v)),
+        _ => Err(format!("`{s}`: expected `max` or a factor in (0, 1000]")),
+    }
 }

@@ -2,13 +2,14 @@
 //! ends, a signal arrives, the task ends or a fault stops it; statistics once a second to
 //! stderr; a report at the end.
 
+use crate::cli::{ClockArg, parse_current_ma, parse_duration, parse_force_n, parse_within};
+use clap::Args;
 use gelgrip::session::{RunOptions, Session};
 use gelgrip_controller::clock::ClockKind;
 use gelgrip_controller::runtime::RuntimeEvent;
 use gelgrip_controller::runtime::gentle_grasp::GraspOptions;
+use std::path::PathBuf;
 use tokio::sync::mpsc;
-
-use crate::cli::RunArgs;
 
 /// Resolves on SIGINT or SIGTERM.
 pub async fn shutdown_signal() {
@@ -99,4 +100,65 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
         print!("{}", report.to_text());
     }
     Ok(report.end_reason.exit_code())
+}
+
+/// `gelgrip run`.
+#[derive(Debug, Clone, Args, Default)]
+pub struct RunArgs {
+    /// Configuration file (default: the embedded simulated gripper).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Stop after this many seconds (of the chosen clock).
+    #[arg(long, value_parser = parse_duration)]
+    pub duration: Option<f64>,
+    /// No HTTP server and no dashboard.
+    #[arg(long)]
+    pub headless: bool,
+    /// Serve the dashboard on this address instead of `[http] bind` (port 0: any free
+    /// port; the URL is printed to stderr).
+    #[arg(long, value_name = "ADDR", conflicts_with = "headless")]
+    pub http: Option<std::net::SocketAddr>,
+    /// Time source (default real).
+    #[arg(long, value_enum)]
+    pub clock: Option<ClockArg>,
+    /// Print one JSON object on stdout.
+    #[arg(long)]
+    pub json: bool,
+    /// Close the fingers on this scene file (overrides `[hub.sim] scene`; sim hub only).
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
+    /// Goal-current cap the fingers ramp to when closing on a scene without a task, mA.
+    #[arg(long, default_value_t = 800.0, value_parser = parse_current_ma)]
+    pub close_current_ma: f64,
+    /// Run a task: `gentle-grasp` (built in), a task script NAME (`configs/tasks/NAME.toml`,
+    /// or the embedded copy: `screwdriver`), or a script FILE (anything with a `/` or
+    /// ending in `.toml`). See docs/tasks.md.
+    #[arg(long)]
+    pub task: Option<String>,
+    /// Gentle grasp: force per finger, N.
+    #[arg(long, default_value_t = 1.5, value_parser = parse_force_n)]
+    pub target_force: f64,
+    /// Gentle grasp: approach speed, deg/s of servo rotation (faster approaches touch
+    /// harder: see docs/control.md).
+    #[arg(long, default_value_t = 15.0)]
+    pub speed: f64,
+    /// Gentle grasp: give up after this many seconds.
+    #[arg(long, default_value_t = 20.0)]
+    pub task_timeout: f64,
+    /// Gentle grasp: once stable, keep holding (and regulating) for this many seconds
+    /// before the hold test and the end of the task.
+    #[arg(long, default_value_t = 0.0, value_parser = parse_hold_s)]
+    pub hold: f64,
+    /// Write the task's signals (time, stage, deformation per sensor, state and force per
+    /// finger) to this CSV file.
+    #[arg(long)]
+    pub log: Option<PathBuf>,
+    /// Record everything the run sees (hub events, gate decisions, servo, controller and
+    /// task states, the config) into this directory (docs/recording.md).
+    #[arg(long, value_name = "DIR")]
+    pub record: Option<PathBuf>,
+}
+
+fn parse_hold_s(s: &str) -> Result<f64, String> {
+    parse_within(s, "a duration", "s", 0.0..=3600.0)
 }

@@ -3,11 +3,12 @@
 //! what happened and what to check.
 
 use anyhow::Context;
+use clap::{Args, ValueEnum};
 use serde_json::json;
 
 use dynamixel2::{ReadError, TransferError};
 
-use crate::cli::{ServoAction, ServoArgs, UsageError};
+use crate::cli::UsageError;
 
 fn motor_error_name(n: u8) -> &'static str {
     match n {
@@ -146,4 +147,46 @@ pub fn run(args: ServoArgs) -> anyhow::Result<u8> {
         }
     }
     Ok(0)
+}
+
+/// What `gelgrip servo` does.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ServoAction {
+    /// Broadcast ping: every servo's id, model and firmware.
+    Scan,
+    /// Ping one servo (reports its model number).
+    Ping,
+    /// Read bytes from the control table.
+    Read,
+    /// Write a value (little-endian, --len bytes) to the control table.
+    Write,
+}
+
+/// `gelgrip servo`.
+#[derive(Debug, Args)]
+pub struct ServoArgs {
+    /// What to do.
+    #[arg(value_enum)]
+    pub action: ServoAction,
+    /// Serial port of the bus.
+    #[arg(long)]
+    pub port: String,
+    /// Baud rate.
+    #[arg(long, default_value = "1000000")]
+    pub baud: u32,
+    /// Servo id.
+    #[arg(long, value_parser = clap::value_parser!(u8).range(0..=252))]
+    pub id: Option<u8>,
+    /// Control-table address.
+    #[arg(long)]
+    pub addr: Option<u16>,
+    /// Bytes to read or write.
+    #[arg(long)]
+    pub len: Option<u16>,
+    /// Value to write.
+    #[arg(long)]
+    pub value: Option<u64>,
+    /// Print one JSON value.
+    #[arg(long)]
+    pub json: bool,
 }
