@@ -223,6 +223,5 @@ pub use crate::commands::plot::PlotArgs;
 pub use crate::commands::record_export::RecordExportArgs;
 pub use crate::commands::record_info::RecordInfoArgs;
 pub use crate::commands::replay::ReplayArgs;
-pub use crate::commands::replay::ReplaySpeed;
 pub use crate::commands::run::RunArgs;
 pub use crate::commands::servo::ServoArgs;

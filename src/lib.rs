@@ -19,6 +19,7 @@ pub mod observers;
 pub mod output;
 pub mod plot;
 pub mod progress;
+pub mod replay;
 pub mod scene_report;
 pub mod scripts;
 pub mod sensor_models;

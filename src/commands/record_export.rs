@@ -22,8 +22,8 @@ use gelgrip_plugins::image::RgbImage;
 use gelgrip_record::format::{Meta, Record};
 use gelgrip_record::reader::Recording;
 
-use crate::cli::ReplaySpeed;
-use crate::commands::replay::{ReplayedGate, recorded_config};
+use gelgrip::replay::ReplaySpeed;
+use gelgrip::replay::{ReplayedGate, recorded_config};
 use gelgrip::tactile::Tactile;
 
 /// Each sensor's fields in a state record, as CSV columns.

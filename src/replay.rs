@@ -1,0 +1,479 @@
+//! Replaying a recording (`gelgrip replay`, `record export`): its hub events go back
+//! through the same gate (its policy and the limits the run used) and the emitted sets
+//! through the tactile pipeline.
+//!
+//! With the recorded config (the default) or another one, the replay is checked against the
+//! recording: the gate's decisions set by set, each sensor's fused reading (in contact,
+//! area, depth, volume, force) bit for bit wherever the run recorded one, and the grasp
+//! API's control steps. With two configs it runs both pipelines on the same sets and
+//! reports how their depth, contact area and force differ.
+
+use std::collections::HashMap;
+use std::path::Path;
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+use anyhow::Context;
+use serde::Serialize;
+
+use gelgrip_controller::acquire::{Acquisition, AcquisitionTap, make_gate};
+use gelgrip_controller::actuator::FingerGoal;
+use gelgrip_controller::clock::{Clock, RealClock, VirtualClock};
+use gelgrip_controller::config::{AppConfig, GateSettings, Limit};
+use gelgrip_controller::frame::FrameSet;
+use gelgrip_controller::fusion::{FusedSet, SensorReading, fuse};
+use gelgrip_controller::gate::SetDecision;
+use gelgrip_controller::gripper::{GripperService, ServiceEvent};
+use gelgrip_controller::hub::{HubError, HubEvent, HubTransport};
+use gelgrip_record::format::{Meta, Record};
+use gelgrip_record::reader::Recording;
+use gelgrip_record::replay::{ReplayHub, Speed, prediction_for_limits};
+
+use crate::tactile::Tactile;
+use crate::wiring;
+
+/// How fast `replay` goes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ReplaySpeed {
+    /// As fast as possible, on virtual time.
+    Max,
+    /// A factor of the recorded pace, on the real clock.
+    Factor(f64),
+}
+
+/// Whose pipelines a replay runs.
+#[derive(Debug, Clone, Copy)]
+pub enum Pipelines<'a> {
+    /// The recorded config's: the replay is checked against the recording.
+    Recorded,
+    /// Another config's (same sensors): checked against the recording too.
+    Config(&'a Path),
+    /// Two configs' on the same sets: how B's readings differ from A's.
+    Compare(&'a Path, &'a Path),
+}
+
+fn open_pipelines(which: Pipelines<'_>, recorded: &AppConfig) -> anyhow::Result<Vec<Tactile>> {
+    let registry = wiring::registry();
+    let configs: Vec<AppConfig> = match which {
+        Pipelines::Config(p) => vec![wiring::load_config(Some(p), &registry)?],
+        Pipelines::Compare(a, b) => vec![
+            wiring::load_config(Some(a), &registry)?,
+            wiring::load_config(Some(b), &registry)?,
+        ],
+        Pipelines::Recorded => vec![recorded.clone()],
+    };
+    for c in &configs {
+        if c.layout.sensors.len() != recorded.layout.sensors.len() {
+            anyhow::bail!(crate::UsageError(format!(
+                "{}: {} sensors, the recording {}",
+                c.file,
+                c.layout.sensors.len(),
+                recorded.layout.sensors.len()
+            )));
+        }
+    }
+    configs.iter().map(Tactile::open).collect()
+}
+
+/// The replayed gate's decisions (set, outcome) and the hub events counted.
+pub type Seen = (Vec<(u32, &'static str)>, u64);
+
+/// Collects the replayed gate's decisions, and counts the hub events.
+struct Decisions(Arc<Mutex<Seen>>);
+
+impl AcquisitionTap for Decisions {
+    fn event(&mut self, _event: &HubEvent, _gate_host_us: u64) {
+        if let Ok(mut d) = self.0.lock() {
+            d.1 += 1;
+        }
+    }
+
+    fn decision(&mut self, decision: &SetDecision, _host_us: u64) {
+        if let (Some(seq), Ok(mut d)) = (decision.trigger_seq, self.0.lock()) {
+            d.0.push((seq, decision.outcome.key()));
+        }
+    }
+}
+
+/// What the recording says the run decided and sensed.
+#[derive(Default)]
+struct Recorded {
+    /// Records whose CRC failed (skipped).
+    crc_errors: u64,
+    decisions: Vec<(u32, String)>,
+    /// Per set, each sensor's (in contact, area, depth, volume, force).
+    readings: HashMap<u32, Vec<Option<[f64; 5]>>>,
+    /// Per set, the grasp-API service's commands and steps since the set before.
+    controller: HashMap<u32, Vec<ServiceEvent>>,
+}
+
+fn as_array(r: &SensorReading) -> [f64; 5] {
+    [
+        f64::from(u8::from(r.in_contact)),
+        r.area_mm2,
+        r.max_depth_mm,
+        r.volume_mm3,
+        r.force_n,
+    ]
+}
+
+fn read_recorded(recording: &Recording) -> anyhow::Result<Recorded> {
+    let mut out = Recorded::default();
+    let summary = recording.scan(|r| match r {
+        Record::Meta(Meta::Decision {
+            trigger_seq,
+            outcome,
+            ..
+        }) => out.decisions.push((trigger_seq, outcome)),
+        Record::Meta(Meta::State { state, .. }) => {
+            let seq = state["trigger_seq"].as_u64().map(|s| s as u32);
+            if let (Some(seq), Ok(events)) = (
+                seq,
+                serde_json::from_value::<Vec<ServiceEvent>>(state["controller"].clone()),
+            ) && !events.is_empty()
+            {
+                out.controller.insert(seq, events);
+            }
+            if let (Some(seq), Some(sensors)) = (seq, state["sensors"].as_array()) {
+                let readings = sensors
+                    .iter()
+                    .map(|s| {
+                        s.is_object().then(|| {
+                            [
+                                f64::from(u8::from(s["in_contact"].as_bool().unwrap_or(false))),
+                                s["area_mm2"].as_f64().unwrap_or(f64::NAN),
+                                s["max_depth_mm"].as_f64().unwrap_or(f64::NAN),
+                                s["volume_mm3"].as_f64().unwrap_or(f64::NAN),
+                                s["force_n"].as_f64().unwrap_or(f64::NAN),
+                            ]
+                        })
+                    })
+                    .collect();
+                out.readings.insert(seq, readings);
+            }
+        }
+        _ => {}
+    })?;
+    out.crc_errors = summary.crc_errors;
+    Ok(out)
+}
+
+/// Differences between two pipelines over the same sets.
+#[derive(Debug, Default, Serialize)]
+pub struct Difference {
+    /// Sensor readings compared (both pipelines gave one).
+    pub readings: u64,
+    /// Mean and largest |A − B| of the deepest indentation, mm.
+    pub depth_mae_mm: f64,
+    /// Largest depth difference, mm.
+    pub depth_max_abs_mm: f64,
+    /// Mean |A − B| of the contact area, mm².
+    pub area_mae_mm2: f64,
+    /// Largest contact-area difference, mm².
+    pub area_max_abs_mm2: f64,
+    /// Mean and largest |A − B| of the force proxy, N.
+    pub force_mae_n: f64,
+    /// Largest force difference, N.
+    pub force_max_abs_n: f64,
+    /// Readings where one pipeline saw contact and the other did not.
+    pub contact_disagreements: u64,
+}
+
+impl Difference {
+    fn add(&mut self, a: &SensorReading, b: &SensorReading) {
+        self.readings += 1;
+        let one = |sum: &mut f64, max: &mut f64, d: f64| {
+            *sum += d.abs();
+            *max = max.max(d.abs());
+        };
+        one(
+            &mut self.depth_mae_mm,
+            &mut self.depth_max_abs_mm,
+            a.max_depth_mm - b.max_depth_mm,
+        );
+        one(
+            &mut self.area_mae_mm2,
+            &mut self.area_max_abs_mm2,
+            a.area_mm2 - b.area_mm2,
+        );
+        one(
+            &mut self.force_mae_n,
+            &mut self.force_max_abs_n,
+            a.force_n - b.force_n,
+        );
+        if a.in_contact != b.in_contact {
+            self.contact_disagreements += 1;
+        }
+    }
+
+    fn finish(mut self) -> Self {
+        let n = self.readings.max(1) as f64;
+        self.depth_mae_mm /= n;
+        self.area_mae_mm2 /= n;
+        self.force_mae_n /= n;
+        self
+    }
+}
+
+/// The grasp-API service run again on the recorded commands and servo states, with the
+/// replayed fused sets; its goals compared with the recorded ones bit for bit.
+struct ControllerReplay {
+    service: GripperService,
+    compared: u64,
+    mismatches: u64,
+}
+
+fn same_goals(a: &Option<Vec<FingerGoal>>, b: &Option<Vec<FingerGoal>>) -> bool {
+    let bits = |g: &FingerGoal| {
+        [
+            g.position_deg.to_bits(),
+            g.goal_current_ma.to_bits(),
+            g.profile_velocity_rpm.to_bits(),
+        ]
+    };
+    match (a, b) {
+        (Some(a), Some(b)) => {
+            a.len() == b.len() && a.iter().zip(b).all(|(x, y)| bits(x) == bits(y))
+        }
+        (None, None) => true,
+        _ => false,
+    }
+}
+
+impl ControllerReplay {
+    /// A service as the run built it for `config` (the task's, and the dashboard's).
+    fn new(config: &AppConfig) -> Self {
+        let (service, _handle) =
+            GripperService::for_hand(&config.layout, config.servos.current_limit_ma);
+        Self {
+            service,
+            compared: 0,
+            mismatches: 0,
+        }
+    }
+
+    fn replay(&mut self, events: &[ServiceEvent], fused: &FusedSet) {
+        for event in events {
+            match event {
+                ServiceEvent::Applied { command } => {
+                    self.service.replay(command);
+                }
+                ServiceEvent::Step {
+                    t_s,
+                    with_set,
+                    servos,
+                    goals,
+                } => {
+                    let got = self.service.step(*t_s, with_set.then_some(fused), servos);
+                    self.compared += 1;
+                    if !same_goals(&got, goals) {
+                        self.mismatches += 1;
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// What a replay found (`gelgrip replay --json`).
+#[derive(Debug, Serialize)]
+pub struct ReplayReport {
+    /// Sets the replayed gate emitted.
+    pub sets: u64,
+    /// Hub events replayed.
+    pub events: u64,
+    /// Recorded time replayed, s; and the wall time it took, s.
+    pub duration_s: f64,
+    /// The wall time the replay took, s.
+    pub wall_s: f64,
+    /// Gate decisions in the recording and in the replay, and the positions where they
+    /// differ (set or outcome).
+    pub decisions_recorded: usize,
+    /// Gate decisions in the replay.
+    pub decisions_replayed: usize,
+    /// Positions where the decisions differ (set or outcome).
+    pub decision_mismatches: usize,
+    /// Sets whose fused readings the recording holds and the replay compared, and those
+    /// whose readings differ in any bit (the recorded config or `--config`).
+    pub fused_compared: u64,
+    /// Sets whose readings differ in any bit.
+    pub fused_mismatches: u64,
+    /// Control steps the recording holds and the replay repeated (the recorded servo
+    /// states and commands, the replayed fused set), and those whose goals differ in any
+    /// bit (the recorded config or `--config`).
+    pub controller_steps_compared: u64,
+    /// Control steps whose goals differ in any bit.
+    pub controller_mismatches: u64,
+    /// `--compare A B`: how B's pipeline differs from A's.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub compare: Option<Difference>,
+    /// Records skipped for a failed CRC.
+    pub records_skipped: u64,
+}
+
+/// A recording's hub events through the gate the run used (its policy and limits).
+pub struct ReplayedGate {
+    acq: Acquisition,
+    /// The replay's clock.
+    pub clock: Arc<dyn Clock>,
+    seen: Arc<Mutex<Seen>>,
+}
+
+impl ReplayedGate {
+    /// Replay `recording` (whose config is `config`, gate limits as recorded) at `speed`.
+    pub fn open(
+        recording: &Recording,
+        config: &AppConfig,
+        speed: ReplaySpeed,
+        max_spread_us: u32,
+        max_age_us: u64,
+    ) -> anyhow::Result<Self> {
+        let (clock, speed): (Arc<dyn Clock>, Speed) = match speed {
+            ReplaySpeed::Max => (VirtualClock::new(), Speed::Max),
+            ReplaySpeed::Factor(f) => (Arc::new(RealClock::new()), Speed::Factor(f)),
+        };
+        let hub = ReplayHub::open(
+            recording,
+            speed,
+            clock.clone(),
+            config.hub.trigger,
+            prediction_for_limits(max_spread_us, max_age_us),
+        )?;
+        let gate_settings = GateSettings {
+            max_spread_us: Limit::Fixed(max_spread_us),
+            max_age_us: Limit::Fixed(max_age_us),
+            ..config.gate.clone()
+        };
+        let gate = make_gate(
+            &gate_settings,
+            config.layout.sensors.len(),
+            &hub.describe().prediction,
+        );
+        let seen = Arc::new(Mutex::new((Vec::new(), 0)));
+        let acq = Acquisition::new(Box::new(hub), gate, clock.clone(), 0)
+            .with_tap(Box::new(Decisions(seen.clone())));
+        Ok(Self { acq, clock, seen })
+    }
+
+    /// The next set the gate emits; `None` at the end of the recording.
+    pub async fn next_set(&mut self) -> anyhow::Result<Option<FrameSet>> {
+        loop {
+            match self.acq.step().await {
+                Ok(Some(set)) => return Ok(Some(set)),
+                Ok(None) => {}
+                Err(HubError::Finished { .. }) => return Ok(None),
+                Err(e) => return Err(e).context("replaying"),
+            }
+        }
+    }
+
+    /// The gate's decisions so far and the hub events replayed.
+    pub fn seen(&self) -> Seen {
+        self.seen.lock().map(|d| d.clone()).unwrap_or_default()
+    }
+}
+
+/// The recorded config (rebuilt from the files the recording carries) and the gate limits
+/// the run used.
+pub fn recorded_config(recording: &Recording) -> anyhow::Result<(AppConfig, u32, u64)> {
+    let Meta::Header {
+        config,
+        max_spread_us,
+        max_age_us,
+        ..
+    } = recording.header()?
+    else {
+        anyhow::bail!("the recording has no header");
+    };
+    let files: Vec<(String, String)> =
+        serde_json::from_str(&config).context("the recording's config files")?;
+    let first = files
+        .first()
+        .map(|(p, _)| p.clone())
+        .context("the recording holds no config file")?;
+    let registry = wiring::registry();
+    let config = wiring::load_config_from_memory(Path::new(&first), files, &registry)
+        .context("the recording's config")?;
+    Ok((config, max_spread_us, max_age_us))
+}
+
+/// Replay the recording in `dir` at `speed` through its gate and `pipelines`' configs (the
+/// recorded config, `--config`'s, or `--compare`'s two): with one, the replay is checked
+/// against the recording bit for bit; with two, B's readings are compared with A's.
+pub async fn replay(
+    dir: &Path,
+    speed: ReplaySpeed,
+    pipelines: Pipelines<'_>,
+) -> anyhow::Result<ReplayReport> {
+    let recording = Recording::open(dir)?;
+    let (config, max_spread_us, max_age_us) = recorded_config(&recording)?;
+    let recorded = read_recorded(&recording)?;
+    let comparing = matches!(pipelines, Pipelines::Compare(..));
+    let mut tactiles = open_pipelines(pipelines, &config)?;
+    let mut replayed = ReplayedGate::open(&recording, &config, speed, max_spread_us, max_age_us)?;
+    let wall = Instant::now();
+    let start_us = replayed.clock.now_us();
+    let (mut sets, mut fused_compared, mut fused_mismatches) = (0u64, 0u64, 0u64);
+    let mut difference = comparing.then(Difference::default);
+    let mut controller = ControllerReplay::new(&config);
+    loop {
+        let Some(set) = replayed.next_set().await? else {
+            break;
+        };
+        sets += 1;
+        let readings: Vec<Vec<Option<SensorReading>>> =
+            tactiles.iter_mut().map(|t| t.process(&set)).collect();
+        if let Some(diff) = difference.as_mut() {
+            for (a, b) in readings[0].iter().zip(&readings[1]) {
+                if let (Some(a), Some(b)) = (a, b) {
+                    diff.add(a, b);
+                }
+            }
+        } else if let Some(events) = recorded.controller.get(&set.trigger_seq) {
+            let fused = fuse(&config.layout, &readings[0]);
+            controller.replay(events, &fused);
+        }
+        if difference.is_none()
+            && let Some(expected) = recorded.readings.get(&set.trigger_seq)
+        {
+            fused_compared += 1;
+            let got: Vec<Option<[f64; 5]>> = readings[0]
+                .iter()
+                .map(|r| r.as_ref().map(as_array))
+                .collect();
+            let same = got.len() == expected.len()
+                && got.iter().zip(expected).all(|(g, e)| match (g, e) {
+                    (Some(g), Some(e)) => g.iter().zip(e).all(|(a, b)| a.to_bits() == b.to_bits()),
+                    (None, None) => true,
+                    _ => false,
+                });
+            if !same {
+                fused_mismatches += 1;
+            }
+        }
+    }
+    let (replayed_decisions, events) = replayed.seen();
+    let decision_mismatches = recorded
+        .decisions
+        .iter()
+        .zip(&replayed_decisions)
+        .filter(|((s1, o1), (s2, o2))| s1 != s2 || o1 != o2)
+        .count()
+        + recorded.decisions.len().abs_diff(replayed_decisions.len());
+    let report = ReplayReport {
+        sets,
+        events,
+        duration_s: replayed.clock.now_us().saturating_sub(start_us) as f64 / 1e6,
+        wall_s: wall.elapsed().as_secs_f64(),
+        decisions_recorded: recorded.decisions.len(),
+        decisions_replayed: replayed_decisions.len(),
+        decision_mismatches,
+        fused_compared,
+        fused_mismatches,
+        controller_steps_compared: controller.compared,
+        controller_mismatches: controller.mismatches,
+        compare: difference.map(Difference::finish),
+        records_skipped: recorded.crc_errors,
+    };
+    Ok(report)
+}
