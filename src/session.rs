@@ -312,7 +312,7 @@ impl Session {
     /// Bring the hardware to its safe state after `end`, close the recording, and report.
     pub fn finish(mut self, end: EndReason) -> RunReport {
         let summary = self.runtime.finish(end);
-        let mut faults = summary.faults;
+        let mut faults: Vec<String> = summary.faults.iter().map(ToString::to_string).collect();
         let scene = self.world.as_ref().and_then(|w| {
             let w = w.lock().ok()?;
             SceneReport::of(&w, &self.config.layout)

@@ -6,7 +6,7 @@ use gelgrip::session::{RunOptions, Session, run_to_end};
 use gelgrip_controller::clock::ClockKind;
 use gelgrip_controller::grasp::{Phase, Tuning};
 use gelgrip_controller::runtime::RuntimeEvent;
-use gelgrip_controller::runtime::outcome::EndReason;
+use gelgrip_controller::runtime::outcome::{EndReason, FaultKind};
 use gelgrip_controller::task::StageExit;
 use tokio::sync::mpsc;
 
@@ -76,7 +76,7 @@ async fn an_estop_mid_squeeze_holds_every_finger_at_the_minimum_current() {
     assert_eq!(end, EndReason::Estop);
     let summary = session.runtime.finish(end);
     assert!(
-        summary.faults.iter().any(|f| f.contains("e-stop")),
+        summary.faults.iter().any(|f| f.kind == FaultKind::Estop),
         "{:?}",
         summary.faults
     );

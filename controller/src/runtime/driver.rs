@@ -9,7 +9,7 @@ use crate::gripper::{GripperHandle, GripperService, ServiceEvent};
 use crate::runtime::RuntimeError;
 use crate::runtime::commanded::CommandedGripper;
 use crate::runtime::gentle_grasp::GentleGrasp;
-use crate::runtime::outcome::{EndReason, ScriptEnd};
+use crate::runtime::outcome::{EndReason, Fault, ScriptEnd};
 use crate::runtime::plant::Plant;
 use crate::runtime::task_report::{TaskReport, TaskStatus};
 
@@ -107,7 +107,7 @@ impl Driver {
     }
 
     /// Recovered servo faults (taken).
-    pub fn take_recovered(&mut self) -> Vec<String> {
+    pub fn take_recovered(&mut self) -> Vec<Fault> {
         std::mem::take(&mut self.plant_mut().recovered)
     }
 

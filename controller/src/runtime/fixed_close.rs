@@ -8,6 +8,7 @@
 
 use crate::actuator::{FingerGoal, ServoBus, ServoError, ServoState};
 use crate::layout::HandLayout;
+use crate::runtime::outcome::Fault;
 use crate::runtime::plant::off_executor;
 
 /// Time to ramp the goal current to its cap, s.
@@ -26,8 +27,8 @@ pub struct FixedClose {
     next_us: u64,
     /// The last states read.
     pub last: Vec<ServoState>,
-    /// Faults recovered so far, described.
-    pub recovered: Vec<String>,
+    /// Faults recovered so far.
+    pub recovered: Vec<Fault>,
 }
 
 impl FixedClose {
@@ -84,7 +85,7 @@ impl FixedClose {
         })?;
         self.last = states;
         self.recovered
-            .extend(recovered.iter().map(ToString::to_string));
+            .extend(recovered.iter().map(Fault::recovered));
         Ok(())
     }
 

@@ -40,7 +40,7 @@ use crate::hub::HubError;
 use crate::runtime::control::LoopCommand;
 use crate::runtime::driver::Driver;
 use crate::runtime::fixed_close::FixedClose;
-use crate::runtime::outcome::EndReason;
+use crate::runtime::outcome::{EndReason, Fault, FaultKind};
 use crate::runtime::ports::{ControlHandler, Observer};
 use crate::runtime::report::{FingerState, GripperReport, SetReport};
 use crate::runtime::task_report::TaskReport;
@@ -84,6 +84,21 @@ pub enum RuntimeError {
     },
 }
 
+impl RuntimeError {
+    /// The fault this error is, as the run reports it.
+    pub fn fault(&self) -> Fault {
+        match self {
+            Self::Servo(e) => Fault::servo(e),
+            Self::Configure(e) => Fault::new(Fault::servo(e).kind, self.to_string()),
+            Self::Hub(_) => Fault::new(FaultKind::Hub, self.to_string()),
+            Self::Observer(_) => Fault::new(FaultKind::Observer, self.to_string()),
+            Self::Grasp(_) | Self::NoFingers { .. } | Self::NoReference { .. } => {
+                Fault::new(FaultKind::Setup, self.to_string())
+            }
+        }
+    }
+}
+
 /// What the embedding program tells a running [`Runtime::run`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum RuntimeEvent {
@@ -108,7 +123,7 @@ pub struct RunSummary {
     /// Why it ended.
     pub end_reason: EndReason,
     /// Faults, recovered ones first.
-    pub faults: Vec<String>,
+    pub faults: Vec<Fault>,
     /// The task fields (none without a task).
     pub task: Option<TaskReport>,
     /// The servos' last states, in finger order (none without servos).
@@ -131,7 +146,7 @@ pub struct Runtime {
     fixed: Option<FixedClose>,
     observers: Vec<Box<dyn Observer>>,
     control: Option<(Box<dyn ControlHandler>, mpsc::Receiver<LoopCommand>)>,
-    faults: Vec<String>,
+    faults: Vec<Fault>,
     start_us: u64,
     run_start_us: Option<u64>,
     deadline_us: Option<u64>,
@@ -299,7 +314,8 @@ impl Runtime {
             let end = match pass {
                 Pass::Event(Some(RuntimeEvent::Estop)) => {
                     tracing::error!("e-stop: fingers hold at minimum current");
-                    self.faults.push("e-stop requested (SIGUSR1)".to_string());
+                    self.faults
+                        .push(Fault::new(FaultKind::Estop, "e-stop requested (SIGUSR1)"));
                     Some(EndReason::Estop)
                 }
                 Pass::Event(Some(RuntimeEvent::Shutdown)) => Some(EndReason::Signal),
@@ -340,7 +356,7 @@ impl Runtime {
             }
             Err(e) => {
                 tracing::error!("hub fault: {e}");
-                self.faults.push(e.to_string());
+                self.faults.push(Fault::new(FaultKind::Hub, e.to_string()));
                 Some(EndReason::Fault)
             }
             Ok(Some(set)) => self.on_set(&set),
@@ -365,7 +381,7 @@ impl Runtime {
 
     fn fault(&mut self, e: RuntimeError) -> EndReason {
         tracing::error!("{e}");
-        self.faults.push(e.to_string());
+        self.faults.push(e.fault());
         EndReason::Fault
     }
 
@@ -378,7 +394,7 @@ impl Runtime {
         }
         if let Some((fault, ends_run)) = self.driver.as_mut().and_then(|d| d.watchdog(now)) {
             tracing::error!("{fault}");
-            self.faults.push(fault);
+            self.faults.push(Fault::new(FaultKind::Watchdog, fault));
             if ends_run {
                 return Some(EndReason::Fault);
             }
@@ -387,7 +403,7 @@ impl Runtime {
             && let Err(e) = s.tick(now)
         {
             tracing::error!("servo fault: {e}");
-            self.faults.push(format!("servo fault: {e}"));
+            self.faults.push(Fault::servo(&e));
             return Some(EndReason::Fault);
         }
         let quiet = self
@@ -507,7 +523,7 @@ impl Runtime {
         for mut observer in self.observers.drain(..) {
             if let Err(e) = observer.finish() {
                 tracing::error!("{e}");
-                faults.push(e.to_string());
+                faults.push(Fault::new(FaultKind::Observer, e.to_string()));
             }
         }
         let now = self.clock.now_us();

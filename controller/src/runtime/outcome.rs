@@ -1,7 +1,10 @@
-//! Typed outcomes of a run: why it ended, and why a task script stopped. Each serialises to
-//! the string CONTRACTS.md gives it (`end_reason`).
+//! Typed outcomes of a run: why it ended, why a task script stopped, and the faults met on
+//! the way. Each serialises to the string CONTRACTS.md gives it (`end_reason`, the entries
+//! of `faults`).
 
 use serde::Serialize;
+
+use crate::actuator::{RecoveredFault, ServoError};
 
 /// Why a run ended (`end_reason` in `run --json`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -46,6 +49,77 @@ impl std::fmt::Display for EndReason {
     }
 }
 
+/// What kind of fault a run met: the loop tells a servo timeout from a hardware fault from
+/// a hub failure without reading strings.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FaultKind {
+    /// A servo's hardware fault that a reboot cleared (the run goes on).
+    ServoRecovered,
+    /// A servo did not answer in time.
+    ServoTimeout,
+    /// A servo's reply failed its checks.
+    ServoCorrupt,
+    /// A servo refused an instruction.
+    ServoInstruction,
+    /// A servo's hardware fault that reboots did not clear.
+    ServoHardware,
+    /// The servo bus itself failed, or was asked for the impossible.
+    ServoBus,
+    /// The hub failed.
+    Hub,
+    /// No synchronized set in time: every finger held.
+    Watchdog,
+    /// An e-stop was requested.
+    Estop,
+    /// A lossless observer (the task log, the recorder) failed.
+    Observer,
+    /// The run could not start as asked (no references, no fingers, the grasp API).
+    Setup,
+}
+
+/// A fault a run met, with its evidence as the run reports it (`faults` in `run --json`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Fault {
+    /// What kind.
+    pub kind: FaultKind,
+    /// The evidence, as reported.
+    pub detail: String,
+}
+
+impl Fault {
+    /// A fault of `kind` with `detail`.
+    pub fn new(kind: FaultKind, detail: impl Into<String>) -> Self {
+        Self {
+            kind,
+            detail: detail.into(),
+        }
+    }
+
+    /// A servo error, as the loop reports it (`servo fault: …`).
+    pub fn servo(e: &ServoError) -> Self {
+        let kind = match e {
+            ServoError::Timeout { .. } => FaultKind::ServoTimeout,
+            ServoError::Corrupt { .. } => FaultKind::ServoCorrupt,
+            ServoError::Instruction { .. } => FaultKind::ServoInstruction,
+            ServoError::HardwareFault { .. } => FaultKind::ServoHardware,
+            ServoError::Bus(_) | ServoError::Invalid(_) => FaultKind::ServoBus,
+        };
+        Self::new(kind, format!("servo fault: {e}"))
+    }
+
+    /// A hardware fault that a reboot cleared.
+    pub fn recovered(r: &RecoveredFault) -> Self {
+        Self::new(FaultKind::ServoRecovered, r.to_string())
+    }
+}
+
+impl std::fmt::Display for Fault {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.detail)
+    }
+}
+
 /// How a set or a command left a task script that was running.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ScriptEnd {
@@ -75,5 +149,35 @@ mod tests {
         }
         assert_eq!(EndReason::Fault.exit_code(), 1);
         assert_eq!(EndReason::Signal.exit_code(), 0);
+    }
+
+    #[test]
+    fn a_servo_timeout_and_a_hardware_fault_are_told_apart_and_read_as_before() {
+        let timeout = Fault::servo(&ServoError::Timeout {
+            id: 2,
+            detail: "read state".into(),
+        });
+        let hardware = Fault::servo(&ServoError::HardwareFault {
+            id: 2,
+            bits: 0x04,
+            tries: 2,
+        });
+        assert_eq!(timeout.kind, FaultKind::ServoTimeout);
+        assert_eq!(hardware.kind, FaultKind::ServoHardware);
+        assert_eq!(
+            hardware.to_string(),
+            "servo fault: servo 2: hardware error 0x04 persists after 2 reboot(s)"
+        );
+        let recovered = Fault::recovered(&RecoveredFault {
+            finger: 1,
+            id: 2,
+            bits: 0x20,
+            tries: 1,
+        });
+        assert_eq!(recovered.kind, FaultKind::ServoRecovered);
+        assert_eq!(
+            recovered.to_string(),
+            "servo 2 (finger 2): overload recovered after 1 reboot(s)"
+        );
     }
 }

@@ -17,6 +17,7 @@ use crate::gripper::GripperService;
 use crate::layout::HandLayout;
 use crate::runtime::RuntimeError;
 use crate::runtime::latency::{Latencies, LoopLatency};
+use crate::runtime::outcome::Fault;
 use crate::runtime::ports::{GroundTruth, Sensing};
 
 /// No gated set for this long stops all motion, ms.
@@ -91,8 +92,8 @@ pub struct Plant {
     latency: LoopLatency,
     last: Option<FusedSet>,
     step: Option<TaskStep>,
-    /// Recovered servo faults, described.
-    pub recovered: Vec<String>,
+    /// Recovered servo faults.
+    pub recovered: Vec<Fault>,
 }
 
 impl std::fmt::Debug for Plant {
@@ -276,7 +277,7 @@ impl Plant {
             Ok::<_, ServoError>((states, bus.take_recovered()))
         })?;
         self.recovered
-            .extend(recovered.iter().map(ToString::to_string));
+            .extend(recovered.iter().map(Fault::recovered));
         Ok(states)
     }
 
