@@ -17,7 +17,7 @@ pub fn load_script(name: &str, config: &AppConfig) -> anyhow::Result<TaskScript>
         crate::UsageError(
             ConfigError::Io {
                 file: path.display().to_string(),
-                source: e,
+                cause: e,
             }
             .to_string(),
         )

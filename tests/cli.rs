@@ -261,6 +261,28 @@ fn missing_config_file_is_a_config_error() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("/nonexistent/gelgrip.toml"));
 }
 
+/// A config copied to another folder without its layout: the message names the config, the
+/// key, the path as written and the path it resolved to, and gives the cause once.
+#[test]
+fn a_config_copied_without_its_layout_says_where_the_path_came_from() {
+    let dir = std::env::temp_dir().join(format!("gelgrip-copied-config-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("a temp dir");
+    let copy = dir.join("gelgripper-sim.toml");
+    std::fs::copy("configs/gelgripper-sim.toml", &copy).expect("the shipped config");
+    let out = gelgrip(&["check-config", &copy.display().to_string()]);
+    let err = String::from_utf8_lossy(&out.stderr).to_string();
+    let _ = std::fs::remove_dir_all(&dir);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    let resolved = dir.join("layouts/three-finger.toml").display().to_string();
+    assert!(err.contains(&copy.display().to_string()), "{err}");
+    assert!(
+        err.contains(r#"layout = "layouts/three-finger.toml""#),
+        "{err}"
+    );
+    assert!(err.contains(&format!("resolves to {resolved}")), "{err}");
+    assert_eq!(err.matches("No such file or directory").count(), 1, "{err}");
+}
+
 #[test]
 fn bad_usage_exits_2() {
     assert_eq!(gelgrip(&["run", "--duration", "-1"]).status.code(), Some(2));

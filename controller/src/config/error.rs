@@ -8,13 +8,32 @@ use thiserror::Error;
 /// A configuration problem; the message names the file, the field and what is allowed.
 #[derive(Debug, Error)]
 pub enum ConfigError {
-    /// The file could not be read.
-    #[error("{file}: cannot read: {source}")]
+    /// The file could not be read. The cause is part of the message and not chained again,
+    /// so an error report gives it once.
+    #[error("{file}: cannot read: {cause}")]
     Io {
         /// The file.
         file: String,
         /// Why.
-        source: std::io::Error,
+        cause: std::io::Error,
+    },
+    /// A path a config gives (`layout = "…"`) could not be read: where it came from, as
+    /// written, and where it resolved to (against the folder of the file that holds it).
+    #[error(
+        "{file}: {key} = \"{written}\" resolves to {resolved} (relative paths resolve \
+         against the folder of the file that holds them), which cannot be read: {cause}"
+    )]
+    Path {
+        /// The config file that gives the path.
+        file: String,
+        /// The key.
+        key: String,
+        /// The path as written.
+        written: String,
+        /// The path it resolved to.
+        resolved: String,
+        /// Why it cannot be read.
+        cause: std::io::Error,
     },
     /// TOML syntax error or a field of the wrong type (the parser's message has line and key).
     #[error("{file}: {message}")]

@@ -16,9 +16,9 @@ pub struct DiskFiles;
 
 impl FileSource for DiskFiles {
     fn read(&self, path: &Path) -> Result<String, ConfigError> {
-        std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
+        std::fs::read_to_string(path).map_err(|cause| ConfigError::Io {
             file: path.display().to_string(),
-            source,
+            cause,
         })
     }
 }
@@ -36,7 +36,7 @@ impl FileSource for EmbeddedFiles {
             .map(|(_, text)| (*text).to_string())
             .ok_or_else(|| ConfigError::Io {
                 file: format!("<embedded>/{}", path.display()),
-                source: std::io::Error::new(
+                cause: std::io::Error::new(
                     std::io::ErrorKind::NotFound,
                     "not among the embedded configs",
                 ),
@@ -57,7 +57,7 @@ impl FileSource for MemoryFiles {
             .map(|(_, text)| text.clone())
             .ok_or_else(|| ConfigError::Io {
                 file: path.display().to_string(),
-                source: std::io::Error::new(
+                cause: std::io::Error::new(
                     std::io::ErrorKind::NotFound,
                     "not among the recording's files",
                 ),

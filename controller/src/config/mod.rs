@@ -270,7 +270,16 @@ impl AppConfig {
         let raw: RawConfig = check.parse(text)?;
         check.version(raw.version)?;
         let layout_path = base_dir.join(&raw.layout);
-        let layout_text = files.read(&layout_path)?;
+        let layout_text = files.read(&layout_path).map_err(|e| match e {
+            ConfigError::Io { cause, .. } => ConfigError::Path {
+                file: file.to_string(),
+                key: "layout".into(),
+                written: raw.layout.clone(),
+                resolved: layout_path.display().to_string(),
+                cause,
+            },
+            other => other,
+        })?;
         let layout = HandLayout::from_toml(&layout_path.display().to_string(), &layout_text)?;
         let pipeline = BackendSection {
             check: check.clone(),
