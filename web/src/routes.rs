@@ -76,6 +76,7 @@ pub fn app(state: AppState) -> Router {
     Router::new()
         .route("/", get(index))
         .route("/app.js", get(script))
+        .route("/axis.js", get(axis_script))
         .route("/style.css", get(style))
         .route("/api/state", get(api_state))
         .route("/api/events", get(events))
@@ -147,6 +148,13 @@ async fn script() -> impl IntoResponse {
     (
         [(header::CONTENT_TYPE, "text/javascript; charset=utf-8")],
         include_str!("../assets/app.js"),
+    )
+}
+
+async fn axis_script() -> impl IntoResponse {
+    (
+        [(header::CONTENT_TYPE, "text/javascript; charset=utf-8")],
+        include_str!("../assets/axis.js"),
     )
 }
 
