@@ -16,6 +16,7 @@ pub mod frame;
 pub mod fusion;
 pub mod gate;
 pub mod grasp;
+pub mod grasp_goals;
 pub mod gripper;
 pub mod hub;
 pub mod hubtime;

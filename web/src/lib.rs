@@ -7,13 +7,18 @@
 //! through the controller's [`GripperHandle`](gelgrip_controller::gripper::GripperHandle),
 //! and task and simulator requests through a [`control::LoopCommand`] channel to the run
 //! loop.
-//! Command endpoints need `Authorization: Bearer <token>` when the server is bound off
-//! loopback, and are rate-limited, except e-stop, which is never delayed.
+//! Bound off loopback, every route but the login needs the token (`Authorization: Bearer
+//! <token>`, or the session cookie the login sets); command endpoints are rate-limited,
+//! except e-stop, which is never delayed.
 
 pub mod control;
+mod grasps;
+pub mod history;
 mod limits;
 pub mod live;
+mod login;
 mod routes;
 
+pub use grasps::{DEFAULT_SPEED_DEG_S, DEFAULT_TIMEOUT_S, GoalProgress, MAX_TIMEOUT_S};
 pub use live::{Live, Snapshot};
 pub use routes::{AppState, app};

@@ -2,6 +2,8 @@
 //! set, each sensor's latest JPEG frame, and its latest depth map. Publishing never blocks
 //! the loop: the snapshot and frames go through `watch` channels (a reader that falls
 //! behind skips to the newest), depth maps through a short mutex that only swaps a buffer.
+//! Each snapshot's signals also go into the bounded [`SignalHistory`] a new page starts
+//! from.
 
 use std::sync::{Arc, Mutex};
 
@@ -10,6 +12,8 @@ use serde::Serialize;
 use tokio::sync::watch;
 
 use gelgrip_controller::gate::ReasonCounts;
+
+use crate::history::{HistoryView, SignalHistory};
 
 /// One sensor's reading.
 #[derive(Debug, Clone, Default, Serialize)]
@@ -156,6 +160,7 @@ pub struct Live {
     snapshot: watch::Sender<Arc<Snapshot>>,
     frames: Vec<watch::Sender<Bytes>>,
     depth: Mutex<Vec<Option<Arc<DepthImage>>>>,
+    history: Mutex<SignalHistory>,
 }
 
 impl Live {
@@ -167,6 +172,7 @@ impl Live {
             snapshot: watch::Sender::new(Arc::new(Snapshot::default())),
             frames: (0..n).map(|_| watch::Sender::new(Bytes::new())).collect(),
             depth: Mutex::new(vec![None; n]),
+            history: Mutex::new(SignalHistory::default()),
         })
     }
 
@@ -180,8 +186,12 @@ impl Live {
         self.ids.iter().position(|s| s == id)
     }
 
-    /// Publish the state after a set.
+    /// Publish the state after a set (its signals join the history).
     pub fn publish(&self, snapshot: Snapshot) {
+        if let Ok(mut h) = self.history.lock() {
+            let values = snapshot.sensors.iter().map(|s| s.deformation_mm3).collect();
+            h.push(snapshot.t_s, values);
+        }
         self.snapshot.send_replace(Arc::new(snapshot));
     }
 
@@ -204,6 +214,14 @@ impl Live {
     /// The newest snapshot.
     pub fn snapshot(&self) -> Arc<Snapshot> {
         self.snapshot.borrow().clone()
+    }
+
+    /// The signals of the last [`crate::history::WINDOW_S`] seconds.
+    pub fn history(&self) -> HistoryView {
+        self.history
+            .lock()
+            .map(|h| h.view(&self.ids))
+            .unwrap_or_else(|_| SignalHistory::default().view(&self.ids))
     }
 
     /// Follow the snapshots.

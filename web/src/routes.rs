@@ -1,5 +1,7 @@
-//! The routes: the page and its assets, `GET /api/state`, `GET /api/events` (SSE, 20 Hz),
-//! per-sensor MJPEG, depth and contact PNG, and the command endpoints.
+//! The routes: the page and its assets, `GET /api/state`, `GET /api/history`,
+//! `GET /api/events` (SSE, 20 Hz, the history first), per-sensor MJPEG, depth and contact
+//! PNG, and the command endpoints (the grasp ones are in [`crate::grasps`]). Off loopback,
+//! every route but the login needs the token ([`crate::login`]).
 
 use std::convert::Infallible;
 use std::sync::Arc;
@@ -12,24 +14,23 @@ use axum::http::{HeaderMap, StatusCode, header};
 use axum::response::sse::{Event, KeepAlive, Sse};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
-use futures_util::stream::{self, Stream};
+use futures_util::stream::{self, Stream, StreamExt};
 use serde::Deserialize;
 use serde_json::json;
 use tokio::sync::{mpsc, oneshot};
 
-use gelgrip_controller::grasp::GraspRequest;
+use gelgrip_controller::grasp_goals::{GoalState, GraspGoals};
 use gelgrip_controller::gripper::{GripperError, GripperHandle};
 
 use crate::control::{
     LoopCommand, LoopRequest, MAX_UNPLUG_MS, Refusal, ServoFaultName, SimFaults, valid_name,
 };
+use crate::grasps::GoalProgress;
 use crate::limits::{Auth, RateLimiter};
 use crate::live::{DepthImage, Live};
 
 /// Period of the SSE stream (20 Hz).
 pub const EVENTS_PERIOD: Duration = Duration::from_millis(50);
-/// Longest a grasp request may ask to wait, s.
-pub const MAX_TIMEOUT_S: f64 = 120.0;
 
 /// Everything the routes need.
 #[derive(Debug, Clone)]
@@ -48,6 +49,8 @@ pub struct AppState {
     pub auth: Auth,
     /// Command rate limit.
     pub limiter: Arc<RateLimiter>,
+    /// Grasps started as goals (`POST /api/grasps`).
+    pub goals: Arc<GraspGoals>,
 }
 
 impl AppState {
@@ -61,12 +64,13 @@ impl AppState {
             current_limit_ma: 1000.0,
             auth: Auth::default(),
             limiter: Arc::new(RateLimiter::default()),
+            goals: Arc::new(GraspGoals::new()),
         }
     }
 
-    /// Require `token` on command endpoints (a non-loopback bind).
+    /// Require `token` on every route but the login (a non-loopback bind).
     pub fn with_token(mut self, token: String) -> Self {
-        self.auth.required = Some(token);
+        self.auth = Auth::with_token(token);
         self
     }
 }
@@ -75,6 +79,9 @@ impl AppState {
 pub fn app(state: AppState) -> Router {
     Router::new()
         .route("/", get(index))
+        .route("/api/history", get(api_history))
+        .route("/api/grasps", post(crate::grasps::start_goal))
+        .route("/api/grasps/{id}", get(crate::grasps::goal))
         .route("/app.js", get(script))
         .route("/axis.js", get(axis_script))
         .route("/style.css", get(style))
@@ -84,7 +91,7 @@ pub fn app(state: AppState) -> Router {
         .route("/api/sensors/{id}/frame.jpg", get(frame_jpg))
         .route("/api/sensors/{id}/depth.png", get(depth_png))
         .route("/api/sensors/{id}/contact.png", get(contact_png))
-        .route("/api/grasp", post(grasp))
+        .route("/api/grasp", post(crate::grasps::grasp))
         .route("/api/release", post(release))
         .route("/api/stop", post(stop))
         .route("/api/estop", post(estop))
@@ -94,6 +101,11 @@ pub fn app(state: AppState) -> Router {
         .route("/api/sim/unplug", post(sim_unplug))
         .route("/api/sim/servo", post(sim_servo))
         .fallback(not_found)
+        .layer(axum::middleware::from_fn_with_state(
+            state.clone(),
+            crate::login::require_token,
+        ))
+        .merge(crate::login::routes())
         .with_state(state)
 }
 
@@ -105,7 +117,7 @@ pub struct ApiError {
 }
 
 impl ApiError {
-    fn new(status: StatusCode, message: impl Into<String>) -> Self {
+    pub(crate) fn new(status: StatusCode, message: impl Into<String>) -> Self {
         Self {
             status,
             message: message.into(),
@@ -126,7 +138,7 @@ impl IntoResponse for ApiError {
     }
 }
 
-fn error(status: StatusCode, message: impl Into<String>) -> Response {
+pub(crate) fn error(status: StatusCode, message: impl Into<String>) -> Response {
     ApiError::new(status, message).into_response()
 }
 
@@ -169,18 +181,46 @@ async fn api_state(State(s): State<AppState>) -> Response {
     axum::Json(s.live.snapshot().as_ref().clone()).into_response()
 }
 
+async fn api_history(State(s): State<AppState>) -> Response {
+    axum::Json(s.live.history()).into_response()
+}
+
+fn json_event(name: &'static str, data: &impl serde::Serialize) -> Event {
+    Event::default()
+        .event(name)
+        .json_data(data)
+        .unwrap_or_else(|_| Event::default().event("error").data("unserializable data"))
+}
+
+/// `GET /api/events`: a `history` event (the last 30 s of the charted signals), then at
+/// 20 Hz the `state`, and a `grasp` event for the newest grasp goal while it runs and once
+/// when it ends.
 async fn events(State(s): State<AppState>) -> Sse<impl Stream<Item = Result<Event, Infallible>>> {
     let mut interval = tokio::time::interval(EVENTS_PERIOD);
     interval.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
-    let stream = stream::unfold((interval, s.live), |(mut interval, live)| async move {
-        interval.tick().await;
-        let event = Event::default()
-            .event("state")
-            .json_data(live.snapshot().as_ref())
-            .unwrap_or_else(|_| Event::default().event("error").data("unserializable state"));
-        Some((Ok(event), (interval, live)))
-    });
-    Sse::new(stream).keep_alive(KeepAlive::default())
+    let history = json_event("history", &s.live.history());
+    let first = stream::iter([Ok::<_, Infallible>(history)]);
+    // The goal whose end this stream has sent (so a finished goal is sent once).
+    let ended: Option<u64> = None;
+    let ticks = stream::unfold(
+        (interval, s, ended),
+        |(mut interval, s, mut ended)| async move {
+            interval.tick().await;
+            let snapshot = s.live.snapshot();
+            let mut out = vec![Ok(json_event("state", snapshot.as_ref()))];
+            if let Some(goal) = s.goals.latest()
+                && ended != Some(goal.id)
+            {
+                if goal.state == GoalState::Done {
+                    ended = Some(goal.id);
+                }
+                out.push(Ok(json_event("grasp", &GoalProgress::of(goal, &snapshot))));
+            }
+            Some((stream::iter(out), (interval, s, ended)))
+        },
+    )
+    .flatten();
+    Sse::new(first.chain(ticks)).keep_alive(KeepAlive::default())
 }
 
 fn sensor(s: &AppState, id: &str) -> Result<usize, ApiError> {
@@ -340,7 +380,7 @@ fn authorize(s: &AppState, headers: &HeaderMap, exempt: bool) -> Result<(), ApiE
     if !s.auth.allows(headers) {
         return Err(ApiError::new(
             StatusCode::UNAUTHORIZED,
-            "this server is bound off loopback: commands need `Authorization: Bearer <token>`",
+            crate::login::NEEDS_TOKEN,
         ));
     }
     if !exempt && !s.limiter.try_take() {
@@ -357,7 +397,11 @@ fn authorize(s: &AppState, headers: &HeaderMap, exempt: bool) -> Result<(), ApiE
 }
 
 /// Authorization, then the rate limit (unless `exempt`), then the gripper.
-fn admit(s: &AppState, headers: &HeaderMap, exempt: bool) -> Result<GripperHandle, ApiError> {
+pub(crate) fn admit(
+    s: &AppState,
+    headers: &HeaderMap,
+    exempt: bool,
+) -> Result<GripperHandle, ApiError> {
     authorize(s, headers, exempt)?;
     s.gripper.clone().ok_or_else(|| {
         ApiError::new(
@@ -367,7 +411,7 @@ fn admit(s: &AppState, headers: &HeaderMap, exempt: bool) -> Result<GripperHandl
     })
 }
 
-fn gripper_error(e: &GripperError) -> Response {
+pub(crate) fn gripper_error(e: &GripperError) -> Response {
     match e {
         GripperError::Stopped => error(StatusCode::SERVICE_UNAVAILABLE, e.to_string()),
         GripperError::Busy { .. } => error(StatusCode::CONFLICT, e.to_string()),
@@ -375,75 +419,9 @@ fn gripper_error(e: &GripperError) -> Response {
     }
 }
 
-fn parse<T: serde::de::DeserializeOwned>(body: &Bytes) -> Result<T, ApiError> {
+pub(crate) fn parse<T: serde::de::DeserializeOwned>(body: &Bytes) -> Result<T, ApiError> {
     serde_json::from_slice(body)
         .map_err(|e| ApiError::new(StatusCode::BAD_REQUEST, format!("bad JSON body: {e}")))
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct GraspBody {
-    target_force_n: f64,
-    speed_deg_s: Option<f64>,
-    current_limit_ma: Option<f64>,
-    fingers: Option<Vec<String>>,
-    timeout_s: Option<f64>,
-}
-
-async fn grasp(State(s): State<AppState>, headers: HeaderMap, body: Bytes) -> Response {
-    let handle = match admit(&s, &headers, false) {
-        Ok(h) => h,
-        Err(e) => return e.into_response(),
-    };
-    let b: GraspBody = match parse(&body) {
-        Ok(b) => b,
-        Err(e) => return e.into_response(),
-    };
-    let fingers = match &b.fingers {
-        None => (0..s.fingers.len()).collect(),
-        Some(ids) => {
-            let mut out = Vec::new();
-            for id in ids {
-                match s.fingers.iter().position(|f| f == id) {
-                    Some(i) => out.push(i),
-                    None => {
-                        return error(
-                            StatusCode::BAD_REQUEST,
-                            format!("no finger `{id}`; fingers: {}", s.fingers.join(", ")),
-                        );
-                    }
-                }
-            }
-            out
-        }
-    };
-    let timeout_s = b.timeout_s.unwrap_or(20.0);
-    if !(timeout_s.is_finite() && timeout_s > 0.0 && timeout_s <= MAX_TIMEOUT_S) {
-        return error(
-            StatusCode::BAD_REQUEST,
-            format!("timeout_s = {timeout_s}: expected (0, {MAX_TIMEOUT_S}] s"),
-        );
-    }
-    let request = GraspRequest {
-        target_force_n: b.target_force_n,
-        speed_deg_s: b.speed_deg_s.unwrap_or(15.0),
-        current_limit_ma: b.current_limit_ma.unwrap_or(s.current_limit_ma),
-        fingers,
-        timeout_s,
-    };
-    let pending = match handle.start_grasp(request) {
-        Ok(p) => p,
-        Err(e) => return gripper_error(&e),
-    };
-    // The grasp resolves by its own timeout; the margin covers a loop that stalls.
-    match tokio::time::timeout(Duration::from_secs_f64(timeout_s + 5.0), pending.outcome()).await {
-        Ok(Ok(outcome)) => axum::Json(outcome).into_response(),
-        Ok(Err(e)) => gripper_error(&e),
-        Err(_) => error(
-            StatusCode::GATEWAY_TIMEOUT,
-            "the grasp did not resolve in time: is the run loop receiving sets?",
-        ),
-    }
 }
 
 async fn simple(

@@ -116,10 +116,17 @@ async fn events_stream_the_state_at_20_hz() {
     use futures_util::StreamExt;
     let start = std::time::Instant::now();
     let mut events = 0;
+    let mut seen = String::new();
     while events < 5 {
         let chunk = body.next().await.expect("an event").expect("bytes");
-        events += text(&chunk).matches("event: state").count();
+        seen.push_str(&text(&chunk));
+        events = seen.matches("event: state").count();
     }
+    assert!(
+        seen.starts_with("event: history"),
+        "the history comes first: {}",
+        &seen[..seen.len().min(200)]
+    );
     let elapsed = start.elapsed().as_secs_f64();
     // Five events at 20 Hz: the first at once, then four periods (0.2 s).
     assert!(elapsed < 0.5, "{elapsed} s for 5 events");
@@ -326,8 +333,109 @@ async fn off_loopback_commands_need_the_token_even_estop() {
         .body(Body::empty())
         .expect("request");
     assert_eq!(send(app(s.clone()), right).await.0, StatusCode::OK);
-    // Reading needs no token.
-    assert_eq!(send(app(s), get("/api/state")).await.0, StatusCode::OK);
+}
+
+#[tokio::test]
+async fn off_loopback_every_route_needs_the_token_or_the_login_cookie() {
+    let (s, _service) = state();
+    let s = s.with_token("s3cret".into());
+    for path in [
+        "/",
+        "/app.js",
+        "/api/state",
+        "/api/history",
+        "/api/events",
+        "/api/grasps/1",
+    ] {
+        let (status, body, _) = send(app(s.clone()), get(path)).await;
+        assert_eq!(status, StatusCode::UNAUTHORIZED, "{path}");
+        assert!(!text(&body).contains("s3cret"), "the token is never echoed");
+    }
+    let (_, page, ctype) = send(app(s.clone()), get("/")).await;
+    assert!(ctype.is_some_and(|c| c.starts_with("text/html")));
+    assert!(
+        text(&page).contains("action=\"/login\""),
+        "the page offers the login form"
+    );
+    assert_eq!(send(app(s.clone()), get("/login")).await.0, StatusCode::OK);
+
+    let login = |token: &str| {
+        Request::post("/login")
+            .header(header::CONTENT_TYPE, "application/x-www-form-urlencoded")
+            .body(Body::from(format!("token={token}")))
+            .expect("request")
+    };
+    assert_eq!(
+        send(app(s.clone()), login("guess")).await.0,
+        StatusCode::UNAUTHORIZED
+    );
+    let r = app(s.clone())
+        .oneshot(login("s3cret"))
+        .await
+        .expect("response");
+    assert_eq!(r.status(), StatusCode::SEE_OTHER);
+    let cookie = r.headers()[header::SET_COOKIE]
+        .to_str()
+        .expect("ASCII")
+        .to_string();
+    assert!(
+        cookie.contains("HttpOnly") && cookie.contains("SameSite=Strict"),
+        "{cookie}"
+    );
+    assert!(!cookie.contains("s3cret"), "the cookie is not the token");
+    let pair = cookie.split(';').next().expect("name=value").to_string();
+    let with_cookie = Request::get("/api/state")
+        .header(header::COOKIE, format!("other=1; {pair}"))
+        .body(Body::empty())
+        .expect("request");
+    assert_eq!(send(app(s.clone()), with_cookie).await.0, StatusCode::OK);
+    let forged = Request::get("/api/state")
+        .header(header::COOKIE, "gelgrip_session=00")
+        .body(Body::empty())
+        .expect("request");
+    assert_eq!(
+        send(app(s.clone()), forged).await.0,
+        StatusCode::UNAUTHORIZED
+    );
+    let bearer = Request::get("/api/state")
+        .header(header::AUTHORIZATION, "Bearer s3cret")
+        .body(Body::empty())
+        .expect("request");
+    assert_eq!(send(app(s), bearer).await.0, StatusCode::OK);
+}
+
+#[tokio::test]
+async fn grasp_goals_answer_at_once_and_report_by_id() {
+    let (s, _service) = state();
+    let (status, body, _) = send(
+        app(s.clone()),
+        post("/api/grasps", r#"{"target_force_n": 2.0}"#),
+    )
+    .await;
+    assert_eq!(status, StatusCode::ACCEPTED, "{}", text(&body));
+    let v: serde_json::Value = serde_json::from_slice(&body).expect("JSON");
+    assert_eq!(v, json!({"id": 1}));
+    let (status, body, _) = send(app(s.clone()), get("/api/grasps/1")).await;
+    assert_eq!(status, StatusCode::OK);
+    let v: serde_json::Value = serde_json::from_slice(&body).expect("JSON");
+    assert_eq!(v, json!({"id": 1, "state": "running", "result": null}));
+    for unknown in ["/api/grasps/2", "/api/grasps/0", "/api/grasps/x"] {
+        let (status, body, _) = send(app(s.clone()), get(unknown)).await;
+        assert_eq!(status, StatusCode::NOT_FOUND, "{unknown}: {}", text(&body));
+    }
+    let (status, _, _) = send(
+        app(s.clone()),
+        post("/api/grasps", r#"{"target_force_n": -1}"#),
+    )
+    .await;
+    assert_eq!(status, StatusCode::BAD_REQUEST);
+    let (status, body, _) = send(
+        app(s.clone()),
+        post("/api/grasps", r#"{"target_force_n": 2.0}"#),
+    )
+    .await;
+    assert_eq!(status, StatusCode::ACCEPTED);
+    assert_eq!(text(&body), r#"{"id":2}"#, "a refused request takes no id");
 }
 
 /// A stand-in run loop: knows the task `screwdriver` (busy while `busy` is set), the
