@@ -204,3 +204,131 @@ async fn the_dashboard_shows_live_views_and_grasps_on_a_click() {
     assert!(ended.contains("(completed)"), "{ended}");
     client.close().await.expect("session closed");
 }
+
+/// The chart's axes (issue 31, item 2): the page's `gelgripAxis.axisTicks` labels every
+/// decade from 1e-3 to 1e3 mm³, odd spans and degenerate input with distinct labels that
+/// end in the unit and read back within half a step; the live chart's y-axis labels, read
+/// from the page beside the canvas, are distinct and end in " mm³".
+#[tokio::test]
+#[ignore = "needs chromium: run scripts/test"]
+async fn the_chart_s_tick_labels_are_distinct_and_carry_the_unit() {
+    let (_gelgrip, url) = start_gelgrip(&["--scene", "configs/scenes/tennis-ball.toml"]);
+    let (_driver, webdriver) = start_chromedriver();
+    let client = open_page(&webdriver, &url, 7).await;
+
+    let check = |what: &str, ticks: &serde_json::Value| {
+        let ticks: Vec<(f64, String)> = ticks
+            .as_array()
+            .unwrap_or_else(|| panic!("{what}: ticks {ticks}"))
+            .iter()
+            .map(|t| {
+                let value = t["value"].as_f64();
+                let label = t["label"].as_str().map(str::to_string);
+                value
+                    .zip(label)
+                    .unwrap_or_else(|| panic!("{what}: tick {t}"))
+            })
+            .collect();
+        assert!(ticks.len() >= 2, "{what}: {ticks:?}");
+        let step = ticks[1].0 - ticks[0].0;
+        assert!(step.is_finite() && step > 0.0, "{what}: {ticks:?}");
+        for (value, label) in &ticks {
+            let lower = label.to_lowercase();
+            assert!(
+                !lower.contains("nan") && !lower.contains("inf"),
+                "{what}: {label}"
+            );
+            let number = label
+                .strip_suffix(" mm³")
+                .unwrap_or_else(|| panic!("{what}: {label} lacks the unit"));
+            let read: f64 = number.parse().unwrap_or_else(|_| panic!("{what}: {label}"));
+            assert!(
+                (read - value).abs() <= step / 2.0,
+                "{what}: {label} for {value}"
+            );
+        }
+        let mut labels: Vec<&String> = ticks.iter().map(|t| &t.1).collect();
+        labels.dedup();
+        assert_eq!(
+            labels.len(),
+            ticks.len(),
+            "{what}: labels repeat: {ticks:?}"
+        );
+        eprintln!("{what}: {labels:?}");
+    };
+    let mut ranges: Vec<(f64, f64)> = (-3..=3)
+        .flat_map(|e| {
+            let top = 10f64.powi(e);
+            [(0.0, top), (0.0, 3.7 * top), (top, 1.2 * top), (-top, top)]
+        })
+        .collect();
+    ranges.extend([
+        (0.0, 0.37),
+        (997.0, 1003.0),
+        (0.0, 0.05),
+        (0.0, 0.0),
+        (5.0, 5.0),
+    ]);
+    for (lo, hi) in ranges {
+        let ticks = client
+            .execute(
+                "return gelgripAxis.axisTicks(arguments[0], arguments[1], 'mm³', 5)",
+                vec![serde_json::json!(lo), serde_json::json!(hi)],
+            )
+            .await
+            .expect("axisTicks runs");
+        check(&format!("{lo}..{hi}"), &ticks);
+    }
+    // Non-finite input does not pass through JSON: the page makes it.
+    let degenerate = client
+        .execute(
+            "return [[NaN, NaN], [NaN, 1], [0, Infinity], [-Infinity, Infinity], [1, NaN]]
+               .map(([lo, hi]) => gelgripAxis.axisTicks(lo, hi, 'mm³', 5))",
+            vec![],
+        )
+        .await
+        .expect("axisTicks runs");
+    for (i, ticks) in degenerate.as_array().expect("a list").iter().enumerate() {
+        check(&format!("degenerate case {i}"), ticks);
+    }
+
+    // The live chart: its y-axis labels as shown, beside the canvas and within its height.
+    let labels: Vec<String> = wait_for(Duration::from_secs(30), "the chart's y axis", || async {
+        let ticks = client
+            .find_all(Locator::Css("#plot-y-axis .tick"))
+            .await
+            .ok()?;
+        let mut labels = Vec::new();
+        for t in ticks {
+            labels.push(t.text().await.ok()?);
+        }
+        (labels.len() >= 2).then_some(labels)
+    })
+    .await;
+    let mut distinct = labels.clone();
+    distinct.dedup();
+    assert_eq!(distinct, labels, "the y-axis labels repeat");
+    assert!(labels.iter().all(|l| l.ends_with(" mm³")), "{labels:?}");
+    let placed = client
+        .execute(
+            "const c = document.getElementById('plot').getBoundingClientRect();
+             const ticks = Array.from(document.querySelectorAll('#plot-y-axis .tick'));
+             return ticks.every((t) => { const r = t.getBoundingClientRect();
+               return r.width > 0 && r.right <= c.left + 1 && r.top >= c.top - r.height && r.bottom <= c.bottom + r.height; })",
+            vec![],
+        )
+        .await
+        .expect("the ticks' boxes");
+    assert_eq!(
+        placed.as_bool(),
+        Some(true),
+        "y ticks beside the canvas: {labels:?}"
+    );
+    let x_axis = text(&client, "#plot-x-axis").await;
+    assert!(
+        x_axis.contains("-30 s") && x_axis.contains("0 s"),
+        "{x_axis}"
+    );
+    eprintln!("live y axis: {labels:?}; x axis: {x_axis}");
+    client.close().await.expect("session closed");
+}

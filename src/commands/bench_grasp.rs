@@ -369,6 +369,8 @@ fn sweep_figure(rows: &[Value], target_n: f64) -> gelgrip::plot::Figure {
         ),
         x_label: "set rate (Hz)".into(),
         y_label: "overshoot of the true peak force (%)".into(),
+        x_unit: "Hz".into(),
+        y_unit: "%".into(),
         series,
         bands: Vec::new(),
         markers: true,

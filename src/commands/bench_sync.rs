@@ -175,6 +175,8 @@ fn figure(rows: &[SyncRow], args: &BenchSyncArgs) -> gelgrip::plot::Figure {
         ),
         x_label: "injected capture delay (ms)".into(),
         y_label: "overshoot of the true peak force (%)".into(),
+        x_unit: "ms".into(),
+        y_unit: "%".into(),
         series: vec![
             series(false, "gating off"),
             series(true, "gating on (gaps: never squeezed)"),

@@ -332,6 +332,8 @@ fn plot(rows: &[Row], path: &Path) -> anyhow::Result<()> {
         title: "Speed/accuracy: 7 simulated sensors, one set".into(),
         x_label: "wall-clock time per set of 7, ms (2 cores)".into(),
         y_label: "depth MAE where touched, mm".into(),
+        x_unit: "ms".into(),
+        y_unit: "mm".into(),
         series,
         markers: true,
         ..Figure::default()

@@ -128,6 +128,8 @@ pub fn figure(log: &TaskLog, title: &str) -> Figure {
         title: title.to_string(),
         x_label: "time (s)".into(),
         y_label: "deformation signal (mm³)".into(),
+        x_unit: "s".into(),
+        y_unit: "mm³".into(),
         series: log
             .signals
             .iter()

@@ -1,13 +1,18 @@
 //! Figures: line plots with shaded bands (a task's stages), written as SVG or PNG with
 //! `plotters`. The font (DejaVu Sans, see `DejaVuSans-LICENSE.txt`) is embedded, so a
-//! plot needs no system fonts. Used by `gelgrip plot` and by the benches' plots.
+//! plot needs no system fonts. Used by `gelgrip plot` and by the benches' plots. Tick
+//! labels carry their unit and the decimals their step needs ([`axis`]).
 
 use std::path::Path;
 use std::sync::Once;
 
 use anyhow::{Context, anyhow};
 use plotters::coord::Shift;
+use plotters::coord::ranged1d::{DefaultFormatting, KeyPointHint};
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
+
+pub mod axis;
 
 static FONT: &[u8] = include_bytes!("DejaVuSans.ttf");
 static REGISTER: Once = Once::new();
@@ -41,6 +46,10 @@ pub struct Figure {
     pub x_label: String,
     /// Y axis label, with units.
     pub y_label: String,
+    /// The unit on each x tick label (`s`, `Hz`), empty for none.
+    pub x_unit: String,
+    /// The unit on each y tick label (`mm³`, `%`), empty for none.
+    pub y_unit: String,
     /// The lines.
     pub series: Vec<Series>,
     /// Shaded spans.
@@ -82,6 +91,9 @@ impl Format {
 
 const WIDTH_PX: u32 = 1200;
 const HEIGHT_PX: u32 = 600;
+/// At most this many ticks along x, and along y.
+const X_TICKS: usize = 10;
+const Y_TICKS: usize = 8;
 
 fn palette(i: usize) -> RGBColor {
     let c = Palette99::pick(i).to_rgba();
@@ -114,6 +126,44 @@ pub fn save(fig: &Figure, out: &Path) -> anyhow::Result<()> {
     result.with_context(|| format!("drawing {}", out.display()))
 }
 
+/// An f64 axis whose ticks are [`axis::ticks`] (plotters' own steps are 1, 2 or 5 × 10^k;
+/// its labels, Debug-formatted by default, are replaced by [`axis::tick_label`]).
+struct Ticked {
+    inner: RangedCoordf64,
+    ticks: Vec<f64>,
+}
+
+impl Ticked {
+    fn new(lo: f64, hi: f64, max_ticks: usize) -> Self {
+        Self {
+            inner: (lo..hi).into(),
+            ticks: axis::ticks(lo, hi, max_ticks),
+        }
+    }
+}
+
+impl Ranged for Ticked {
+    type FormatOption = DefaultFormatting;
+    type ValueType = f64;
+
+    fn map(&self, value: &f64, limit: (i32, i32)) -> i32 {
+        self.inner.map(value, limit)
+    }
+
+    fn key_points<Hint: KeyPointHint>(&self, hint: Hint) -> Vec<f64> {
+        // Grid lines at the ticks only (no light lines between them).
+        if hint.weight().allow_light_points() {
+            Vec::new()
+        } else {
+            self.ticks.clone()
+        }
+    }
+
+    fn range(&self) -> std::ops::Range<f64> {
+        self.inner.range()
+    }
+}
+
 fn bounds(fig: &Figure) -> ((f64, f64), (f64, f64)) {
     let xs = fig
         .series
@@ -142,7 +192,7 @@ fn bounds(fig: &Figure) -> ((f64, f64), (f64, f64)) {
     } else {
         y0 + 1.0
     };
-    ((x0, x1), (y0, y1))
+    (axis::range(x0, x1), axis::range(y0, y1))
 }
 
 fn draw<DB: DrawingBackend>(fig: &Figure, root: DrawingArea<DB, Shift>) -> anyhow::Result<()>
@@ -152,17 +202,22 @@ where
     let err = |e: DrawingAreaErrorKind<DB::ErrorType>| anyhow!("{e:?}");
     root.fill(&WHITE).map_err(err)?;
     let ((x0, x1), (y0, y1)) = bounds(fig);
+    let (x_step, y_step) = (axis::step(x0, x1, X_TICKS), axis::step(y0, y1, Y_TICKS));
     let mut chart = ChartBuilder::on(&root)
         .caption(&fig.title, ("sans-serif", 22))
         .margin(12)
         .x_label_area_size(45)
-        .y_label_area_size(70)
-        .build_cartesian_2d(x0..x1, y0..y1)
+        .y_label_area_size(100)
+        .build_cartesian_2d(Ticked::new(x0, x1, X_TICKS), Ticked::new(y0, y1, Y_TICKS))
         .map_err(err)?;
+    let x_tick = |v: &f64| axis::tick_label(*v, x_step, &fig.x_unit);
+    let y_tick = |v: &f64| axis::tick_label(*v, y_step, &fig.y_unit);
     chart
         .configure_mesh()
         .x_desc(&fig.x_label)
         .y_desc(&fig.y_label)
+        .x_label_formatter(&x_tick)
+        .y_label_formatter(&y_tick)
         .label_style(("sans-serif", 14))
         .draw()
         .map_err(err)?;

@@ -153,6 +153,24 @@ function render(s) {
 
 const COLORS = ["#d62728", "#2ca02c", "#e6b800", "#1f77b4", "#ff7f0e", "#9467bd", "#17becf", "#8c564b"];
 
+// The tick labels shown per axis element, so they are rebuilt only when they change.
+const axisShown = {};
+
+// Show `ticks` as `<span class="tick">` in the axis element `id`, each at `at(value)`, a
+// fraction of the canvas's height (vertical) or width.
+function axisLabels(id, ticks, vertical, at) {
+  const key = ticks.map((t) => t.label + "@" + at(t.value).toFixed(4)).join("|");
+  if (axisShown[id] === key) return;
+  axisShown[id] = key;
+  $(id).replaceChildren(...ticks.map((t) => {
+    const span = document.createElement("span");
+    span.className = "tick";
+    span.textContent = t.label;
+    span.style[vertical ? "top" : "left"] = (100 * at(t.value)).toFixed(2) + "%";
+    return span;
+  }));
+}
+
 function plot(ids) {
   const c = $("plot");
   const g = c.getContext("2d");
@@ -160,21 +178,38 @@ function plot(ids) {
   if (history.length < 2) return;
   const t1 = history[history.length - 1][0];
   const t0 = t1 - WINDOW_S;
-  const ymax = Math.max(1, ...history.flatMap((h) => h[1])) * 1.1;
-  const x = (t) => 40 + ((t - t0) / WINDOW_S) * (c.width - 50);
-  const y = (v) => c.height - 20 - (v / ymax) * (c.height - 30);
-  g.strokeStyle = "#ccc";
-  g.fillStyle = "#555";
-  g.font = "11px sans-serif";
-  for (let k = 0; k <= 4; k++) {
-    const v = (ymax * k) / 4;
-    g.beginPath(); g.moveTo(40, y(v)); g.lineTo(c.width - 10, y(v)); g.stroke();
-    g.fillText(v.toFixed(0), 2, y(v) + 4);
+  let lo = 0;
+  let hi = 0;
+  for (const h of history) {
+    for (const v of h[1]) {
+      if (Number.isFinite(v)) { lo = Math.min(lo, v); hi = Math.max(hi, v); }
+    }
   }
+  // A floor of 0.001 mm³ gives a flat signal distinct labels; a 0.05 mm³ one fills the chart.
+  hi = Math.max(lo + (hi - lo) * 1.1, lo + 0.001);
+  const yTicks = gelgripAxis.axisTicks(lo, hi, "mm³", 5);
+  const xTicks = gelgripAxis.axisTicks(-WINDOW_S, 0, "s", 7); // seconds before the newest
+  const [left, right, top, bottom] = [6, c.width - 16, 20, c.height - 8];
+  const x = (t) => left + ((t - t0) / WINDOW_S) * (right - left);
+  const y = (v) => bottom - ((v - lo) / (hi - lo)) * (bottom - top);
+  g.strokeStyle = "#ccc";
+  g.beginPath();
+  yTicks.forEach((t) => { g.moveTo(left, y(t.value)); g.lineTo(right, y(t.value)); });
+  xTicks.forEach((t) => { g.moveTo(x(t1 + t.value), top); g.lineTo(x(t1 + t.value), bottom); });
+  g.stroke();
+  axisLabels("plot-y-axis", yTicks, true, (v) => y(v) / c.height);
+  axisLabels("plot-x-axis", xTicks, false, (v) => x(t1 + v) / c.width);
+  g.font = "11px sans-serif";
   ids.forEach((id, i) => {
     g.strokeStyle = COLORS[i % COLORS.length];
     g.beginPath();
-    history.forEach((h, k) => (k ? g.lineTo(x(h[0]), y(h[1][i])) : g.moveTo(x(h[0]), y(h[1][i]))));
+    let gap = true; // a missing reading breaks the line rather than dropping it to zero
+    history.forEach((h) => {
+      const v = h[1][i];
+      if (!Number.isFinite(v)) { gap = true; return; }
+      if (gap) g.moveTo(x(h[0]), y(v)); else g.lineTo(x(h[0]), y(v));
+      gap = false;
+    });
     g.stroke();
     g.fillStyle = COLORS[i % COLORS.length];
     g.fillText(id, 45 + (i % 8) * 90, 12);
