@@ -42,15 +42,39 @@ pub fn free_port() -> u16 {
 
 /// Start `gelgrip run` with the dashboard on a free port and `extra` arguments; its URL.
 pub fn start_gelgrip(extra: &[&str]) -> (Running, String) {
+    let cache = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("gelgrip-cache");
+    start_gelgrip_with(&Start::default(), &cache, extra)
+}
+
+/// How to start `gelgrip run` beyond its arguments.
+#[derive(Default)]
+pub struct Start<'a> {
+    /// `--http` (default `127.0.0.1:0`).
+    pub bind: Option<&'a str>,
+    /// Extra environment.
+    pub env: Vec<(&'a str, &'a str)>,
+}
+
+/// Start `gelgrip run` as `how` says, with its calibration cache in `cache`; its URL (on
+/// 127.0.0.1 when it is bound to every address).
+pub fn start_gelgrip_with(
+    how: &Start,
+    cache: &std::path::Path,
+    extra: &[&str],
+) -> (Running, String) {
     let mut child = Command::new(env!("CARGO_BIN_EXE_gelgrip"))
         .process_group(0)
-        .args(["run", "--http", "127.0.0.1:0", "--duration", "300"])
+        .args([
+            "run",
+            "--http",
+            how.bind.unwrap_or("127.0.0.1:0"),
+            "--duration",
+            "300",
+        ])
         .args(extra)
-        .env(
-            "GELGRIP_CACHE_DIR",
-            std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("gelgrip-cache"),
-        )
+        .env("GELGRIP_CACHE_DIR", cache)
         .env("RUST_LOG", "warn")
+        .envs(how.env.iter().copied())
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
         .spawn()
@@ -62,7 +86,7 @@ pub fn start_gelgrip(extra: &[&str]) -> (Running, String) {
         for line in BufReader::new(stderr).lines().map_while(Result::ok) {
             eprintln!("gelgrip: {line}");
             if let Some(url) = line.strip_prefix("dashboard: ") {
-                let _ = tx.send(url.trim().to_string());
+                let _ = tx.send(url.trim().replace("0.0.0.0", "127.0.0.1"));
             }
         }
     });

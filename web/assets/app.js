@@ -8,25 +8,44 @@ const history = []; // [t_s, [deformation per sensor]]
 let built = false;
 let state = null;
 
-function token() { return localStorage.getItem("gelgrip-token") || ""; }
-$("token").value = token();
-$("token").addEventListener("change", (e) => localStorage.setItem("gelgrip-token", e.target.value));
-
+// Off loopback the server wants its token; the login page sets a session cookie that
+// every request here (and the streams) then carries.
 async function command(path, body) {
   const headers = { "Content-Type": "application/json" };
-  if (token()) headers["Authorization"] = "Bearer " + token();
   $("result").textContent = path + " …";
   try {
     const r = await fetch(path, { method: "POST", headers, body: JSON.stringify(body || {}) });
+    if (r.status === 401) { window.location.href = "/login"; return null; }
     const text = await r.text();
     $("result").textContent = path + " → " + r.status + " " + text;
     $("result").dataset.status = String(r.status);
+    return r.status === 202 ? JSON.parse(text) : null;
   } catch (e) {
     $("result").textContent = path + " failed: " + e;
+    return null;
   }
 }
 
-$("grasp").onclick = () => command("/api/grasp", { target_force_n: parseFloat($("force").value) });
+// Grasps are goals: the server answers at once with an id, and the event stream carries
+// the goal's progress (phase and force per finger) and its end.
+let graspId = null;
+$("grasp").onclick = async () => {
+  const goal = await command("/api/grasps", { target_force_n: parseFloat($("force").value) });
+  if (goal) graspId = goal.id;
+};
+
+function showGrasp(g) {
+  if (g.id !== graspId) return;
+  if (g.state === "running") {
+    const fingers = g.fingers.map((f) => `${f.id} ${f.phase} ${fmt(f.force_n)} N`).join(" · ");
+    $("result").textContent = `grasp ${g.id} running · ${fingers}`;
+    $("result").dataset.status = "running";
+  } else {
+    const outcome = g.result ? JSON.stringify(g.result) : g.error || "ended";
+    $("result").textContent = `grasp ${g.id} → done ${outcome}`;
+    $("result").dataset.status = "done";
+  }
+}
 $("release").onclick = () => command("/api/release");
 $("stop").onclick = () => command("/api/stop");
 $("estop").onclick = () => command("/api/estop");
@@ -146,7 +165,9 @@ function render(s) {
       ? "faults: " + s.sim.faults.map((f) => `${f.sensor} +${f.faults.capture_delay_us} µs`).join(", ")
       : "no faults injected");
   }
-  history.push([s.t_s, s.sensors.map((x) => x.deformation_mm3)]);
+  const last = history.length ? history[history.length - 1][0] : -Infinity;
+  if (s.t_s < last) history.length = 0; // a new run behind the same server
+  if (s.t_s > last) history.push([s.t_s, s.sensors.map((x) => x.deformation_mm3)]);
   while (history.length && s.t_s - history[0][0] > WINDOW_S) history.shift();
   plot(s.sensors.map((x) => x.id));
 }
@@ -218,7 +239,14 @@ function plot(ids) {
 
 function connect() {
   const events = new EventSource("/api/events");
+  // The server's last 30 s of the signals come first, so the chart starts full.
+  events.addEventListener("history", (e) => {
+    const h = JSON.parse(e.data);
+    history.length = 0;
+    h.t_s.forEach((t, k) => history.push([t, h.deformation_mm3[k]]));
+  });
   events.addEventListener("state", (e) => render(JSON.parse(e.data)));
+  events.addEventListener("grasp", (e) => showGrasp(JSON.parse(e.data)));
   events.onerror = () => { $("run").textContent = "disconnected; retrying…"; };
 }
 connect();
