@@ -2,7 +2,8 @@
 //! task script started from the page runs to completion; while it runs, a second task, a
 //! grasp and a scene switch are conflicts (409); a stop interrupts it and the fingers hold;
 //! an injected capture delay makes the gate refuse sets; scenes switch by name; e-stop is
-//! carried out.
+//! carried out; grasps as goals answer at once, report running, end as the blocking grasp
+//! does, and preempt each other.
 
 use std::time::Duration;
 
@@ -186,4 +187,90 @@ fn the_simulated_hub_unplugs_and_a_servo_overloads_on_request() {
         r#"{"finger": "f1", "fault": "overload"}"#,
     );
     assert_eq!(status, 200, "{body}");
+}
+
+/// `GET /api/grasps/{id}`, parsed.
+fn goal(url: &str, id: u64) -> Value {
+    let (status, body) = common::server::http(url, "GET", &format!("/api/grasps/{id}"), None);
+    assert_eq!(status, 200, "{body}");
+    serde_json::from_str(&body).expect("goal JSON")
+}
+
+/// Release, wait for open fingers, and place the ball afresh.
+fn fresh_ball(url: &str) {
+    let (status, body) = post(url, "/api/release", "");
+    assert_eq!(status, 200, "{body}");
+    wait_until(Duration::from_secs(15), "open fingers", || {
+        state(url)["servos"]
+            .as_array()
+            .is_some_and(|s| s.iter().all(|s| s["position_deg"].as_f64() < Some(5.0)))
+            .then_some(())
+    });
+    let (status, body) = post(url, "/api/sim/scene", r#"{"name": "tennis-ball"}"#);
+    assert_eq!(status, 200, "{body}");
+}
+
+#[test]
+fn grasp_goals_answer_at_once_report_progress_and_end_as_the_blocking_grasp() {
+    // The default config's dashboard run: the tennis ball, held until grasped.
+    let (_run, url) = start_gelgrip(&[]);
+    wait_until(Duration::from_secs(30), "sets", || {
+        (state(&url)["sync"]["sets"].as_u64() > Some(10)).then_some(())
+    });
+    assert_eq!(state(&url)["sim"]["scene"], "tennis-ball");
+    let body = r#"{"target_force_n": 1.5}"#;
+
+    // The goal is accepted while the grasp runs, and reports running, then its result.
+    let (status, reply) = post(&url, "/api/grasps", body);
+    assert_eq!(status, 202, "{reply}");
+    let id = serde_json::from_str::<Value>(&reply).expect("JSON")["id"]
+        .as_u64()
+        .expect("an id");
+    assert_eq!(id, 1, "ids count from 1");
+    let running = goal(&url, id);
+    assert_eq!(running["state"], "running", "{running}");
+    assert!(running["result"].is_null(), "{running}");
+    let done = wait_until(Duration::from_secs(25), "the goal's end", || {
+        let g = goal(&url, id);
+        (g["state"] == "done").then_some(g)
+    });
+    let goal_result = done["result"].clone();
+    assert_eq!(goal_result["grasped"], true, "{done}");
+
+    // The blocking grasp on the same scene ends the same way.
+    fresh_ball(&url);
+    let (status, reply) = post(&url, "/api/grasp", body);
+    assert_eq!(status, 200, "{reply}");
+    let blocking: Value = serde_json::from_str(&reply).expect("JSON");
+    for field in ["grasped", "status", "reason"] {
+        assert_eq!(
+            goal_result[field], blocking[field],
+            "{field}: {goal_result} vs {blocking}"
+        );
+    }
+    let (a, b) = (
+        goal_result["final_force_n"].as_f64().expect("force"),
+        blocking["final_force_n"].as_f64().expect("force"),
+    );
+    assert!((a - b).abs() <= 0.15 * b, "final force {a} N vs {b} N");
+
+    // A second goal preempts the first.
+    fresh_ball(&url);
+    let (status, first) = post(&url, "/api/grasps", body);
+    assert_eq!(status, 202, "{first}");
+    assert_eq!(first, r#"{"id":2}"#);
+    let (status, second) = post(&url, "/api/grasps", body);
+    assert_eq!(status, 202, "{second}");
+    let preempted = wait_until(Duration::from_secs(5), "the first goal's end", || {
+        let g = goal(&url, 2);
+        (g["state"] == "done").then_some(g)
+    });
+    assert_eq!(preempted["result"]["reason"], "preempted", "{preempted}");
+    assert_eq!(goal(&url, 3)["state"], "running");
+
+    // Unknown ids.
+    for unknown in ["/api/grasps/99", "/api/grasps/0", "/api/grasps/one"] {
+        let (status, body) = common::server::http(&url, "GET", unknown, None);
+        assert_eq!(status, 404, "{unknown}: {body}");
+    }
 }
