@@ -169,6 +169,19 @@ impl Session {
         let registry = wiring::registry();
         let (config, config_files) =
             wiring::load_config_with_files(options.config.as_deref(), &registry)?;
+        // The task's forces, speeds and timeouts, against what the configured hand can do
+        // (exit 2 in the CLI), before the hub and the servos are opened.
+        match options.task.as_deref() {
+            Some("gentle-grasp") if !config.layout.fingers.is_empty() => {
+                let limit = config.servos.current_limit_ma;
+                GentleGrasp::check(&config.layout, limit, &options.grasp)
+                    .map_err(|e| UsageError(format!("gentle-grasp: {e}")))?;
+            }
+            Some("gentle-grasp") | None => {}
+            Some(script) => {
+                load_script(script, &config)?;
+            }
+        }
         let clock = wiring::make_clock(options.clock);
         let world = wiring::open_world(&config, options.scene.as_deref())?;
         let registry = match &world {

@@ -4,6 +4,11 @@
 //! current (the hard force cap) and a profile velocity. Blocking, because the servo buses are
 //! (dynamixel2 is); the run loop calls it from a blocking task. Every call returns within a
 //! deadline the implementation documents.
+//!
+//! The servos' ratings ([`ServoRating`], [`XM430_W350`]: stall torque and current, no-load
+//! speed) live here too: the simulator's motor model runs on them, and the grasp limits
+//! ([`crate::grasp::limits`]) bound requests by them (ROBOTIS e-Manual, see
+//! `../shared/reference/dynamixel.md` §2).
 
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
@@ -249,4 +254,48 @@ pub trait MotorModel: Send {
     fn step(&mut self, command: &MotorCommand, load_torque_nm: f64, dt_s: f64) -> MotorReading;
     /// Clear raised faults (a reboot).
     fn reboot(&mut self);
+}
+
+/// A servo's ratings at its nominal supply voltage.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ServoRating {
+    /// The model, as ROBOTIS names it.
+    pub model: &'static str,
+    /// The supply voltage the ratings hold at, V.
+    pub voltage_v: f64,
+    /// Stall torque, N·m.
+    pub stall_torque_nm: f64,
+    /// Stall current, mA (the most the windings draw at `voltage_v`).
+    pub stall_current_ma: f64,
+    /// No-load speed, rpm.
+    pub no_load_rpm: f64,
+}
+
+/// The Dynamixel XM430-W350 at 12 V: 4.1 N·m and 2.3 A at stall, 46 rpm without load.
+pub const XM430_W350: ServoRating = ServoRating {
+    model: "XM430-W350",
+    voltage_v: 12.0,
+    stall_torque_nm: 4.1,
+    stall_current_ma: 2300.0,
+    no_load_rpm: 46.0,
+};
+
+impl ServoRating {
+    /// Torque per mA of current (the torque constant on the stall line), N·m per mA.
+    pub fn torque_nm_per_ma(&self) -> f64 {
+        self.stall_torque_nm / self.stall_current_ma
+    }
+
+    /// The no-load speed in degrees of shaft rotation per second (46 rpm = 276 deg/s).
+    pub fn no_load_deg_s(&self) -> f64 {
+        self.no_load_rpm * 6.0
+    }
+
+    /// The no-load speed in words: `the XM430-W350's no-load speed, 46 rpm at 12 V`.
+    pub fn no_load_speed_text(&self) -> String {
+        format!(
+            "the {}'s no-load speed, {} rpm at {} V",
+            self.model, self.no_load_rpm, self.voltage_v
+        )
+    }
 }

@@ -36,6 +36,9 @@ use serde::{Deserialize, Serialize};
 use crate::actuator::{FingerGoal, ServoState};
 use crate::fusion::FusedSet;
 
+pub mod limits;
+pub use limits::{GraspLimits, MAX_TIMEOUT_S};
+
 /// Per-finger phase.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]

@@ -17,10 +17,11 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 use tokio::sync::{mpsc, oneshot};
 
+use crate::actuator::XM430_W350;
 use crate::actuator::{FingerGoal, ServoState};
 use crate::fusion::FusedSet;
 use crate::grasp::{
-    FingerStatus, GraspController, GraspOutcome, GraspReason, GraspRequest, Tuning,
+    FingerStatus, GraspController, GraspLimits, GraspOutcome, GraspReason, GraspRequest, Tuning,
 };
 
 /// Why a grasp-API call failed.
@@ -143,6 +144,9 @@ impl PendingGrasp {
 pub struct GripperHandle {
     tx: mpsc::UnboundedSender<Command>,
     fingers: usize,
+    /// What the hand can do: a request's force, speed and timeout are refused outside it
+    /// (`None`: only their signs are checked, for a service made without a layout).
+    limits: Option<Arc<GraspLimits>>,
     /// The task that owns the gripper, if any (grasps are refused meanwhile).
     busy: Arc<Mutex<Option<String>>>,
 }
@@ -167,8 +171,26 @@ fn invalid(field: &'static str, value: impl ToString, expected: &str) -> Gripper
 }
 
 impl GripperHandle {
-    /// Check `request` against this gripper.
+    /// Check `request` against this gripper: its fingers and current cap, then its force,
+    /// speed and timeout against the hand's [`GraspLimits`] (when it has them).
     pub fn validate(&self, request: &GraspRequest) -> Result<(), GripperError> {
+        if !(request.current_limit_ma.is_finite() && request.current_limit_ma >= 0.0) {
+            return Err(invalid(
+                "current_limit_ma",
+                request.current_limit_ma,
+                "a finite current of at least 0 mA",
+            ));
+        }
+        if request.fingers.is_empty() || request.fingers.iter().any(|f| *f >= self.fingers) {
+            return Err(invalid(
+                "fingers",
+                format!("{:?}", request.fingers),
+                &format!("finger indices below {}, at least one", self.fingers),
+            ));
+        }
+        if let Some(limits) = &self.limits {
+            return limits.check(request);
+        }
         let positive = |v: f64| v.is_finite() && v > 0.0;
         if !positive(request.target_force_n) {
             return Err(invalid(
@@ -184,13 +206,6 @@ impl GripperHandle {
                 "a finite speed above 0 deg/s",
             ));
         }
-        if !(request.current_limit_ma.is_finite() && request.current_limit_ma >= 0.0) {
-            return Err(invalid(
-                "current_limit_ma",
-                request.current_limit_ma,
-                "a finite current of at least 0 mA",
-            ));
-        }
         if !positive(request.timeout_s) {
             return Err(invalid(
                 "timeout_s",
@@ -198,14 +213,13 @@ impl GripperHandle {
                 "a finite time above 0 s",
             ));
         }
-        if request.fingers.is_empty() || request.fingers.iter().any(|f| *f >= self.fingers) {
-            return Err(invalid(
-                "fingers",
-                format!("{:?}", request.fingers),
-                &format!("finger indices below {}, at least one", self.fingers),
-            ));
-        }
         Ok(())
+    }
+
+    /// What the hand can do, when the service was made for one
+    /// ([`GripperService::for_hand`]).
+    pub fn limits(&self) -> Option<&GraspLimits> {
+        self.limits.as_deref()
     }
 
     /// The task that owns the gripper now, if any.
@@ -296,6 +310,7 @@ impl GripperService {
         let handle = GripperHandle {
             tx,
             fingers: close_deg.len(),
+            limits: None,
             busy: Arc::new(Mutex::new(None)),
         };
         let service = Self {
@@ -314,14 +329,23 @@ impl GripperService {
     }
 
     /// The service for `layout`'s fingers (closing toward each finger's servo range, open
-    /// at 0°) with the default tuning and `current_limit_ma` as the cap.
+    /// at 0°) with the default tuning and `current_limit_ma` as the cap; its handle refuses
+    /// requests beyond what these fingers and their XM430-W350 servos can do at that cap
+    /// ([`GraspLimits`]).
     pub fn for_hand(
         layout: &crate::layout::HandLayout,
         current_limit_ma: f64,
     ) -> (Self, GripperHandle) {
         let close: Vec<f64> = layout.fingers.iter().map(|f| f.servo_range_deg).collect();
         let n = close.len();
-        Self::new(Tuning::default(), close, vec![0.0; n], current_limit_ma)
+        let (service, mut handle) =
+            Self::new(Tuning::default(), close, vec![0.0; n], current_limit_ma);
+        handle.limits = Some(Arc::new(GraspLimits::for_hand(
+            layout,
+            XM430_W350,
+            current_limit_ma,
+        )));
+        (service, handle)
     }
 
     /// Keep a log of commands applied and steps taken (for a recording).

@@ -2,10 +2,12 @@
 //! ends, a signal arrives, the task ends or a fault stops it; statistics once a second to
 //! stderr; a report at the end.
 
-use crate::cli::{ClockArg, parse_current_ma, parse_duration, parse_force_n, parse_within};
+use crate::cli::{ClockArg, parse_current_ma, parse_duration, parse_within};
 use clap::Args;
 use gelgrip::session::{RunOptions, Session};
+use gelgrip_controller::actuator::XM430_W350;
 use gelgrip_controller::clock::ClockKind;
+use gelgrip_controller::grasp::MAX_TIMEOUT_S;
 use gelgrip_controller::runtime::RuntimeEvent;
 use gelgrip_controller::runtime::gentle_grasp::GraspOptions;
 use std::path::PathBuf;
@@ -135,15 +137,17 @@ pub struct RunArgs {
     /// ending in `.toml`). See docs/tasks.md.
     #[arg(long)]
     pub task: Option<String>,
-    /// Gentle grasp: force per finger, N.
-    #[arg(long, default_value_t = 1.5, value_parser = parse_force_n)]
+    /// Gentle grasp: force per finger, N: above 0 and at most what the configured fingers
+    /// can press with at the current limit (163.7 N on the shipped hand at 1000 mA; checked
+    /// once the config is loaded, docs/control.md).
+    #[arg(long, default_value_t = 1.5, value_parser = parse_target_force_n)]
     pub target_force: f64,
-    /// Gentle grasp: approach speed, deg/s of servo rotation (faster approaches touch
-    /// harder: see docs/control.md).
-    #[arg(long, default_value_t = 15.0)]
+    /// Gentle grasp: approach speed, deg/s of servo rotation, in (0, 276]: the XM430-W350's
+    /// no-load speed (faster approaches touch harder: see docs/control.md).
+    #[arg(long, default_value_t = 15.0, value_parser = parse_speed_deg_s)]
     pub speed: f64,
-    /// Gentle grasp: give up after this many seconds.
-    #[arg(long, default_value_t = 20.0)]
+    /// Gentle grasp: give up after this many seconds, in (0, 120].
+    #[arg(long, default_value_t = 20.0, value_parser = parse_task_timeout_s)]
     pub task_timeout: f64,
     /// Gentle grasp: once stable, keep holding (and regulating) for this many seconds
     /// before the hold test and the end of the task.
@@ -157,6 +161,45 @@ pub struct RunArgs {
     /// task states, the config) into this directory (docs/recording.md).
     #[arg(long, value_name = "DIR")]
     pub record: Option<PathBuf>,
+}
+
+/// `s` as a number in (0, `max`] `unit`, or a message naming the range and `why`.
+fn parse_up_to(s: &str, what: &str, unit: &str, max: f64, why: &str) -> Result<f64, String> {
+    let v: f64 = s
+        .parse()
+        .map_err(|_| format!("`{s}` is not {what} in {unit}"))?;
+    if v.is_finite() && v > 0.0 && v <= max {
+        Ok(v)
+    } else {
+        Err(format!("{s} {unit} is outside (0, {max}] {unit}: {why}"))
+    }
+}
+
+/// A finite force above 0 N; its upper bound depends on the config (the gentle grasp
+/// checks it once the config is loaded).
+fn parse_target_force_n(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!(
+            "`{s}` is not a finite force above 0 N (its upper bound depends on the config: \
+             docs/control.md)"
+        )),
+    }
+}
+
+fn parse_speed_deg_s(s: &str) -> Result<f64, String> {
+    let why = XM430_W350.no_load_speed_text();
+    parse_up_to(s, "a speed", "deg/s", XM430_W350.no_load_deg_s(), &why)
+}
+
+fn parse_task_timeout_s(s: &str) -> Result<f64, String> {
+    parse_up_to(
+        s,
+        "a duration",
+        "s",
+        MAX_TIMEOUT_S,
+        "the longest a grasp may take",
+    )
 }
 
 fn parse_hold_s(s: &str) -> Result<f64, String> {

@@ -17,16 +17,20 @@
 //! - **Shutdown.** Overload and overheating cut torque until a reboot, as the XM430's
 //!   default Shutdown setting does.
 //!
-//! Ratings come from the ROBOTIS e-Manual (see `../shared/reference/dynamixel.md` §2).
+//! The ratings are the controller's [`XM430_W350`] (`gelgrip_controller::actuator`).
 
 use gelgrip_controller::actuator::{MotorCommand, MotorModel, MotorReading};
+use gelgrip_controller::actuator::{ServoRating, XM430_W350};
 
+/// The ratings modelled (stall torque and current, no-load speed, at 12 V): the
+/// controller's, which its grasp limits also use.
+pub const RATING: ServoRating = XM430_W350;
 /// Stall torque at 12 V, N·m.
-pub const STALL_TORQUE_NM: f64 = 4.1;
+const STALL_TORQUE_NM: f64 = RATING.stall_torque_nm;
 /// Stall current at 12 V, mA.
-pub const STALL_CURRENT_MA: f64 = 2300.0;
+const STALL_CURRENT_MA: f64 = RATING.stall_current_ma;
 /// No-load speed at 12 V, rpm.
-pub const NO_LOAD_RPM: f64 = 46.0;
+const NO_LOAD_RPM: f64 = RATING.no_load_rpm;
 /// Position gain: mA of command per degree of error (saturates quickly, as the servo does).
 const KP_MA_PER_DEG: f64 = 200.0;
 /// Winding resistance giving realistic heating, Ω (12 V / 2.3 A stall).

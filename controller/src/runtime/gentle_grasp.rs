@@ -12,9 +12,11 @@
 //! run. Loop latency is wall-clock time from the gate handing over the set to the servo
 //! write; capture-to-command adds the set's age at emission.
 
+use crate::actuator::XM430_W350;
 use crate::frame::FrameSet;
-use crate::grasp::{GraspOutcome, GraspReason, GraspRequest, Phase};
+use crate::grasp::{GraspLimits, GraspOutcome, GraspReason, GraspRequest, Phase};
 use crate::gripper::{CommandKind, GripperError, GripperHandle, GripperService, PendingGrasp};
+use crate::layout::HandLayout;
 use crate::runtime::RuntimeError;
 use crate::runtime::outcome::EndReason;
 use crate::runtime::plant::{Plant, TaskStep};
@@ -71,21 +73,46 @@ pub struct GentleGrasp {
 }
 
 impl GentleGrasp {
+    /// The grasp the task asks for on `layout`'s fingers, capped at `current_limit_ma`.
+    pub fn request(
+        layout: &HandLayout,
+        current_limit_ma: f64,
+        options: &GraspOptions,
+    ) -> GraspRequest {
+        GraspRequest {
+            target_force_n: options.target_force_n,
+            speed_deg_s: options.speed_deg_s,
+            current_limit_ma,
+            fingers: (0..layout.fingers.len()).collect(),
+            timeout_s: options.timeout_s,
+        }
+    }
+
+    /// Check `options` against what `layout`'s fingers and servos can do at
+    /// `current_limit_ma` ([`GraspLimits`]), before anything is opened: the same check
+    /// [`GentleGrasp::start`] makes.
+    pub fn check(
+        layout: &HandLayout,
+        current_limit_ma: f64,
+        options: &GraspOptions,
+    ) -> Result<(), GripperError> {
+        GraspLimits::for_hand(layout, XM430_W350, current_limit_ma).check(&Self::request(
+            layout,
+            current_limit_ma,
+            options,
+        ))
+    }
+
     /// Start the task on `plant`, whose currents stop at `current_limit_ma`: the grasp is
-    /// asked for at once (a bad request is refused here).
+    /// asked for at once (a bad request, or one beyond the hand's [`GraspLimits`], is
+    /// refused here).
     pub fn start(
         plant: Plant,
         current_limit_ma: f64,
         options: &GraspOptions,
     ) -> Result<Self, GripperError> {
         let layout = &plant.layout;
-        let request = GraspRequest {
-            target_force_n: options.target_force_n,
-            speed_deg_s: options.speed_deg_s,
-            current_limit_ma,
-            fingers: (0..layout.fingers.len()).collect(),
-            timeout_s: options.timeout_s,
-        };
+        let request = Self::request(layout, current_limit_ma, options);
         let (service, handle) = GripperService::for_hand(layout, current_limit_ma);
         let pending = handle.start_grasp(request)?;
         // Other clients (the dashboard) may stop or e-stop this grasp, never start another.

@@ -7,6 +7,8 @@ use std::collections::BTreeMap;
 use serde::Deserialize;
 use thiserror::Error;
 
+use crate::actuator::XM430_W350;
+use crate::grasp::limits::{GraspLimits, number};
 use crate::layout::HandLayout;
 
 /// Longest stage timeout a script may ask for, s.
@@ -296,11 +298,39 @@ impl StageCheck<'_> {
             Err(self.err(field, format!("= {v}: expected a number in [{min}, {max}]")))
         }
     }
+
+    /// As [`StageCheck::range`], for a bound set by the hardware: the message names `what`
+    /// is expected, its `unit` and `why` the bound is what it is.
+    fn hardware(
+        &self,
+        field: &str,
+        v: f64,
+        (min, max): (f64, f64),
+        (what, unit): (&str, &str),
+        why: impl FnOnce() -> String,
+    ) -> Result<f64, ScriptError> {
+        if v.is_finite() && (min..=max).contains(&v) {
+            Ok(v)
+        } else {
+            Err(self.err(
+                field,
+                format!(
+                    "= {}: expected {what} in [{min}, {}] {unit}: {}",
+                    number(v),
+                    number(max),
+                    why()
+                ),
+            ))
+        }
+    }
 }
 
 impl TaskScript {
     /// Parse and validate the script `text` (from `file`, named in errors) for `layout`;
-    /// `current_limit_ma` is the configured cap that no stage may exceed.
+    /// `current_limit_ma` is the configured cap that no stage may exceed. Forces and speeds
+    /// are bounded by what the fingers and their XM430-W350 servos can do
+    /// ([`GraspLimits`]): a force by what the finger presses with at its stage's cap, a
+    /// speed by the servo's no-load speed.
     pub fn from_toml(
         file: &str,
         text: &str,
@@ -366,16 +396,17 @@ impl TaskScript {
             }
             names.push(name);
         }
+        let limits = GraspLimits::for_hand(layout, XM430_W350, current_limit_ma);
         let default_speed = {
             let check = StageCheck {
                 file,
                 stage: "(script)".into(),
             };
-            check.range(
+            speed(
+                &check,
                 "speed_deg_s",
                 raw.speed_deg_s.unwrap_or(DEFAULT_SPEED_DEG_S),
-                0.1,
-                1000.0,
+                &limits,
             )?
         };
         let mut stages = Vec::with_capacity(raw.stages.len());
@@ -395,7 +426,7 @@ impl TaskScript {
                 &names,
                 following,
                 layout,
-                current_limit_ma,
+                (current_limit_ma, &limits),
                 default_speed,
             )?);
         }
@@ -446,7 +477,7 @@ fn stage(
     names: &[String],
     following: Branch,
     layout: &HandLayout,
-    current_limit_ma: f64,
+    (current_limit_ma, limits): (f64, &GraspLimits),
     default_speed: f64,
 ) -> Result<Stage, ScriptError> {
     let timeout_s = s.timeout_s.ok_or_else(|| {
@@ -468,13 +499,12 @@ fn stage(
                 ),
             )
         })?;
-        let range_deg = layout.fingers[f].servo_range_deg;
         fingers[f] = Some(target(
             check,
-            &id,
+            (f, &id),
             raw,
-            range_deg,
-            current_limit_ma,
+            layout.fingers[f].servo_range_deg,
+            (current_limit_ma, limits),
             default_speed,
         )?);
     }
@@ -519,12 +549,28 @@ fn stage(
     })
 }
 
+/// A speed in [0.1 deg/s, the servo's no-load speed].
+fn speed(
+    check: &StageCheck,
+    field: &str,
+    v: f64,
+    limits: &GraspLimits,
+) -> Result<f64, ScriptError> {
+    check.hardware(
+        field,
+        v,
+        (0.1, limits.max_speed_deg_s()),
+        ("a speed", "deg/s"),
+        || limits.speed_reason(),
+    )
+}
+
 fn target(
     check: &StageCheck,
-    id: &str,
+    (finger, id): (usize, &str),
     raw: RawTarget,
     range_deg: f64,
-    current_limit_ma: f64,
+    (current_limit_ma, limits): (f64, &GraspLimits),
     default_speed: f64,
 ) -> Result<FingerCommand, ScriptError> {
     let field = |name: &str| format!("fingers.{id}.{name}");
@@ -547,17 +593,24 @@ fn target(
         .current_ma
         .map(|c| check.range(&field("current_ma"), c, 0.0, current_limit_ma))
         .transpose()?;
-    let speed_deg_s = check.range(
+    let speed_deg_s = speed(
+        check,
         &field("speed_deg_s"),
         raw.speed_deg_s.unwrap_or(default_speed),
-        0.1,
-        1000.0,
+        limits,
     )?;
     let target = if raw.open {
         FingerTarget::Open
     } else if let Some(f) = raw.force_n {
+        let cap_ma = current.unwrap_or(current_limit_ma);
         FingerTarget::Force {
-            force_n: check.range(&field("force_n"), f, 0.01, 100.0)?,
+            force_n: check.hardware(
+                &field("force_n"),
+                f,
+                (0.01, limits.max_force_n(&[finger], cap_ma)),
+                ("a force", "N"),
+                || limits.force_reason(&[finger], cap_ma),
+            )?,
             current_ma: current,
         }
     } else if let Some(p) = raw.position_deg {

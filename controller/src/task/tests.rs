@@ -142,6 +142,44 @@ fn a_missing_timeout_is_refused() {
     assert!(e.contains("stage `settle`: `timeout_s` is missing"), "{e}");
 }
 
+/// At the tests' 800 mA cap a shipped finger presses with at most 131.0 N (docs/control.md,
+/// "Grasp limits"); the XM430-W350 turns at most 276 deg/s.
+#[test]
+fn forces_and_speeds_beyond_the_hardware_are_refused_with_the_range() {
+    let edge = TWO_STAGES.replace(
+        "{ force_n = 2.0 }",
+        "{ force_n = 131.0, speed_deg_s = 276.0 }",
+    );
+    assert!(parse(&edge).is_ok(), "each bound itself is accepted");
+    let cases = [
+        (
+            "{ force_n = 131.1 }",
+            "stage `touch`: `fingers.f1.force_n` = 131.1: expected a force in [0.01, 131] N: \
+             what f1 can press with at the 800 mA current cap",
+        ),
+        (
+            "{ force_n = 20.0, current_ma = 100.0 }",
+            "`fingers.f1.force_n` = 20: expected a force in [0.01, 16.3] N: what f1 can press \
+             with at the 100 mA current cap",
+        ),
+        (
+            "{ force_n = 2.0, speed_deg_s = 276.5 }",
+            "`fingers.f1.speed_deg_s` = 276.5: expected a speed in [0.1, 276] deg/s: the \
+             XM430-W350's no-load speed, 46 rpm at 12 V",
+        ),
+        ("{ force_n = inf }", "`fingers.f1.force_n` = inf"),
+    ];
+    for (target, want) in cases {
+        let e = err_text(&TWO_STAGES.replace("{ force_n = 2.0 }", target));
+        assert!(e.contains(want), "wanted {want:?} in: {e}");
+    }
+    let e = err_text(&TWO_STAGES.replace("name = \"two\"", "name = \"two\"\nspeed_deg_s = 1e9"));
+    assert!(
+        e.contains("`speed_deg_s` = 1e9: expected a speed in [0.1, 276] deg/s"),
+        "{e}"
+    );
+}
+
 #[test]
 fn other_malformed_scripts_are_refused_with_the_stage_named() {
     let cases = [
