@@ -41,6 +41,11 @@ pub struct RunOptions {
     pub config: Option<PathBuf>,
     /// A scene instead of the config's (simulated hub only).
     pub scene: Option<PathBuf>,
+    /// An embedded scene's name (`configs/scenes/NAME.toml`) to use when neither `scene`
+    /// nor the config names one (simulated hub only), its object held in place until
+    /// grasped (the table never drops away): the dashboard run of the default config opens
+    /// on the tennis ball.
+    pub default_scene: Option<String>,
     /// Real or virtual time.
     pub clock: ClockKind,
     /// `gentle-grasp`, a task script's name or file, or none (the grasp API drives).
@@ -69,6 +74,7 @@ impl Default for RunOptions {
         Self {
             config: None,
             scene: None,
+            default_scene: None,
             clock: ClockKind::Real,
             task: None,
             grasp: GraspOptions {
@@ -183,7 +189,11 @@ impl Session {
             }
         }
         let clock = wiring::make_clock(options.clock);
-        let world = wiring::open_world(&config, options.scene.as_deref())?;
+        let world = wiring::open_world(
+            &config,
+            options.scene.as_deref(),
+            options.default_scene.as_deref(),
+        )?;
         let registry = match &world {
             Some(w) => wiring::registry_with_world(w.clone()),
             None => registry,

@@ -58,6 +58,7 @@ pub fn registry_with_world(world: SharedWorld) -> TransportRegistry {
 pub fn open_world(
     config: &AppConfig,
     scene_override: Option<&Path>,
+    default_scene: Option<&str>,
 ) -> anyhow::Result<Option<SharedWorld>> {
     let sim_hub = config.hub.transport == "sim";
     if scene_override.is_some() && !sim_hub {
@@ -76,7 +77,15 @@ pub fn open_world(
                 &config.layout,
             )?)
         }
-        None if sim_hub => SimConfig::from_section(&config.hub.section, &config.layout)?.scene,
+        None if sim_hub => {
+            match SimConfig::from_section(&config.hub.section, &config.layout)?.scene {
+                Some(scene) => Some(scene),
+                None => match default_scene {
+                    Some(name) => Some(embedded_scene(name, config)?),
+                    None => None,
+                },
+            }
+        }
         None => None,
     };
     if scene.is_some() && config.layout.fingers.is_empty() {
@@ -90,6 +99,19 @@ pub fn open_world(
         return Ok(None);
     }
     Ok(Some(World::new(&config.layout, scene).into_shared()))
+}
+
+/// The embedded scene `name` (`configs/scenes/NAME.toml`) for `config`'s layout, with its
+/// fixture holding the object throughout: a scene's table drops away `release_after_s`
+/// into the run (the hold test), but a run that opens on a default scene waits for someone
+/// to press Grasp, whenever that is.
+fn embedded_scene(name: &str, config: &AppConfig) -> anyhow::Result<SceneSpec> {
+    let path = format!("scenes/{name}.toml");
+    let text = gelgrip_controller::config::FileSource::read(&embedded::FILES, Path::new(&path))?;
+    let mut scene =
+        SceneSpec::from_toml(&format!("(embedded) configs/{path}"), &text, &config.layout)?;
+    scene.release_after_s = None;
+    Ok(scene)
 }
 
 /// The configured servo bus, or `None` when the layout has no fingers to drive.

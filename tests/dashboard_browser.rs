@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 use fantoccini::{ClientBuilder, Locator};
 
 mod common;
-use common::server::{Running, free_port, start_gelgrip};
+use common::server::{Running, Start, free_port, post, start_gelgrip, start_gelgrip_with};
 
 fn start_chromedriver() -> (Running, String) {
     let port = free_port();
@@ -94,6 +94,42 @@ async fn cameras_show(client: &fantoccini::Client, sensors: u64) {
 
 #[tokio::test]
 #[ignore = "needs chromium: run scripts/test"]
+async fn a_page_opened_mid_task_starts_with_the_last_30_seconds() {
+    let (_gelgrip, url) = start_gelgrip(&["--scene", "configs/scenes/screwdriver.toml"]);
+    let (status, body) = post(&url, "/api/task", r#"{"name": "screwdriver"}"#);
+    assert_eq!(status, 200, "{body}");
+    tokio::time::sleep(Duration::from_secs(20)).await;
+    let (_driver, webdriver) = start_chromedriver();
+    let client = open_page(&webdriver, &url, 7).await;
+    // Each sensor's signal in the chart's data, as soon as the page has its first state:
+    // the span of run time it covers.
+    let spans: Vec<f64> = wait_for(Duration::from_secs(10), "the chart's data", || async {
+        let v = client
+            .execute(
+                "if (typeof history === 'undefined' || !history.length) return null; \
+                 const n = history[history.length - 1][1].length; \
+                 return Array.from({length: n}, (_, i) => { \
+                   const t = history.filter(h => Number.isFinite(h[1][i])).map(h => h[0]); \
+                   return t.length ? t[t.length - 1] - t[0] : 0; });",
+                vec![],
+            )
+            .await
+            .ok()?;
+        serde_json::from_value(v).ok()
+    })
+    .await;
+    assert_eq!(spans.len(), 7, "{spans:?}");
+    assert!(
+        spans.iter().all(|s| *s >= 15.0),
+        "at least 15 s of every signal: {spans:?}"
+    );
+    let task = text(&client, "#taskstate").await;
+    assert!(task.contains("screwdriver"), "{task}");
+    client.close().await.expect("session closed");
+}
+
+#[tokio::test]
+#[ignore = "needs chromium: run scripts/test"]
 async fn sixteen_sensors_show_up_live() {
     let (_gelgrip, url) = start_gelgrip(&["--config", "tests/configs/five-finger.toml"]);
     let (_driver, webdriver) = start_chromedriver();
@@ -107,7 +143,12 @@ async fn sixteen_sensors_show_up_live() {
 #[tokio::test]
 #[ignore = "needs chromium: run scripts/test"]
 async fn the_dashboard_shows_live_views_and_grasps_on_a_click() {
-    let (_gelgrip, url) = start_gelgrip(&["--scene", "configs/scenes/tennis-ball.toml"]);
+    // A new user's first run: the default config (its dashboard run opens on the tennis
+    // ball) with an empty calibration cache, and a browser with a fresh profile.
+    let cache = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("gelgrip-fresh-cache-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&cache);
+    let (_gelgrip, url) = start_gelgrip_with(&Start::default(), &cache, &[]);
     let (_driver, webdriver) = start_chromedriver();
     let client = open_page(&webdriver, &url, 7).await;
     // Live: the run clock in the header moves, and the camera images have pixels.
@@ -141,6 +182,8 @@ async fn the_dashboard_shows_live_views_and_grasps_on_a_click() {
     // run for 500 ms trips the watchdog (the grasp resolves `watchdog`, the fingers hold,
     // and the next set hands control back): that is the product working, so the page gets
     // one more try, and says so. Any other outcome fails.
+    // The button starts a grasp goal and the page follows its progress, then its result,
+    // within 20 s of the click.
     let mut result = String::new();
     for attempt in 1..=2 {
         client
@@ -150,11 +193,20 @@ async fn the_dashboard_shows_live_views_and_grasps_on_a_click() {
             .click()
             .await
             .expect("click");
-        result = wait_for(Duration::from_secs(60), "the grasp's outcome", || async {
-            let t = text(&client, "#result").await;
-            t.contains("\"reason\"").then_some(t)
+        let progress = std::cell::Cell::new(false);
+        result = wait_for(Duration::from_secs(20), "the grasp's outcome", || {
+            let (client, progress) = (&client, &progress);
+            async move {
+                let t = text(client, "#result").await;
+                progress.set(progress.get() || t.contains("running · f1 "));
+                t.contains("\"reason\"").then_some(t)
+            }
         })
         .await;
+        assert!(
+            progress.get(),
+            "the page showed the grasp's progress per finger"
+        );
         if !result.contains("\"reason\":\"watchdog\"") {
             break;
         }
@@ -172,6 +224,27 @@ async fn the_dashboard_shows_live_views_and_grasps_on_a_click() {
         .expect("tiles")
         .len();
     assert!(touched >= 3, "the contact shows on the tiles: {touched}");
+    // The chart's tick labels, as the user reads them: distinct, each with the unit.
+    let labels: Vec<String> = wait_for(Duration::from_secs(5), "tick labels", || async {
+        let v = client
+            .execute(
+                "return Array.from(document.querySelectorAll('#plot-y-axis .tick')).map(e => e.textContent)",
+                vec![],
+            )
+            .await
+            .ok()?;
+        let labels: Vec<String> = serde_json::from_value(v).ok()?;
+        (labels.len() >= 3).then_some(labels)
+    })
+    .await;
+    let mut unique = labels.clone();
+    unique.sort();
+    unique.dedup();
+    assert_eq!(unique.len(), labels.len(), "distinct: {labels:?}");
+    assert!(
+        labels.iter().all(|l| l.ends_with(" mm³")),
+        "with the unit: {labels:?}"
+    );
     // Let the depth and contact images refresh once more, then keep a screenshot.
     tokio::time::sleep(Duration::from_millis(1200)).await;
     let png = client.screenshot().await.expect("a screenshot");

@@ -68,11 +68,18 @@ fn signal_events() -> mpsc::Receiver<RuntimeEvent> {
     rx
 }
 
+/// The scene the dashboard run of the default config opens on.
+pub const DASHBOARD_SCENE: &str = "tennis-ball";
+
 impl From<&RunArgs> for RunOptions {
     fn from(args: &RunArgs) -> Self {
         Self {
             config: args.config.clone(),
             scene: args.scene.clone(),
+            // The README's first command shows the product working: the default config's
+            // dashboard run opens on an object (every other run keeps the config's scene).
+            default_scene: (args.config.is_none() && !args.headless)
+                .then(|| DASHBOARD_SCENE.to_string()),
             clock: args.clock.map_or(ClockKind::Real, ClockKind::from),
             task: args.task.clone(),
             grasp: GraspOptions {

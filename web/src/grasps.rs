@@ -19,8 +19,8 @@ use gelgrip_controller::gripper::GripperHandle;
 use crate::live::{FingerView, Snapshot};
 use crate::routes::{ApiError, AppState, admit, error, gripper_error, parse};
 
-/// Longest a grasp request may ask to wait, s.
-pub const MAX_TIMEOUT_S: f64 = 120.0;
+/// Longest a grasp request may ask to wait, s (the grasp API's bound).
+pub const MAX_TIMEOUT_S: f64 = gelgrip_controller::grasp::MAX_TIMEOUT_S;
 /// A grasp's timeout when the request names none, s.
 pub const DEFAULT_TIMEOUT_S: f64 = 20.0;
 /// A grasp's approach speed when the request names none, deg/s.
