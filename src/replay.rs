@@ -346,7 +346,7 @@ impl ReplayedGate {
         };
         let gate = make_gate(
             &gate_settings,
-            config.layout.sensors.len(),
+            &config.layout,
             &hub.describe().prediction,
         );
         let seen = Arc::new(Mutex::new((Vec::new(), 0)));

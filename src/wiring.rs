@@ -242,7 +242,7 @@ pub async fn open_acquisition(
         .context("configuring the sensor boards")?;
     let gate = make_gate(
         &config.gate,
-        config.layout.sensors.len(),
+        &config.layout,
         &hub.describe().prediction,
     );
     Ok(

@@ -7,22 +7,46 @@
 
 use std::sync::Arc;
 
+use crate::actuator::XM430_W350;
 use crate::clock::Clock;
 use crate::config::{GatePolicy, GateSettings, Limit};
 use crate::frame::FrameSet;
+use crate::gate::window::control_spread;
 use crate::gate::{Gate, GateLimits, SetDecision};
+use crate::grasp::Tuning;
 use crate::hub::{BusPrediction, HubError, HubEvent, HubTransport};
+use crate::layout::HandLayout;
 
 /// Triggers kept queued on the hub.
 const TRIGGERS_IN_FLIGHT: u32 = 2;
 
-/// The gate window for `settings`, with `auto` limits derived from the bus model:
-/// spread = 1.5 × predicted trigger spread, age = 2 × predicted set latency.
-pub fn gate_limits(settings: &GateSettings, prediction: &BusPrediction) -> GateLimits {
+/// The fastest a servo turns once its finger is in contact, deg/s: the XM430-W350's no-load
+/// speed (the largest approach speed a grasp may ask for) times the controller's contact
+/// speed share.
+pub fn contact_servo_deg_s() -> f64 {
+    XM430_W350.no_load_deg_s() * Tuning::default().contact_speed_share
+}
+
+/// The gate window for `settings` on `layout`, with `auto` limits:
+/// - spread: what the control tolerates, the time the fastest pad in contact takes to move
+///   one pixel ([`control_spread`] at [`contact_servo_deg_s`]), but never below 1.5 × the
+///   bus's predicted trigger spread (a bus cannot capture tighter than it does); 1.5 × the
+///   bus's spread alone for a layout without finger mechanics;
+/// - age: 2 × the predicted set latency.
+pub fn gate_limits(
+    settings: &GateSettings,
+    layout: &HandLayout,
+    prediction: &BusPrediction,
+) -> GateLimits {
+    let bus_spread_us = 1.5 * prediction.trigger_spread_us;
     GateLimits {
         max_spread_us: match settings.max_spread_us {
             Limit::Fixed(us) => us,
-            Limit::Auto => (1.5 * prediction.trigger_spread_us).ceil() as u32,
+            Limit::Auto => {
+                let control = control_spread(layout, contact_servo_deg_s());
+                let us = control.map_or(bus_spread_us, |c| c.spread_us.max(bus_spread_us));
+                us.ceil().min(f64::from(u32::MAX)) as u32
+            }
         },
         max_age_us: match settings.max_age_us {
             Limit::Fixed(us) => us,
@@ -31,9 +55,10 @@ pub fn gate_limits(settings: &GateSettings, prediction: &BusPrediction) -> GateL
     }
 }
 
-/// The gate `settings` ask for, for `sensors` sensors on a bus with `prediction`.
-pub fn make_gate(settings: &GateSettings, sensors: usize, prediction: &BusPrediction) -> Gate {
-    let limits = gate_limits(settings, prediction);
+/// The gate `settings` ask for, for `layout`'s sensors on a bus with `prediction`.
+pub fn make_gate(settings: &GateSettings, layout: &HandLayout, prediction: &BusPrediction) -> Gate {
+    let limits = gate_limits(settings, layout, prediction);
+    let sensors = layout.sensors.len();
     match settings.policy {
         GatePolicy::Trigger => Gate::new(sensors, limits),
         GatePolicy::Approximate => Gate::approximate(sensors, limits, settings.queue_size),

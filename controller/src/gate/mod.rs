@@ -17,6 +17,7 @@ mod approximate;
 mod counts;
 mod stats;
 mod trigger;
+pub mod window;
 
 pub use approximate::ApproximateGate;
 pub use counts::{Reason, ReasonCounts};
