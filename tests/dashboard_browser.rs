@@ -118,6 +118,7 @@ async fn a_page_opened_mid_task_starts_with_the_last_30_seconds() {
         serde_json::from_value(v).ok()
     })
     .await;
+    eprintln!("seconds of each signal in the chart on opening: {spans:?}");
     assert_eq!(spans.len(), 7, "{spans:?}");
     assert!(
         spans.iter().all(|s| *s >= 15.0),
@@ -193,6 +194,7 @@ async fn the_dashboard_shows_live_views_and_grasps_on_a_click() {
             .click()
             .await
             .expect("click");
+        let clicked = Instant::now();
         let progress = std::cell::Cell::new(false);
         result = wait_for(Duration::from_secs(20), "the grasp's outcome", || {
             let (client, progress) = (&client, &progress);
@@ -203,6 +205,10 @@ async fn the_dashboard_shows_live_views_and_grasps_on_a_click() {
             }
         })
         .await;
+        eprintln!(
+            "attempt {attempt}: the grasp resolved {:.1} s after the click",
+            clicked.elapsed().as_secs_f64()
+        );
         assert!(
             progress.get(),
             "the page showed the grasp's progress per finger"
