@@ -160,6 +160,8 @@ impl LoopControl {
                 drop_rate: faults.drop_rate,
                 corrupt_rate: faults.corrupt_rate,
                 dead: false,
+                capture_jitter_us: faults.capture_jitter_us,
+                clock_drift_ppm: faults.clock_drift_ppm,
             }),
         );
         drop(w);

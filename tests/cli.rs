@@ -169,6 +169,44 @@ fn check_config_names_file_field_and_range() {
     assert!(err.contains("[1, 100]"), "{err}");
 }
 
+/// Bad `[[hub.sim.faults]]` timing faults exit 2 naming the field and its range.
+#[test]
+fn check_config_names_a_bad_sim_timing_fault() {
+    let dir = std::env::temp_dir().join(format!("gelgrip-bad-fault-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("dir");
+    let layout = repo_file("configs/layouts/three-finger.toml");
+    for (i, (key, expected)) in [
+        (
+            "capture_jitter_us = -5",
+            "`hub.sim.faults[0].capture_jitter_us` = -5",
+        ),
+        (
+            "clock_drift_ppm = 1001",
+            "`hub.sim.faults[0].clock_drift_ppm` = 1001",
+        ),
+        (
+            "clock_drift_ppm = -1001",
+            "`hub.sim.faults[0].clock_drift_ppm` = -1001",
+        ),
+        ("clock_drift = 5", "unknown field `clock_drift`"),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let path = dir.join(format!("bad-fault-{i}.toml"));
+        let text = format!(
+            "version = 1\nlayout = {layout:?}\n[[hub.sim.faults]]\nsensor = \"palm\"\n{key}\n"
+        );
+        std::fs::write(&path, text).expect("write");
+        let out = gelgrip(&["check-config", &path.display().to_string()]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{key}: {err}");
+        assert!(err.contains(&format!("bad-fault-{i}.toml")), "{err}");
+        assert!(err.contains(expected), "{key}: {err}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn check_config_wants_one_servo_per_finger() {
     assert!(

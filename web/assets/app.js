@@ -53,7 +53,22 @@ $("task").onclick = () => command("/api/task", { name: $("task-name").value });
 $("scene").onclick = () => command("/api/sim/scene", { name: $("scene-name").value });
 $("fault").onclick = () => command("/api/sim/fault", {
   sensor: $("fault-sensor").value, capture_delay_us: parseInt($("fault-delay").value, 10) || 0,
+  capture_jitter_us: parseInt($("fault-jitter").value, 10) || 0,
+  clock_drift_ppm: parseFloat($("fault-drift").value) || 0,
 });
+// Every non-zero fault of one sensor, e.g. "f1.tip +20000 µs, jitter 500 µs, drift -100 ppm".
+function faultText(f) {
+  const x = f.faults;
+  const parts = [
+    x.capture_delay_us && `+${x.capture_delay_us} µs`,
+    x.capture_jitter_us && `jitter ${x.capture_jitter_us} µs`,
+    x.clock_drift_ppm && `drift ${x.clock_drift_ppm} ppm`,
+    x.delivery_delay_us && `delivery +${x.delivery_delay_us} µs`,
+    x.drop_rate && `drop ${x.drop_rate}`,
+    x.corrupt_rate && `corrupt ${x.corrupt_rate}`,
+  ].filter(Boolean);
+  return `${f.sensor} ${parts.join(", ")}`;
+}
 $("fault-clear").onclick = () => command("/api/sim/fault", { sensor: $("fault-sensor").value });
 
 // Fill a <select> with `names` once (keeping the user's choice when it is still there).
@@ -162,7 +177,7 @@ function render(s) {
     options("scene-name", s.sim.scenes, s.sim.scene);
     options("fault-sensor", s.sensors.map((x) => x.id), s.sensors.length ? s.sensors[0].id : "");
     $("faults").textContent = `scene ${s.sim.scene}; ` + (s.sim.faults.length
-      ? "faults: " + s.sim.faults.map((f) => `${f.sensor} +${f.faults.capture_delay_us} µs`).join(", ")
+      ? "faults: " + s.sim.faults.map(faultText).join("; ")
       : "no faults injected");
   }
   const last = history.length ? history[history.length - 1][0] : -Infinity;

@@ -23,7 +23,8 @@ use gelgrip_controller::grasp_goals::{GoalState, GraspGoals};
 use gelgrip_controller::gripper::{GripperError, GripperHandle};
 
 use crate::control::{
-    LoopCommand, LoopRequest, MAX_UNPLUG_MS, Refusal, ServoFaultName, SimFaults, valid_name,
+    LoopCommand, LoopRequest, MAX_JITTER_US, MAX_UNPLUG_MS, Refusal, ServoFaultName, SimFaults,
+    valid_name,
 };
 use crate::grasps::GoalProgress;
 use crate::limits::{Auth, RateLimiter};
@@ -519,6 +520,11 @@ struct FaultBody {
     drop_rate: f64,
     #[serde(default)]
     corrupt_rate: f64,
+    /// Signed, so that a negative jitter is refused with the field's name.
+    #[serde(default)]
+    capture_jitter_us: i64,
+    #[serde(default)]
+    clock_drift_ppm: f64,
 }
 
 async fn sim_fault(State(s): State<AppState>, headers: HeaderMap, body: Bytes) -> Response {
@@ -533,11 +539,20 @@ async fn sim_fault(State(s): State<AppState>, headers: HeaderMap, body: Bytes) -
         Ok(i) => i,
         Err(e) => return e.into_response(),
     };
+    let Ok(capture_jitter_us) = u32::try_from(b.capture_jitter_us) else {
+        let m = format!(
+            "capture_jitter_us = {}: expected 0 to {MAX_JITTER_US} µs",
+            b.capture_jitter_us
+        );
+        return error(StatusCode::BAD_REQUEST, m);
+    };
     let faults = SimFaults {
         capture_delay_us: b.capture_delay_us,
         delivery_delay_us: b.delivery_delay_us,
         drop_rate: b.drop_rate,
         corrupt_rate: b.corrupt_rate,
+        capture_jitter_us,
+        clock_drift_ppm: b.clock_drift_ppm,
     };
     if let Err(m) = faults.validate() {
         return error(StatusCode::BAD_REQUEST, m);

@@ -4,6 +4,7 @@ use serde::Deserialize;
 
 use gelgrip_controller::config::{BackendSection, ConfigError};
 use gelgrip_controller::layout::HandLayout;
+use gelgrip_controller::runtime::control::{MAX_CLOCK_DRIFT_PPM, MAX_JITTER_US};
 
 use crate::scene_spec::SceneSpec;
 
@@ -20,6 +21,11 @@ pub struct SensorFaults {
     pub corrupt_rate: f64,
     /// The board stops answering: no frame, reported `Disconnected` for every trigger.
     pub dead: bool,
+    /// Each capture is late by a further uniform random 0 to this (per frame), µs.
+    pub capture_jitter_us: u32,
+    /// The board's clock runs fast (+) or slow (−): its capture stamps drift from true time
+    /// by this × the time since the drift took effect (see [`crate::board_clock`]), ppm.
+    pub clock_drift_ppm: f64,
 }
 
 /// A validated simulated-hub configuration.
@@ -113,6 +119,10 @@ struct RawFault {
     corrupt_rate: f64,
     #[serde(default)]
     dead: bool,
+    #[serde(default)]
+    capture_jitter_us: f64,
+    #[serde(default)]
+    clock_drift_ppm: f64,
 }
 
 impl SimConfig {
@@ -159,6 +169,18 @@ impl SimConfig {
                 drop_rate: check.range(&field("drop_rate"), f.drop_rate, 0.0, 1.0)?,
                 corrupt_rate: check.range(&field("corrupt_rate"), f.corrupt_rate, 0.0, 1.0)?,
                 dead: f.dead,
+                capture_jitter_us: check.range(
+                    &field("capture_jitter_us"),
+                    f.capture_jitter_us,
+                    0.0,
+                    f64::from(MAX_JITTER_US),
+                )? as u32,
+                clock_drift_ppm: check.range(
+                    &field("clock_drift_ppm"),
+                    f.clock_drift_ppm,
+                    -MAX_CLOCK_DRIFT_PPM,
+                    MAX_CLOCK_DRIFT_PPM,
+                )?,
             };
         }
         Ok(Self {
@@ -190,3 +212,6 @@ impl SimConfig {
         })
     }
 }
+
+#[cfg(test)]
+mod tests;

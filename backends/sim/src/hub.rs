@@ -27,6 +27,7 @@ use gelgrip_hubwire::i2c;
 use gelgrip_hubwire::spi_frame::{self, FrameHeader, HEADER_LEN, TRAILER_LEN};
 use gelgrip_hubwire::timing::BusModel;
 
+use crate::board_clock::BoardClock;
 use crate::config::SimConfig;
 use crate::pool::{EncodeError, FramePool};
 use crate::scene_frames::SceneFrames;
@@ -74,6 +75,8 @@ pub struct SimHub {
     time_map: HubTimeMap,
     /// With a scene: frames rendered from the shared world at each capture.
     scene: Option<SceneFrames>,
+    /// Each board's own clock (the `clock_drift_ppm` fault).
+    clocks: Vec<BoardClock>,
 }
 
 fn to_hub_mode(mode: TriggerMode) -> i2c::TriggerMode {
@@ -121,6 +124,7 @@ impl SimHub {
             rng: rng_for(cfg.seed, 0xFA17),
             time_map: HubTimeMap::new(cfg.hub_clock_start_us, 0),
             settings: vec![SensorSettings::default(); layout.sensors.len()],
+            clocks: vec![BoardClock::default(); layout.sensors.len()],
             cfg,
             bus,
             pool,
@@ -174,13 +178,20 @@ impl SimHub {
         self.order += 1;
     }
 
+    /// Each board's share of the set whose trigger starts at `start_ns`.
     fn board_inputs(
         &mut self,
         seq: u32,
+        start_ns: u64,
         captured: Option<Vec<Bytes>>,
         unplugged: bool,
     ) -> Vec<(BoardInput, Option<Vec<u8>>, bool)> {
         let n = self.description.sensors;
+        let receipts = i2c::capture_instants_ns(
+            self.bus.trigger,
+            u8::try_from(n).unwrap_or(u8::MAX),
+            self.bus.i2c_hz,
+        );
         let nth = self.triggers_fired;
         self.triggers_fired += 1;
         let injected = self
@@ -193,19 +204,22 @@ impl SimHub {
                     .clone()
                     .or_else(|| self.cfg.faults.get(b).cloned())
                     .unwrap_or_default();
-                let jitter_ns = if self.cfg.capture_jitter_us > 0 {
-                    self.rng
-                        .random_range(0..=u64::from(self.cfg.capture_jitter_us) * 1000)
-                } else {
-                    0
-                };
+                let jitter_ns = self.draw_jitter_ns(self.cfg.capture_jitter_us)
+                    + self.draw_jitter_ns(faults.capture_jitter_us);
                 let silent = unplugged || faults.dead;
                 let lost =
                     silent || (faults.drop_rate > 0.0 && self.rng.random_bool(faults.drop_rate));
                 let corrupt =
                     faults.corrupt_rate > 0.0 && self.rng.random_bool(faults.corrupt_rate);
                 let capture_delay_ns = u64::from(faults.capture_delay_us) * 1000;
-                let offset_us = ((jitter_ns + capture_delay_ns) / 1000) as u32;
+                let capture_ns =
+                    start_ns + receipts.get(b).copied().unwrap_or(0) + jitter_ns + capture_delay_ns;
+                let clock_error_us = self
+                    .clocks
+                    .get_mut(b)
+                    .map_or(0, |c| c.stamp_error_us(faults.clock_drift_ppm, capture_ns));
+                let offset_us =
+                    (((jitter_ns + capture_delay_ns) / 1000) as u32).wrapping_add(clock_error_us);
                 let wire = (!lost).then(|| {
                     let jpeg = match &captured {
                         Some(frames) => frames.get(b).cloned().unwrap_or_default(),
@@ -234,6 +248,16 @@ impl SimHub {
                 (input, wire, silent)
             })
             .collect()
+    }
+
+    /// A uniform draw in 0..=`bound_us` µs, ns; no draw at all for 0 (so a config without
+    /// jitter keeps its random sequence).
+    fn draw_jitter_ns(&mut self, bound_us: u32) -> u64 {
+        if bound_us > 0 {
+            self.rng.random_range(0..=u64::from(bound_us) * 1000)
+        } else {
+            0
+        }
     }
 
     fn receive(&mut self, event: Pending) -> HubEvent {
@@ -316,7 +340,7 @@ impl HubTransport for SimHub {
             None => None,
         };
         let unplugged = self.scene.as_ref().is_some_and(|s| s.hub_unplugged(now_us));
-        let boards = self.board_inputs(seq, captured, unplugged);
+        let boards = self.board_inputs(seq, start_ns, captured, unplugged);
         let inputs: Vec<BoardInput> = boards.iter().map(|(i, _, _)| *i).collect();
         let mut times = schedule_set(&self.bus, start_ns, &inputs);
         if unplugged {
@@ -373,3 +397,6 @@ impl HubTransport for SimHub {
         Ok(self.receive(event))
     }
 }
+
+#[cfg(test)]
+mod tests;

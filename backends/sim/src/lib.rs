@@ -9,7 +9,7 @@
 //! - [`timeline`]: the hub's bus at the transaction level (I2C trigger bits, board
 //!   buffering, SPI transfer of each frame's actual length), which produces every timestamp;
 //! - [`hub`]: [`hub::SimHub`], the `HubTransport` that plays that timeline on the injected
-//!   clock, with fault injection from config;
+//!   clock, with fault injection from config; [`board_clock`]: a board's drifting clock;
 //! - [`config`] and [`factory`]: the `[hub.sim]` section and the registry entry;
 //! - the world: [`shapes`] and [`scene_spec`] (scene files), [`object`] (slip, crush, the
 //!   screwdriver's trigger and bolt), [`finger`] (cable-driven finger mechanics),
@@ -18,6 +18,7 @@
 //!   `ServoBus`).
 
 pub mod board_cameras;
+pub mod board_clock;
 pub mod config;
 pub mod contact;
 pub mod factory;

@@ -28,7 +28,7 @@ pub struct BusParams {
 /// What one board contributes to a set.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct BoardInput {
-    /// Interrupt jitter drawn for this capture, ns.
+    /// Jitter drawn for this capture (interrupt jitter plus any injected jitter), ns.
     pub jitter_ns: u64,
     /// Injected capture delay, ns.
     pub capture_delay_ns: u64,

@@ -18,10 +18,22 @@ pub struct SimFaults {
     pub drop_rate: f64,
     /// Probability that a frame has one bit flipped on the bus.
     pub corrupt_rate: f64,
+    /// Each capture is late by a further uniform random 0 to this, drawn per frame, µs.
+    pub capture_jitter_us: u32,
+    /// The sensor board's clock runs fast (+) or slow (−) by this much: its capture stamps
+    /// drift from true time by this × the time since the drift was set, ppm.
+    pub clock_drift_ppm: f64,
 }
 
 /// Longest injected delay, µs (a second: far past any gate's limits).
 pub const MAX_DELAY_US: u32 = 1_000_000;
+
+/// Largest injected capture jitter, µs (as for the delays).
+pub const MAX_JITTER_US: u32 = 1_000_000;
+
+/// Largest clock drift, ppm: ten times a plain crystal's tolerance, and far past an RC
+/// oscillator's trimmed one.
+pub const MAX_CLOCK_DRIFT_PPM: f64 = 1000.0;
 
 impl SimFaults {
     /// Check the ranges; the message names the field.
@@ -33,6 +45,18 @@ impl SimFaults {
             if v > MAX_DELAY_US {
                 return Err(format!("{name} = {v}: expected 0 to {MAX_DELAY_US} µs"));
             }
+        }
+        if self.capture_jitter_us > MAX_JITTER_US {
+            return Err(format!(
+                "capture_jitter_us = {}: expected 0 to {MAX_JITTER_US} µs",
+                self.capture_jitter_us
+            ));
+        }
+        let drift = self.clock_drift_ppm;
+        if !(drift.is_finite() && drift.abs() <= MAX_CLOCK_DRIFT_PPM) {
+            return Err(format!(
+                "clock_drift_ppm = {drift}: expected -{MAX_CLOCK_DRIFT_PPM} to {MAX_CLOCK_DRIFT_PPM} ppm"
+            ));
         }
         for (name, v) in [
             ("drop_rate", self.drop_rate),
@@ -120,4 +144,46 @@ pub fn valid_name(name: &str) -> bool {
         && name
             .chars()
             .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sim_faults_name_the_field_out_of_range() {
+        let ok = SimFaults {
+            capture_jitter_us: MAX_JITTER_US,
+            clock_drift_ppm: -MAX_CLOCK_DRIFT_PPM,
+            ..SimFaults::default()
+        };
+        assert_eq!(ok.validate(), Ok(()));
+        assert!(ok.any());
+        for (bad, field) in [
+            (
+                SimFaults {
+                    capture_jitter_us: MAX_JITTER_US + 1,
+                    ..SimFaults::default()
+                },
+                "capture_jitter_us",
+            ),
+            (
+                SimFaults {
+                    clock_drift_ppm: 1000.5,
+                    ..SimFaults::default()
+                },
+                "clock_drift_ppm",
+            ),
+            (
+                SimFaults {
+                    clock_drift_ppm: f64::NAN,
+                    ..SimFaults::default()
+                },
+                "clock_drift_ppm",
+            ),
+        ] {
+            let err = bad.validate().expect_err("out of range");
+            assert!(err.starts_with(field), "{err}");
+        }
+    }
 }

@@ -585,6 +585,57 @@ async fn sim_faults_are_checked_then_go_to_the_run_loop() {
 }
 
 #[tokio::test]
+async fn sim_faults_take_capture_jitter_and_clock_drift_within_range() {
+    let (mut s, _service) = state();
+    let done = fake_loop(&mut s, false);
+    let body = r#"{"sensor": "f1.tip", "capture_jitter_us": 300, "clock_drift_ppm": -1000}"#;
+    let (status, reply, _) = send(app(s.clone()), post("/api/sim/fault", body)).await;
+    assert_eq!(status, StatusCode::OK, "{}", text(&reply));
+    let reply = text(&reply);
+    assert!(reply.contains("\"capture_jitter_us\":300"), "{reply}");
+    assert!(reply.contains("\"clock_drift_ppm\":-1000"), "{reply}");
+    assert!(reply.contains("\"capture_delay_us\":0"), "{reply}");
+    for (bad, field) in [
+        (
+            r#"{"sensor": "palm", "clock_drift_ppm": 1001}"#,
+            "clock_drift_ppm",
+        ),
+        (
+            r#"{"sensor": "palm", "clock_drift_ppm": -1000.5}"#,
+            "clock_drift_ppm",
+        ),
+        (
+            r#"{"sensor": "palm", "capture_jitter_us": 1000001}"#,
+            "capture_jitter_us",
+        ),
+        (
+            r#"{"sensor": "palm", "capture_jitter_us": -1}"#,
+            "capture_jitter_us",
+        ),
+        (
+            r#"{"sensor": "palm", "clock_drift_ppm": "fast"}"#,
+            "bad JSON",
+        ),
+    ] {
+        let (status, reply, _) = send(app(s.clone()), post("/api/sim/fault", bad)).await;
+        assert_eq!(status, StatusCode::BAD_REQUEST, "{bad}: {}", text(&reply));
+        assert!(text(&reply).contains(field), "{bad}: {}", text(&reply));
+    }
+    let done = done.lock().expect("log");
+    assert_eq!(
+        *done,
+        vec![LoopRequest::SimFault {
+            sensor: 1,
+            faults: SimFaults {
+                capture_jitter_us: 300,
+                clock_drift_ppm: -1000.0,
+                ..SimFaults::default()
+            }
+        }]
+    );
+}
+
+#[tokio::test]
 async fn sim_scenes_switch_by_name_through_the_run_loop() {
     let (mut s, _service) = state();
     let done = fake_loop(&mut s, false);

@@ -1,0 +1,79 @@
+//! `[hub.sim]` validation: the fault entries' ranges, each error naming its field.
+
+use super::*;
+use crate::pool::tests::three_finger_layout;
+use gelgrip_controller::config::{DiskFiles, FieldCheck};
+
+fn parse(toml_text: &str) -> Result<SimConfig, ConfigError> {
+    let section = BackendSection {
+        check: FieldCheck::new("test.toml"),
+        prefix: "hub.sim".into(),
+        table: toml::from_str(toml_text).expect("TOML"),
+        base_dir: ".".into(),
+        files: std::sync::Arc::new(DiskFiles),
+    };
+    SimConfig::from_section(&section, &three_finger_layout())
+}
+
+fn fault(keys: &str) -> Result<SimConfig, ConfigError> {
+    parse(&format!("[[faults]]\nsensor = \"palm\"\n{keys}\n"))
+}
+
+#[test]
+fn jitter_and_drift_reach_their_sensor() {
+    let layout = three_finger_layout();
+    let cfg = fault("capture_jitter_us = 300\nclock_drift_ppm = -250.5").expect("valid");
+    let palm = layout.index_of("palm").expect("palm");
+    assert_eq!(cfg.faults[palm].capture_jitter_us, 300);
+    assert_eq!(cfg.faults[palm].clock_drift_ppm, -250.5);
+    let mut others = cfg.faults.iter().enumerate().filter(|(i, _)| *i != palm);
+    assert!(others.all(|(_, f)| *f == SensorFaults::default()));
+    let edges = fault("capture_jitter_us = 1000000\nclock_drift_ppm = 1000").expect("valid");
+    assert_eq!(edges.faults[palm].clock_drift_ppm, 1000.0);
+    assert!(fault("clock_drift_ppm = -1000").is_ok());
+}
+
+#[test]
+fn out_of_range_faults_name_the_field_and_the_range() {
+    for (keys, field, range) in [
+        ("capture_delay_us = -5", "capture_delay_us", "[0, 1000000]"),
+        (
+            "delivery_delay_us = -1",
+            "delivery_delay_us",
+            "[0, 10000000]",
+        ),
+        (
+            "capture_jitter_us = -1",
+            "capture_jitter_us",
+            "[0, 1000000]",
+        ),
+        (
+            "capture_jitter_us = 1000001",
+            "capture_jitter_us",
+            "[0, 1000000]",
+        ),
+        ("clock_drift_ppm = 1001", "clock_drift_ppm", "[-1000, 1000]"),
+        (
+            "clock_drift_ppm = -1001",
+            "clock_drift_ppm",
+            "[-1000, 1000]",
+        ),
+        ("clock_drift_ppm = nan", "clock_drift_ppm", "[-1000, 1000]"),
+    ] {
+        let err = fault(keys).expect_err(keys).to_string();
+        assert!(
+            err.contains(&format!("`hub.sim.faults[0].{field}`")),
+            "{keys}: {err}"
+        );
+        assert!(err.contains(range), "{keys}: {err}");
+        assert!(err.contains("test.toml"), "{keys}: {err}");
+    }
+}
+
+#[test]
+fn an_unknown_fault_key_is_named() {
+    let err = fault("clock_drift = 5").expect_err("unknown").to_string();
+    assert!(err.contains("unknown field `clock_drift`"), "{err}");
+    assert!(err.contains("clock_drift_ppm"), "lists the keys: {err}");
+    assert!(err.contains("faults"), "{err}");
+}
