@@ -344,11 +344,7 @@ impl ReplayedGate {
             max_age_us: Limit::Fixed(max_age_us),
             ..config.gate.clone()
         };
-        let gate = make_gate(
-            &gate_settings,
-            &config.layout,
-            &hub.describe().prediction,
-        );
+        let gate = make_gate(&gate_settings, &config.layout, &hub.describe().prediction);
         let seen = Arc::new(Mutex::new((Vec::new(), 0)));
         let acq = Acquisition::new(Box::new(hub), gate, clock.clone(), 0)
             .with_tap(Box::new(Decisions(seen.clone())));

@@ -240,11 +240,7 @@ pub async fn open_acquisition(
     hub.configure_sensors(&settings)
         .await
         .context("configuring the sensor boards")?;
-    let gate = make_gate(
-        &config.gate,
-        &config.layout,
-        &hub.describe().prediction,
-    );
+    let gate = make_gate(&config.gate, &config.layout, &hub.describe().prediction);
     Ok(
         Acquisition::new(hub, gate, clock, config.hub.first_trigger_seq)
             .with_cpu_clock(thread_cpu_ns),
