@@ -91,6 +91,9 @@ pub struct RunReport {
     pub set_latency_ms_p99: Option<f64>,
     /// Frames (valid or corrupt) received.
     pub frames_received: u64,
+    /// Gate policy `latest`: fusions of a frame already delivered in an earlier set (each
+    /// frame counts once in the accounting); 0 under the other policies.
+    pub frames_reused: u64,
     /// Capture spread histogram: `[upper bound µs, sets]` in power-of-two buckets.
     pub spread_histogram_us: Vec<(u64, u64)>,
 }
@@ -164,8 +167,16 @@ impl RunReport {
 /// `late 0, incomplete 0, …`.
 pub fn counts_text(c: &ReasonCounts) -> String {
     format!(
-        "late {}, incomplete {}, out_of_window {}, corrupt {}, duplicate {}, disconnected {}",
-        c.late, c.incomplete, c.out_of_window, c.corrupt, c.duplicate, c.disconnected
+        "late {}, incomplete {}, out_of_window {}, corrupt {}, duplicate {}, disconnected {}, \
+         superseded {}, excluded {}",
+        c.late,
+        c.incomplete,
+        c.out_of_window,
+        c.corrupt,
+        c.duplicate,
+        c.disconnected,
+        c.superseded,
+        c.excluded
     )
 }
 

@@ -379,6 +379,7 @@ impl Session {
             set_latency_ms_p50: latency_ms(stats, 0.5),
             set_latency_ms_p99: latency_ms(stats, 0.99),
             frames_received: stats.frames_in,
+            frames_reused: stats.frames_reused,
             spread_histogram_us: stats.spread_buckets(),
             object: scene.as_ref().map(|s| s.object.clone()),
             crushed: scene.as_ref().map(|s| s.crushed),

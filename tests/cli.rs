@@ -35,13 +35,15 @@ fn virtual_run(extra: &[&str]) -> Value {
     json(&gelgrip(&args))
 }
 
-const REASONS: [&str; 6] = [
+const REASONS: [&str; 8] = [
     "late",
     "incomplete",
     "out_of_window",
     "corrupt",
     "duplicate",
     "disconnected",
+    "superseded",
+    "excluded",
 ];
 
 fn total(v: &Value, key: &str) -> u64 {
@@ -386,6 +388,68 @@ fn the_approximate_gate_forms_the_trigger_gates_sets_from_capture_times_alone() 
     assert_eq!(by_trigger["spread_us_p99"], by_time["spread_us_p99"]);
     assert_eq!(total(&by_time, "drops"), 0, "{by_time}");
     assert_eq!(total(&by_time, "sets_rejected"), 0, "{by_time}");
+}
+
+#[test]
+fn the_latest_policy_fuses_each_sensors_newest_frame_without_matching() {
+    // On time, each set end finds every sensor's frame of its own trigger: the trigger
+    // gate's sets.
+    let by_trigger = virtual_run(&[]);
+    let latest = virtual_run(&["--config", &fixture("latest.toml")]);
+    let sets = |v: &Value| v["sets"].as_u64().unwrap_or(0);
+    assert!(sets(&latest) >= 90, "{latest}");
+    assert!(
+        sets(&by_trigger).abs_diff(sets(&latest)) <= 1,
+        "{by_trigger}\n{latest}"
+    );
+    assert_eq!(by_trigger["spread_us_p99"], latest["spread_us_p99"]);
+    assert_eq!(total(&latest, "drops"), 0, "{latest}");
+    assert_eq!(total(&latest, "sets_rejected"), 0, "{latest}");
+    // f3.middle 20 ms late: each set fuses its frame of the trigger before (a spread of
+    // one set period). Only the first set, before it ever delivered, is refused; the six
+    // frames that set would have fused were replaced before the next one: superseded.
+    let v = virtual_run(&["--config", &fixture("latest-late-delivery.toml")]);
+    assert!(sets(&v) >= 90, "{v}");
+    let spread = v["spread_us_p99"].as_u64().unwrap_or(0);
+    assert!((25_000..35_000).contains(&spread), "{v}");
+    assert_eq!(v["sets_rejected"]["incomplete"], 1, "{v}");
+    assert_eq!(total(&v, "sets_rejected"), 1, "{v}");
+    assert_eq!(v["drops"]["superseded"], 6, "{v}");
+    assert_eq!(total(&v, "drops"), 6, "{v}");
+    // Each frame counts once, however often it is fused; at most one per sensor is held.
+    let fused_once = 7 * sets(&v) - v["frames_reused"].as_u64().expect("frames_reused");
+    let frames = v["frames_received"].as_u64().unwrap_or(0);
+    assert!(
+        (fused_once + 6..=fused_once + 6 + 7).contains(&frames),
+        "{v}"
+    );
+}
+
+#[test]
+fn an_unknown_gate_policy_exits_2_naming_the_field_and_the_policies() {
+    let dir = std::env::temp_dir().join(format!("gelgrip-policy-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("dir");
+    let path = dir.join("newest.toml");
+    let text = std::fs::read_to_string(fixture("latest.toml"))
+        .expect("fixture")
+        .replace("policy = \"latest\"", "policy = \"newest\"")
+        .replace(
+            "../../configs/layouts/three-finger.toml",
+            &repo_file("configs/layouts/three-finger.toml"),
+        );
+    std::fs::write(&path, text).expect("write");
+    let path = path.display().to_string();
+    for args in [
+        vec!["check-config", &path],
+        vec!["run", "--config", &path, "--headless", "--duration", "1"],
+    ] {
+        let out = gelgrip(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains("`gate.policy` = newest"), "{err}");
+        assert!(err.contains("trigger | approximate | latest"), "{err}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]

@@ -45,6 +45,20 @@ fn tasks_faults_and_scenes_from_the_dashboard() {
     );
     assert_eq!(s["sim"]["scene"], "tennis-ball");
     assert!(s["task"].is_null(), "no task yet");
+    // Each sensor's frame age at fusion: about one set latency (29.5 ms) on the simulator.
+    let ages: Vec<Option<f64>> = s["sensors"]
+        .as_array()
+        .expect("sensors")
+        .iter()
+        .map(|x| x["frame_age_ms"].as_f64())
+        .collect();
+    assert!(
+        ages.len() == 7
+            && ages
+                .iter()
+                .all(|a| a.is_some_and(|ms| ms > 1.0 && ms < 500.0)),
+        "{ages:?}"
+    );
 
     // A scene switch with open fingers.
     let (status, body) = post(&url, "/api/sim/scene", r#"{"name": "egg"}"#);

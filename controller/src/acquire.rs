@@ -62,6 +62,7 @@ pub fn make_gate(settings: &GateSettings, layout: &HandLayout, prediction: &BusP
     match settings.policy {
         GatePolicy::Trigger => Gate::new(sensors, limits),
         GatePolicy::Approximate => Gate::approximate(sensors, limits, settings.queue_size),
+        GatePolicy::Latest => Gate::latest(sensors, limits),
     }
 }
 

@@ -32,10 +32,12 @@ pub struct ReceivedFrame {
     pub received_host_us: u64,
 }
 
-/// A complete, in-window set: one frame per sensor from one trigger.
+/// A set the gate emitted: one frame per sensor (from one trigger, within the window, under
+/// the synchronized policies; each sensor's latest frame under `latest`).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct FrameSet {
-    /// The trigger sequence.
+    /// The trigger sequence (`approximate`: the gate's own count of sets; `latest`: the
+    /// trigger whose hub `SetEnd` fused it).
     pub trigger_seq: u32,
     /// Frames in sensor-index order, one per sensor.
     pub frames: Vec<ReceivedFrame>,
@@ -52,5 +54,14 @@ impl FrameSet {
     pub fn latency_us(&self) -> u64 {
         self.emitted_host_us
             .saturating_sub(self.earliest_capture_host_us)
+    }
+
+    /// Each frame's age at fusion, in sensor order: emission minus its capture, in µs
+    /// (0 for a capture stamped after the emission).
+    pub fn frame_ages_us(&self) -> Vec<u64> {
+        self.frames
+            .iter()
+            .map(|f| self.emitted_host_us.saturating_sub(f.capture_host_us))
+            .collect()
     }
 }

@@ -33,6 +33,8 @@ pub struct Dashboard {
     last_depth_us: Option<u64>,
     tasks_available: Vec<String>,
     finger_ids: Vec<String>,
+    /// Each sensor's frame age in the last gated set, ms (empty before any).
+    frame_ages_ms: Vec<f64>,
     /// The simulator's controls as the page shows them (`None` off the simulator), kept
     /// up to date by the run's control handler.
     sim: SharedSimView,
@@ -101,6 +103,7 @@ impl Dashboard {
             calibration: calibration_text(config),
             last_depth_us: None,
             finger_ids: config.layout.fingers.iter().map(|f| f.id.clone()).collect(),
+            frame_ages_ms: Vec::new(),
             tasks_available: if has_control {
                 crate::catalog::names(crate::catalog::Kind::Task)
             } else {
@@ -117,6 +120,11 @@ impl Dashboard {
             for (i, f) in set.frames.iter().enumerate() {
                 self.live.publish_frame(i, f.frame.jpeg.clone());
             }
+            self.frame_ages_ms = report
+                .frame_ages_us()
+                .into_iter()
+                .map(|us| us as f64 / 1e3)
+                .collect();
         }
         let ids = self.live.ids().to_vec();
         let gripper = report.gripper.as_ref();
@@ -134,6 +142,7 @@ impl Dashboard {
                     max_depth_mm: r.map_or(0.0, |r| r.max_depth_mm),
                     force_n: r.map_or(0.0, |r| r.force_n),
                     deformation_mm3: r.map_or(0.0, |r| r.volume_mm3),
+                    frame_age_ms: self.frame_ages_ms.get(i).copied(),
                 }
             })
             .collect();

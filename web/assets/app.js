@@ -145,7 +145,7 @@ function render(s) {
     div.classList.toggle("touch", sensor.in_contact);
     div.classList.toggle("missing", !sensor.ok);
     div.querySelector(".values").textContent =
-      `${fmt(sensor.force_n)} N · ${fmt(sensor.area_mm2, 1)} mm² · ${fmt(sensor.max_depth_mm, 3)} mm · ${fmt(sensor.deformation_mm3, 1)} mm³`;
+      `${fmt(sensor.force_n)} N · ${fmt(sensor.area_mm2, 1)} mm² · ${fmt(sensor.max_depth_mm, 3)} mm · ${fmt(sensor.deformation_mm3, 1)} mm³ · age ${fmt(sensor.frame_age_ms, 1)} ms`;
   }
   const maxForce = Math.max(1, ...s.fingers.map((f) => Math.max(f.force_n, f.target_force_n)));
   $("fingers").innerHTML =

@@ -32,6 +32,9 @@ pub struct SensorView {
     pub force_n: f64,
     /// Deformation signal (indentation volume), mm³.
     pub deformation_mm3: f64,
+    /// Age of its frame when the last set was fused (the set's emission minus the frame's
+    /// capture), ms; `None` before any set.
+    pub frame_age_ms: Option<f64>,
 }
 
 /// One finger.

@@ -117,8 +117,8 @@ pub enum Meta {
         host_us: u64,
         /// The trigger.
         trigger_seq: u32,
-        /// `emitted`, `late`, `incomplete`, `out_of_window`, `corrupt`, `duplicate` or
-        /// `disconnected`.
+        /// `emitted`, or the reason's key: `late`, `incomplete`, `out_of_window`, `corrupt`,
+        /// `duplicate`, `disconnected`, `superseded` or `excluded`.
         outcome: String,
     },
     /// Servo readings and commands, controller and task state at one instant.

@@ -40,6 +40,9 @@ pub enum GatePolicy {
     Trigger,
     /// Match by capture time (hubs without a shared trigger).
     Approximate,
+    /// Each sensor's latest frame once per trigger period, unmatched: the unsynchronized
+    /// baseline, for comparison.
+    Latest,
 }
 
 /// `[gate]`.
@@ -368,7 +371,10 @@ fn validate_gate(check: &FieldCheck, raw: RawGate) -> Result<GateSettings, Confi
     let policy = match raw.policy.as_str() {
         "trigger" => GatePolicy::Trigger,
         "approximate" => GatePolicy::Approximate,
-        other => return Err(check.invalid("gate.policy", other, "trigger or approximate")),
+        "latest" => GatePolicy::Latest,
+        other => {
+            return Err(check.invalid("gate.policy", other, "trigger | approximate | latest"));
+        }
     };
     let queue_size = check.range("gate.queue_size", raw.queue_size, 2.0, 1000.0)?;
     if queue_size.fract() != 0.0 {

@@ -17,17 +17,24 @@ pub enum Reason {
     Duplicate,
     /// A sensor stopped answering.
     Disconnected,
+    /// Policy `latest`: a frame replaced by a newer one of its sensor before it was fused.
+    Superseded,
+    /// A sensor excluded from the sets after it kept failing the window (issue 28 item 3);
+    /// not yet produced by any gate.
+    Excluded,
 }
 
 impl Reason {
     /// All reasons, in the JSON key order.
-    pub const ALL: [Reason; 6] = [
+    pub const ALL: [Reason; 8] = [
         Reason::Late,
         Reason::Incomplete,
         Reason::OutOfWindow,
         Reason::Corrupt,
         Reason::Duplicate,
         Reason::Disconnected,
+        Reason::Superseded,
+        Reason::Excluded,
     ];
 
     /// The JSON key.
@@ -39,6 +46,8 @@ impl Reason {
             Reason::Corrupt => "corrupt",
             Reason::Duplicate => "duplicate",
             Reason::Disconnected => "disconnected",
+            Reason::Superseded => "superseded",
+            Reason::Excluded => "excluded",
         }
     }
 }
@@ -58,6 +67,10 @@ pub struct ReasonCounts {
     pub duplicate: u64,
     /// See [`Reason::Disconnected`].
     pub disconnected: u64,
+    /// See [`Reason::Superseded`].
+    pub superseded: u64,
+    /// See [`Reason::Excluded`].
+    pub excluded: u64,
 }
 
 impl ReasonCounts {
@@ -69,6 +82,8 @@ impl ReasonCounts {
             Reason::Corrupt => &mut self.corrupt,
             Reason::Duplicate => &mut self.duplicate,
             Reason::Disconnected => &mut self.disconnected,
+            Reason::Superseded => &mut self.superseded,
+            Reason::Excluded => &mut self.excluded,
         }
     }
 

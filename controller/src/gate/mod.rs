@@ -1,13 +1,17 @@
-//! The frame assembler and synchronized-frame gate, with two policies:
+//! The frame assembler and synchronized-frame gate, with three policies:
 //!
 //! - `trigger` ([`TriggerGate`]): hubs with a shared trigger; frames are grouped by trigger
 //!   sequence.
 //! - `approximate` ([`ApproximateGate`]): hubs without one (a free-running CDC hub, USB
 //!   tactile cameras); frames are matched by capture time, with the guarantees of ROS
 //!   message_filters' ApproximateTime plus a maximum spread.
+//! - `latest` ([`LatestGate`]): the unsynchronized baseline, for comparison: once per
+//!   trigger period, each sensor's most recent frame, with no matching (a frame may be
+//!   fused again; `frames_out` counts it once).
 //!
-//! Either way, every frame the gate is given ends up either in an emitted set or in exactly
-//! one `drops` counter, and every rejected set in one `sets_rejected` counter:
+//! Whichever the policy, every frame the gate is given ends up either in an emitted set or in
+//! exactly one `drops` counter, or is still held, and every rejected set in one
+//! `sets_rejected` counter:
 //!
 //! `frames_in = frames_out + drops.total() + pending_frames()`.
 //!
@@ -15,12 +19,14 @@
 
 mod approximate;
 mod counts;
+mod latest;
 mod stats;
 mod trigger;
 pub mod window;
 
 pub use approximate::ApproximateGate;
 pub use counts::{Reason, ReasonCounts};
+pub use latest::LatestGate;
 pub use stats::{GateStats, Outcome, SetDecision};
 pub use trigger::TriggerGate;
 
@@ -43,6 +49,8 @@ pub enum Gate {
     Trigger(TriggerGate),
     /// Matched by capture time.
     Approximate(ApproximateGate),
+    /// Each sensor's latest frame, once per trigger period (the unsynchronized baseline).
+    Latest(LatestGate),
 }
 
 impl Gate {
@@ -57,11 +65,17 @@ impl Gate {
         Self::Approximate(ApproximateGate::new(sensors, limits, queue_size))
     }
 
-    /// The policy's name (`trigger`, `approximate`).
+    /// A `latest` gate for `sensors` sensors; of `limits`, only `max_age_us` applies.
+    pub fn latest(sensors: usize, limits: GateLimits) -> Self {
+        Self::Latest(LatestGate::new(sensors, limits))
+    }
+
+    /// The policy's name (`trigger`, `approximate`, `latest`).
     pub fn policy(&self) -> &'static str {
         match self {
             Self::Trigger(_) => "trigger",
             Self::Approximate(_) => "approximate",
+            Self::Latest(_) => "latest",
         }
     }
 
@@ -70,6 +84,7 @@ impl Gate {
         match self {
             Self::Trigger(g) => g.limits(),
             Self::Approximate(g) => g.limits(),
+            Self::Latest(g) => g.limits(),
         }
     }
 
@@ -78,6 +93,7 @@ impl Gate {
         match self {
             Self::Trigger(g) => g.stats(),
             Self::Approximate(g) => g.stats(),
+            Self::Latest(g) => g.stats(),
         }
     }
 
@@ -87,6 +103,7 @@ impl Gate {
         let stats = match self {
             Self::Trigger(g) => g.stats_mut(),
             Self::Approximate(g) => g.stats_mut(),
+            Self::Latest(g) => g.stats_mut(),
         };
         stats.decisions.get_or_insert_with(Vec::new);
     }
@@ -96,6 +113,7 @@ impl Gate {
         let stats = match self {
             Self::Trigger(g) => g.stats_mut(),
             Self::Approximate(g) => g.stats_mut(),
+            Self::Latest(g) => g.stats_mut(),
         };
         stats
             .decisions
@@ -109,6 +127,7 @@ impl Gate {
         match self {
             Self::Trigger(g) => g.pending_frames(),
             Self::Approximate(g) => g.pending_frames(),
+            Self::Latest(g) => g.pending_frames(),
         }
     }
 
@@ -117,6 +136,7 @@ impl Gate {
         match self {
             Self::Trigger(g) => g.push(event, now_us),
             Self::Approximate(g) => g.push(event, now_us),
+            Self::Latest(g) => g.push(event, now_us),
         }
     }
 
@@ -125,6 +145,7 @@ impl Gate {
         match self {
             Self::Trigger(g) => g.tick(now_us),
             Self::Approximate(g) => g.tick(now_us),
+            Self::Latest(g) => g.tick(now_us),
         }
     }
 }

@@ -24,8 +24,11 @@ pub struct GateStats {
     pub sets_rejected: ReasonCounts,
     /// Frames (valid or corrupt) the gate was given.
     pub frames_in: u64,
-    /// Frames delivered inside emitted sets.
+    /// Frames delivered inside emitted sets, each counted once (the first time).
     pub frames_out: u64,
+    /// Policy `latest`: fusions of a frame already delivered in an earlier set (no newer
+    /// frame of its sensor came in between); not in `frames_out`.
+    pub frames_reused: u64,
     /// Decisions on sets since they were last taken, while logging (`None`: not logging).
     pub decisions: Option<Vec<SetDecision>>,
 }
@@ -71,6 +74,7 @@ impl Default for GateStats {
             sets_rejected: ReasonCounts::default(),
             frames_in: 0,
             frames_out: 0,
+            frames_reused: 0,
             decisions: None,
         }
     }
@@ -96,6 +100,12 @@ impl GateStats {
 
     /// Record an emitted set.
     pub fn record(&mut self, set: &FrameSet) {
+        self.record_reusing(set, 0);
+    }
+
+    /// Record an emitted set of which `reused` frames were delivered in an earlier set
+    /// already (counted in `frames_reused`, not again in `frames_out`).
+    pub fn record_reusing(&mut self, set: &FrameSet, reused: u64) {
         if let Some(log) = self.decisions.as_mut() {
             log.push(SetDecision {
                 trigger_seq: Some(set.trigger_seq),
@@ -103,7 +113,8 @@ impl GateStats {
             });
         }
         self.sets += 1;
-        self.frames_out += set.frames.len() as u64;
+        self.frames_out += (set.frames.len() as u64).saturating_sub(reused);
+        self.frames_reused += reused;
         self.first_emit_us.get_or_insert(set.emitted_host_us);
         self.last_emit_us = Some(set.emitted_host_us);
         self.spread_us.saturating_record(u64::from(set.spread_us));

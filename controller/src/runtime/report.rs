@@ -40,6 +40,14 @@ pub struct SetReport<'a> {
     pub gripper: Option<GripperReport<'a>>,
 }
 
+impl SetReport<'_> {
+    /// Each sensor's frame age at fusion, in sensor order: the set's emission minus the
+    /// frame's capture, µs (see [`FrameSet::frame_ages_us`]); empty on a quiet pass.
+    pub fn frame_ages_us(&self) -> Vec<u64> {
+        self.set.map(FrameSet::frame_ages_us).unwrap_or_default()
+    }
+}
+
 /// The gripper's side of a report.
 pub struct GripperReport<'a> {
     /// The last fused set.
