@@ -94,6 +94,9 @@ pub struct RunReport {
     /// Gate policy `latest`: fusions of a frame already delivered in an earlier set (each
     /// frame counts once in the accounting); 0 under the other policies.
     pub frames_reused: u64,
+    /// Sensors left out of the sets at the end of the run because they kept failing the
+    /// gate's window (the rest went on without them).
+    pub excluded_sensors: Vec<ExcludedSensor>,
     /// Capture spread histogram: `[upper bound µs, sets]` in power-of-two buckets.
     pub spread_histogram_us: Vec<(u64, u64)>,
 }
@@ -183,4 +186,15 @@ pub fn counts_text(c: &ReasonCounts) -> String {
 /// Latency quantile in ms.
 pub fn latency_ms(stats: &GateStats, q: f64) -> Option<f64> {
     stats.latency_us_quantile(q).map(|us| us as f64 / 1e3)
+}
+
+/// A sensor the gate excluded from the sets.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ExcludedSensor {
+    /// Its id (`f1.middle`).
+    pub sensor: String,
+    /// What it kept failing (a drop reason's key: `out_of_window`, `late`, …).
+    pub reason: String,
+    /// Run time of the exclusion, s.
+    pub since_s: f64,
 }

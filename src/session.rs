@@ -27,12 +27,13 @@ use crate::loop_control::LoopControl;
 use crate::observers::dashboard::Dashboard;
 use crate::observers::recording::RunRecorder;
 use crate::observers::task_log::TaskLog;
-use crate::output::{RunReport, ServoReport, latency_ms};
+use crate::output::{ExcludedSensor, RunReport, ServoReport, latency_ms};
 use crate::scene_report::SceneReport;
 use crate::scripts::load_script;
 use crate::sim_truth::SimTruth;
 use crate::tactile::Tactile;
 use crate::wiring;
+use gelgrip_controller::gate::GateStats;
 
 /// How to run: `gelgrip run`'s options, without the command line.
 #[derive(Debug, Clone)]
@@ -332,6 +333,25 @@ impl Session {
         self.finish(end)
     }
 
+    /// The sensors the gate has excluded, by id, with run time (`t_s`) of their exclusion.
+    fn excluded_sensors(&self, stats: &GateStats) -> Vec<ExcludedSensor> {
+        let origin = self.runtime.origin_us();
+        stats
+            .excluded
+            .iter()
+            .map(|e| ExcludedSensor {
+                sensor: self
+                    .config
+                    .layout
+                    .sensors
+                    .get(e.sensor)
+                    .map_or_else(|| format!("#{}", e.sensor), |s| s.id.to_string()),
+                reason: e.reason.key().to_string(),
+                since_s: e.since_host_us.saturating_sub(origin) as f64 / 1e6,
+            })
+            .collect()
+    }
+
     /// Bring the hardware to its safe state after `end`, close the recording, and report.
     pub fn finish(mut self, end: EndReason) -> RunReport {
         let summary = self.runtime.finish(end);
@@ -380,6 +400,7 @@ impl Session {
             set_latency_ms_p99: latency_ms(stats, 0.99),
             frames_received: stats.frames_in,
             frames_reused: stats.frames_reused,
+            excluded_sensors: self.excluded_sensors(stats),
             spread_histogram_us: stats.spread_buckets(),
             object: scene.as_ref().map(|s| s.object.clone()),
             crushed: scene.as_ref().map(|s| s.crushed),

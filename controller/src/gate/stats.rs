@@ -31,6 +31,24 @@ pub struct GateStats {
     pub frames_reused: u64,
     /// Decisions on sets since they were last taken, while logging (`None`: not logging).
     pub decisions: Option<Vec<SetDecision>>,
+    /// Sensors excluded from the sets now (they kept failing the window), in sensor order.
+    pub excluded: Vec<Exclusion>,
+    /// Exclusions so far (a sensor that rejoins and is excluded again counts twice).
+    pub exclusions: u64,
+    /// Rejoins so far.
+    pub rejoins: u64,
+}
+
+/// A sensor left out of the sets because it kept failing the window.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Exclusion {
+    /// The sensor's index.
+    pub sensor: usize,
+    /// What it kept failing: `out_of_window` (its capture too far from the others'),
+    /// `late` or `incomplete` (its frame too late for the set), `corrupt`, `disconnected`.
+    pub reason: Reason,
+    /// Host time of the exclusion, µs.
+    pub since_host_us: u64,
 }
 
 /// What the gate decided about one set.
@@ -76,6 +94,9 @@ impl Default for GateStats {
             frames_out: 0,
             frames_reused: 0,
             decisions: None,
+            excluded: Vec::new(),
+            exclusions: 0,
+            rejoins: 0,
         }
     }
 }

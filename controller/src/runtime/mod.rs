@@ -212,6 +212,11 @@ impl Runtime {
         tx
     }
 
+    /// Host time the reports' run time (`t_s`) counts from, µs.
+    pub fn origin_us(&self) -> u64 {
+        self.start_us
+    }
+
     /// The acquisition (its hub and gate).
     pub fn acquisition(&self) -> &Acquisition {
         &self.acq
