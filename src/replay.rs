@@ -21,7 +21,7 @@ use gelgrip_controller::actuator::FingerGoal;
 use gelgrip_controller::clock::{Clock, RealClock, VirtualClock};
 use gelgrip_controller::config::{AppConfig, GateSettings, Limit};
 use gelgrip_controller::frame::FrameSet;
-use gelgrip_controller::fusion::{FusedSet, SensorReading, fuse};
+use gelgrip_controller::fusion::{FusedSet, SensorReading, fuse_excluding};
 use gelgrip_controller::gate::SetDecision;
 use gelgrip_controller::gripper::{GripperService, ServiceEvent};
 use gelgrip_controller::hub::{HubError, HubEvent, HubTransport};
@@ -426,7 +426,8 @@ pub async fn replay(
                 }
             }
         } else if let Some(events) = recorded.controller.get(&set.trigger_seq) {
-            let fused = fuse(&config.layout, &readings[0]);
+            let left_out = set.left_out(config.layout.sensors.len());
+            let fused = fuse_excluding(&config.layout, &readings[0], &left_out);
             controller.replay(events, &fused);
         }
         if difference.is_none()

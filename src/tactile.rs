@@ -27,7 +27,7 @@ use gelgrip_plugins::dataset::PressDataset;
 use gelgrip_plugins::gradient::{GradientModel, MlpMode};
 use gelgrip_plugins::lut::Input;
 use gelgrip_plugins::lut::LutModel;
-use gelgrip_plugins::pipeline::{Needs, SensorPipeline, StageChoice, process_set};
+use gelgrip_plugins::pipeline::{Needs, SensorPipeline, StageChoice, process_present, process_set};
 
 use gelgrip_sim::config::SimConfig;
 use gelgrip_sim::pool::SensorCamera;
@@ -111,7 +111,12 @@ impl Tactile {
     /// Take `set` toward the live references (a run does this before its loop, so the
     /// one-time reference does not stall the loop; a replay, in [`Tactile::process`]).
     pub fn offer_reference(&mut self, set: &FrameSet) {
-        let frames: Vec<&[u8]> = set.frames.iter().map(|f| f.frame.jpeg.as_ref()).collect();
+        let mut frames: Vec<&[u8]> = Vec::with_capacity(self.pipes.len());
+        for (i, f) in set.frames.iter().enumerate() {
+            if usize::from(f.frame.sensor.0) == i {
+                frames.push(f.frame.jpeg.as_ref());
+            }
+        }
         if frames.len() == self.pipes.len() {
             self.gather_reference(&frames);
         }
@@ -162,17 +167,33 @@ impl Tactile {
         Some((depth.to_vec(), w, h, threshold))
     }
 
-    /// Process one gated set into per-sensor readings.
+    /// Process one gated set into per-sensor readings: `None` for a sensor whose pipeline
+    /// failed, and for one the gate left out of the set (excluded).
     pub fn process(&mut self, set: &FrameSet) -> Vec<Option<SensorReading>> {
-        let frames: Vec<&[u8]> = set.frames.iter().map(|f| f.frame.jpeg.as_ref()).collect();
-        if frames.len() != self.pipes.len() || self.gather_reference(&frames) {
-            return vec![None; self.pipes.len()];
+        let n = self.pipes.len();
+        let mut by_sensor: Vec<Option<&[u8]>> = vec![None; n];
+        for f in &set.frames {
+            if let Some(slot) = by_sensor.get_mut(usize::from(f.frame.sensor.0)) {
+                *slot = Some(f.frame.jpeg.as_ref());
+            }
         }
-        process_set(&mut self.pipes, &frames, Needs::DEPTH, &mut self.results);
+        if by_sensor.iter().all(Option::is_some) {
+            let frames: Vec<&[u8]> = by_sensor.iter().flatten().copied().collect();
+            if self.gather_reference(&frames) {
+                return vec![None; n];
+            }
+            process_set(&mut self.pipes, &frames, Needs::DEPTH, &mut self.results);
+        } else if self.pending_reference.is_some() {
+            return vec![None; n];
+        } else {
+            process_present(&mut self.pipes, &by_sensor, Needs::DEPTH, &mut self.results);
+        }
         self.results
             .iter()
             .zip(&self.geometry)
-            .map(|(r, (w, h, mm))| {
+            .zip(&by_sensor)
+            .map(|((r, (w, h, mm)), frame)| {
+                frame.as_ref()?;
                 let s = r.as_ref().ok()?;
                 Some(SensorReading {
                     in_contact: s.in_contact,

@@ -56,6 +56,18 @@ impl FrameSet {
             .saturating_sub(self.earliest_capture_host_us)
     }
 
+    /// Per sensor of a hand of `sensors`, whether the gate left it out of this set (an
+    /// excluded sensor has no frame in it).
+    pub fn left_out(&self, sensors: usize) -> Vec<bool> {
+        let mut out = vec![true; sensors];
+        for f in &self.frames {
+            if let Some(slot) = out.get_mut(usize::from(f.frame.sensor.0)) {
+                *slot = false;
+            }
+        }
+        out
+    }
+
     /// Each frame's age at fusion, in sensor order: emission minus its capture, in µs
     /// (0 for a capture stamped after the emission).
     pub fn frame_ages_us(&self) -> Vec<u64> {

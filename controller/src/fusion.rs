@@ -98,6 +98,18 @@ fn add(acc: &mut FusedContact, best_n: &mut f64, sensor: usize, reading: Option<
 
 /// Fuse `readings` (one per sensor of `layout`, `None` where missing).
 pub fn fuse(layout: &HandLayout, readings: &[Option<SensorReading>]) -> FusedSet {
+    fuse_excluding(layout, readings, &[])
+}
+
+/// Fuse `readings`, where the sensors marked in `excluded` were left out of the set by the
+/// gate: a finger carries on with its other sensors (an excluded one does not make it
+/// stale), and holds only when every one of its sensors is excluded or missing.
+pub fn fuse_excluding(
+    layout: &HandLayout,
+    readings: &[Option<SensorReading>],
+    excluded: &[bool],
+) -> FusedSet {
+    let is_excluded = |s: usize| excluded.get(s).copied().unwrap_or(false);
     let mut set = FusedSet {
         fingers: vec![FusedContact::default(); layout.fingers.len()],
         palm: None,
@@ -106,8 +118,26 @@ pub fn fuse(layout: &HandLayout, readings: &[Option<SensorReading>]) -> FusedSet
     };
     let mut best = vec![0.0; layout.fingers.len()];
     let mut palm_best = 0.0;
+    // Per finger (and the palm, last): sensors in the set.
+    let mut in_set = vec![0usize; layout.fingers.len() + 1];
     for (s, spec) in layout.sensors.iter().enumerate() {
         let reading = readings.get(s).copied().flatten();
+        let group = match spec.id.placement() {
+            Placement::Palm => Some(layout.fingers.len()),
+            Placement::Finger { .. } => layout.phalanx_of_sensor(s).map(|(f, _)| f),
+            Placement::Generic(_) => None,
+        };
+        if is_excluded(s) {
+            set.sensors.push(None);
+            set.deformation_mm3.push(None);
+            if group == Some(layout.fingers.len()) {
+                set.palm.get_or_insert_with(FusedContact::default);
+            }
+            continue;
+        }
+        if let Some(g) = group {
+            in_set[g] += 1;
+        }
         set.sensors.push(reading);
         set.deformation_mm3.push(
             reading
@@ -129,6 +159,20 @@ pub fn fuse(layout: &HandLayout, readings: &[Option<SensorReading>]) -> FusedSet
             }
             Placement::Generic(_) => {}
         }
+    }
+    // A finger (or the palm) with every sensor left out has nothing to act on: it holds.
+    for (f, finger) in set.fingers.iter_mut().enumerate() {
+        if in_set[f] == 0
+            && (0..layout.sensors.len())
+                .any(|s| layout.phalanx_of_sensor(s).is_some_and(|(g, _)| g == f))
+        {
+            finger.stale = true;
+        }
+    }
+    if let Some(palm) = set.palm.as_mut()
+        && in_set[layout.fingers.len()] == 0
+    {
+        palm.stale = true;
     }
     set
 }

@@ -597,6 +597,27 @@ impl SensorPipeline {
     }
 }
 
+/// Process the frames of a set that has some sensors left out: frame `i`, where present,
+/// through pipeline `i`, the sensors in parallel (rayon); `out[i]` is left as it was for a
+/// sensor without a frame.
+pub fn process_present(
+    pipes: &mut [SensorPipeline],
+    frames: &[Option<&[u8]>],
+    needs: Needs,
+    out: &mut [Result<ContactSummary, PipelineError>],
+) {
+    use rayon::prelude::*;
+    pipes
+        .par_iter_mut()
+        .zip(frames.par_iter())
+        .zip(out.par_iter_mut())
+        .for_each(|((pipe, frame), slot)| {
+            if let Some(frame) = frame {
+                *slot = pipe.process(frame, needs);
+            }
+        });
+}
+
 /// Process one synchronized set: frame `i` through pipeline `i`, the sensors in parallel
 /// (rayon), results into `out` (one per sensor).
 pub fn process_set(

@@ -15,7 +15,7 @@ use gelgrip_controller::runtime::plant::phase_name;
 use gelgrip_controller::runtime::ports::{Observer, ObserverError};
 use gelgrip_controller::runtime::report::SetReport;
 use gelgrip_web::live::{
-    DepthImage, FingerView, SensorView, ServoView, SimView, SyncView, TaskView,
+    DepthImage, ExcludedView, FingerView, SensorView, ServoView, SimView, SyncView, TaskView,
 };
 use gelgrip_web::{AppState, Live, Snapshot};
 use tokio::sync::mpsc;
@@ -34,7 +34,7 @@ pub struct Dashboard {
     tasks_available: Vec<String>,
     finger_ids: Vec<String>,
     /// Each sensor's frame age in the last gated set, ms (empty before any).
-    frame_ages_ms: Vec<f64>,
+    frame_ages_ms: Vec<Option<f64>>,
     /// The simulator's controls as the page shows them (`None` off the simulator), kept
     /// up to date by the run's control handler.
     sim: SharedSimView,
@@ -117,14 +117,15 @@ impl Dashboard {
     /// most every 200 ms) the depth maps.
     fn publish(&mut self, report: &SetReport<'_>) {
         if let Some(set) = report.set {
-            for (i, f) in set.frames.iter().enumerate() {
+            let mut ages = vec![None; self.live.ids().len()];
+            for (f, age_us) in set.frames.iter().zip(report.frame_ages_us()) {
+                let i = usize::from(f.frame.sensor.0);
                 self.live.publish_frame(i, f.frame.jpeg.clone());
+                if let Some(slot) = ages.get_mut(i) {
+                    *slot = Some(age_us as f64 / 1e3);
+                }
             }
-            self.frame_ages_ms = report
-                .frame_ages_us()
-                .into_iter()
-                .map(|us| us as f64 / 1e3)
-                .collect();
+            self.frame_ages_ms = ages;
         }
         let ids = self.live.ids().to_vec();
         let gripper = report.gripper.as_ref();
@@ -142,7 +143,8 @@ impl Dashboard {
                     max_depth_mm: r.map_or(0.0, |r| r.max_depth_mm),
                     force_n: r.map_or(0.0, |r| r.force_n),
                     deformation_mm3: r.map_or(0.0, |r| r.volume_mm3),
-                    frame_age_ms: self.frame_ages_ms.get(i).copied(),
+                    frame_age_ms: self.frame_ages_ms.get(i).copied().flatten(),
+                    excluded: report.gate.excluded.iter().any(|e| e.sensor == i),
                 }
             })
             .collect();
@@ -189,6 +191,16 @@ impl Dashboard {
                 drops: stats.drops,
                 sets_rejected: stats.sets_rejected,
                 loop_latency_ms_p99: gripper.and_then(|g| g.latencies.loop_p99),
+                excluded_sensors: stats
+                    .excluded
+                    .iter()
+                    .map(|e| ExcludedView {
+                        sensor: ids.get(e.sensor).cloned().unwrap_or_default(),
+                        reason: e.reason.key().to_string(),
+                        since_s: report.t_s
+                            - report.now_us.saturating_sub(e.since_host_us) as f64 / 1e6,
+                    })
+                    .collect(),
             },
             calibration: self.calibration.clone(),
             task: gripper.and_then(|g| g.task.as_ref()).map(|t| TaskView {

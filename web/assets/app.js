@@ -137,15 +137,20 @@ function render(s) {
   if (!built || $("hand").children.length !== s.sensors.length) build(s);
   $("run").textContent = `${s.transport} · t ${fmt(s.t_s, 1)} s · ${s.sensors.length} sensors`;
   $("sync").textContent =
-    `sets ${s.sync.sets} · ${fmt(s.sync.set_rate_hz, 1)} Hz · spread p99 ${s.sync.spread_us_p99 ?? "-"} µs · loop p99 ${fmt(s.sync.loop_latency_ms_p99)} ms`;
+    `sets ${s.sync.sets} · ${fmt(s.sync.set_rate_hz, 1)} Hz · spread p99 ${s.sync.spread_us_p99 ?? "-"} µs · loop p99 ${fmt(s.sync.loop_latency_ms_p99)} ms` +
+    (s.sync.excluded_sensors.length
+      ? " · excluded: " + s.sync.excluded_sensors.map((e) => `${e.sensor} (${e.reason} since ${fmt(e.since_s, 1)} s)`).join(", ")
+      : "");
   $("calibration").textContent = s.calibration;
   for (const sensor of s.sensors) {
     const div = $("sensor-" + sensor.id);
     if (!div) continue;
     div.classList.toggle("touch", sensor.in_contact);
-    div.classList.toggle("missing", !sensor.ok);
-    div.querySelector(".values").textContent =
-      `${fmt(sensor.force_n)} N · ${fmt(sensor.area_mm2, 1)} mm² · ${fmt(sensor.max_depth_mm, 3)} mm · ${fmt(sensor.deformation_mm3, 1)} mm³ · age ${fmt(sensor.frame_age_ms, 1)} ms`;
+    div.classList.toggle("missing", !sensor.ok && !sensor.excluded);
+    div.classList.toggle("excluded", sensor.excluded);
+    div.querySelector(".values").textContent = sensor.excluded
+      ? "excluded from the sets: out of sync (its finger carries on with its other sensors, or holds)"
+      : `${fmt(sensor.force_n)} N · ${fmt(sensor.area_mm2, 1)} mm² · ${fmt(sensor.max_depth_mm, 3)} mm · ${fmt(sensor.deformation_mm3, 1)} mm³ · age ${fmt(sensor.frame_age_ms, 1)} ms`;
   }
   const maxForce = Math.max(1, ...s.fingers.map((f) => Math.max(f.force_n, f.target_force_n)));
   $("fingers").innerHTML =

@@ -16,7 +16,7 @@ use gelgrip_controller::grasp::GraspRequest;
 use gelgrip_controller::grasp_goals::GoalStatus;
 use gelgrip_controller::gripper::GripperHandle;
 
-use crate::live::{FingerView, Snapshot};
+use crate::live::{ExcludedView, FingerView, Snapshot};
 use crate::routes::{ApiError, AppState, admit, error, gripper_error, parse};
 
 /// Longest a grasp request may ask to wait, s (the grasp API's bound).
@@ -147,6 +147,9 @@ pub struct GoalProgress {
     pub fingers: Vec<FingerView>,
     /// Total fused force of the fingers, N.
     pub force_n: f64,
+    /// Sensors the gate has left out of the sets meanwhile: their fingers carry on with
+    /// their other sensors, or hold.
+    pub excluded_sensors: Vec<ExcludedView>,
 }
 
 impl GoalProgress {
@@ -155,6 +158,7 @@ impl GoalProgress {
         Self {
             force_n: snapshot.fingers.iter().map(|f| f.force_n).sum(),
             fingers: snapshot.fingers.clone(),
+            excluded_sensors: snapshot.sync.excluded_sensors.clone(),
             goal,
         }
     }

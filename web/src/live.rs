@@ -33,8 +33,10 @@ pub struct SensorView {
     /// Deformation signal (indentation volume), mm³.
     pub deformation_mm3: f64,
     /// Age of its frame when the last set was fused (the set's emission minus the frame's
-    /// capture), ms; `None` before any set.
+    /// capture), ms; `None` before any set, and while it is excluded.
     pub frame_age_ms: Option<f64>,
+    /// The gate has left it out of the sets (it kept failing the window).
+    pub excluded: bool,
 }
 
 /// One finger.
@@ -83,6 +85,19 @@ pub struct SyncView {
     pub sets_rejected: ReasonCounts,
     /// p99 loop latency (set to servo write), ms.
     pub loop_latency_ms_p99: Option<f64>,
+    /// Sensors the gate has left out of the sets (they kept failing its window).
+    pub excluded_sensors: Vec<ExcludedView>,
+}
+
+/// A sensor the gate excluded from the sets.
+#[derive(Debug, Clone, Default, Serialize, PartialEq)]
+pub struct ExcludedView {
+    /// Sensor id.
+    pub sensor: String,
+    /// What it kept failing (a drop reason's key).
+    pub reason: String,
+    /// Run time of the exclusion, s.
+    pub since_s: f64,
 }
 
 /// The task running, if any.

@@ -19,6 +19,7 @@
 
 mod approximate;
 mod counts;
+pub mod exclusion;
 mod latest;
 mod stats;
 mod trigger;

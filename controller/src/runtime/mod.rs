@@ -492,10 +492,18 @@ impl Runtime {
         );
         p.last_log_us = now_us;
         p.last_sets = stats.sets;
-        if !p.hinted_late && stats.sets == 0 && stats.sets_rejected.late >= LATE_HINT_SETS {
+        // Sets refused as too old, or aged out before their frames came in (which then
+        // arrive late): the frames come later than the gate allows.
+        let too_old = stats.sets_rejected.late
+            + if stats.drops.late > 0 {
+                stats.sets_rejected.incomplete
+            } else {
+                0
+            };
+        if !p.hinted_late && stats.sets == 0 && too_old >= LATE_HINT_SETS {
             p.hinted_late = true;
             tracing::warn!(
-                rejected_late = stats.sets_rejected.late,
+                rejected_late = too_old,
                 max_age_ms = self.acq.gate().limits().max_age_us as f64 / 1e3,
                 "every set so far arrived older than the gate's max age: the bus model \
                  underestimates the latency. Check the hub's section (a full-speed CDC hub \

@@ -11,7 +11,7 @@ use std::time::Instant;
 
 use crate::actuator::{FingerGoal, ServoBus, ServoError, ServoState};
 use crate::frame::FrameSet;
-use crate::fusion::{FusedSet, fuse};
+use crate::fusion::{FusedSet, fuse_excluding};
 use crate::grasp::Phase;
 use crate::gripper::GripperService;
 use crate::layout::HandLayout;
@@ -159,7 +159,11 @@ impl Plant {
             self.states = self.read()?;
         }
         Ok(Sensed {
-            fused: fuse(&self.layout, &readings),
+            fused: fuse_excluding(
+                &self.layout,
+                &readings,
+                &set.left_out(self.layout.sensors.len()),
+            ),
             handed_over,
             set_age_ms: set.latency_us() as f64 / 1e3,
         })
