@@ -59,10 +59,15 @@ pub fn gate_limits(
 pub fn make_gate(settings: &GateSettings, layout: &HandLayout, prediction: &BusPrediction) -> Gate {
     let limits = gate_limits(settings, layout, prediction);
     let sensors = layout.sensors.len();
-    match settings.policy {
+    let gate = match settings.policy {
         GatePolicy::Trigger => Gate::new(sensors, limits),
         GatePolicy::Approximate => Gate::approximate(sensors, limits, settings.queue_size),
         GatePolicy::Latest => Gate::latest(sensors, limits),
+    };
+    if settings.exclude_failing_sensors {
+        gate
+    } else {
+        gate.without_exclusion()
     }
 }
 

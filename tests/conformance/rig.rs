@@ -161,7 +161,12 @@ impl Rig {
                 (Box::new(hub), Device::Cdc(Arc::new(emulator), link))
             }
         };
-        let acq = Acquisition::new(hub, Gate::new(SENSORS, LIMITS), clock.clone(), 0);
+        let acq = Acquisition::new(
+            hub,
+            Gate::new(SENSORS, LIMITS).without_exclusion(),
+            clock.clone(),
+            0,
+        );
         Self {
             kind,
             acq,

@@ -51,7 +51,12 @@ async fn run(
     limits: GateLimits,
 ) -> (Vec<FrameSet>, Acquisition) {
     let n = hub.describe().sensors;
-    let mut acq = Acquisition::new(Box::new(hub), Gate::new(n, limits), clock.clone(), 100);
+    let mut acq = Acquisition::new(
+        Box::new(hub),
+        Gate::new(n, limits).without_exclusion(),
+        clock.clone(),
+        100,
+    );
     let mut sets = Vec::new();
     // Enough steps for `sets_wanted` sets (each set is 2 + 7 events), or for 10 triggers
     // when none is expected.

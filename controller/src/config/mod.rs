@@ -56,6 +56,9 @@ pub struct GateSettings {
     pub max_age_us: Limit<u64>,
     /// `approximate`: frames held per sensor while they wait for partners.
     pub queue_size: usize,
+    /// `trigger`: leave out of the sets a sensor that keeps failing the window, so the
+    /// rest go on (`false`: refuse every set it fails, as a strict gate).
+    pub exclude_failing_sensors: bool,
 }
 
 /// `[servos]`: the finger servo bus.
@@ -186,6 +189,7 @@ struct RawGate {
     max_spread_us: toml::Value,
     max_age_ms: toml::Value,
     queue_size: f64,
+    exclude_failing_sensors: bool,
 }
 
 impl Default for RawGate {
@@ -195,6 +199,7 @@ impl Default for RawGate {
             max_spread_us: toml::Value::String("auto".into()),
             max_age_ms: toml::Value::String("auto".into()),
             queue_size: DEFAULT_QUEUE_SIZE as f64,
+            exclude_failing_sensors: true,
         }
     }
 }
@@ -393,6 +398,7 @@ fn validate_gate(check: &FieldCheck, raw: RawGate) -> Result<GateSettings, Confi
             Limit::Fixed(v) => Limit::Fixed((v * 1000.0).round() as u64),
         },
         queue_size: queue_size as usize,
+        exclude_failing_sensors: raw.exclude_failing_sensors,
     })
 }
 

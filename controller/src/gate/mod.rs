@@ -71,6 +71,15 @@ impl Gate {
         Self::Latest(LatestGate::new(sensors, limits))
     }
 
+    /// A strict gate: a `trigger` gate that never excludes a failing sensor (the other
+    /// policies do not exclude anyway).
+    pub fn without_exclusion(self) -> Self {
+        match self {
+            Self::Trigger(g) => Self::Trigger(g.without_exclusion()),
+            other => other,
+        }
+    }
+
     /// The policy's name (`trigger`, `approximate`, `latest`).
     pub fn policy(&self) -> &'static str {
         match self {

@@ -140,6 +140,8 @@ pub struct TriggerGate {
     emitted: VecDeque<EmittedSet>,
     /// A sensor was excluded since the last push: pending sets may now be complete.
     recheck: bool,
+    /// Sensors that keep failing are excluded (else every set they fail is refused).
+    excluding: bool,
 }
 
 impl TriggerGate {
@@ -154,7 +156,14 @@ impl TriggerGate {
             health: Health::new(sensors),
             emitted: VecDeque::with_capacity(EMITTED_KEPT),
             recheck: false,
+            excluding: true,
         }
+    }
+
+    /// A strict gate: no sensor is ever excluded, and every set one fails is refused.
+    pub fn without_exclusion(mut self) -> Self {
+        self.excluding = false;
+        self
     }
 
     pub(crate) fn stats_mut(&mut self) -> &mut GateStats {
@@ -203,7 +212,8 @@ impl TriggerGate {
         self.stats.reject(Some(set.seq), reason);
         self.stats.drops.add(reason, set.present as u64);
         self.close(set.seq);
-        if let Some(sensor) = self.culprit(&set, reason)
+        if self.excluding
+            && let Some(sensor) = self.culprit(&set, reason)
             && self.health.blame(sensor, reason, now_us) == Change::Excluded
         {
             self.exclude(sensor);
