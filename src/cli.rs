@@ -101,8 +101,8 @@ pub enum BenchCommand {
     Pipeline(BenchPipelineArgs),
     /// Gentle grasp of every scene object: one row per object with the task fields.
     Grasp(BenchGraspArgs),
-    /// The paper's synchronization experiment: a gentle grasp with one sensor capturing
-    /// late, gating on and off.
+    /// The paper's synchronization experiment: a gentle grasp with one sensor
+    /// desynchronized (capture skew, stale delivery, jitter, clock drift), per gate policy.
     Sync(BenchSyncArgs),
     /// What serving the dashboard costs: MJPEG and SSE rates at the clients and the
     /// process's CPU with and without them (wall clock, Linux).
