@@ -123,6 +123,18 @@ struct EmittedSet {
     earliest_capture_host_us: u64,
 }
 
+/// A refused set with several sensors missing, kept so that their frames, arriving after
+/// it closed, can still name the one capture that was out of step.
+#[derive(Debug, Clone)]
+struct Unblamed {
+    seq: u32,
+    /// Per sensor, its capture (hub µs) once known.
+    captures: Vec<Option<u32>>,
+}
+
+/// Refused sets kept for blaming afterwards.
+const UNBLAMED_KEPT: usize = 8;
+
 /// Emitted sets remembered for judging excluded sensors' frames (a frame later than this
 /// many sets is too late to have fitted anyway).
 const EMITTED_KEPT: usize = 8;
@@ -142,6 +154,7 @@ pub struct TriggerGate {
     recheck: bool,
     /// Sensors that keep failing are excluded (else every set they fail is refused).
     excluding: bool,
+    unblamed: VecDeque<Unblamed>,
 }
 
 impl TriggerGate {
@@ -157,6 +170,7 @@ impl TriggerGate {
             emitted: VecDeque::with_capacity(EMITTED_KEPT),
             recheck: false,
             excluding: true,
+            unblamed: VecDeque::with_capacity(UNBLAMED_KEPT),
         }
     }
 
@@ -212,11 +226,72 @@ impl TriggerGate {
         self.stats.reject(Some(set.seq), reason);
         self.stats.drops.add(reason, set.present as u64);
         self.close(set.seq);
-        if self.excluding
-            && let Some(sensor) = self.culprit(&set, reason)
-            && self.health.blame(sensor, reason, now_us) == Change::Excluded
-        {
+        if !self.excluding {
+            return;
+        }
+        match self.culprit(&set, reason) {
+            Some(sensor) => self.blame(sensor, reason, now_us),
+            None => self.keep_unblamed(&set),
+        }
+    }
+
+    fn blame(&mut self, sensor: usize, reason: Reason, now_us: u64) {
+        if self.health.blame(sensor, reason, now_us) == Change::Excluded {
             self.exclude(sensor);
+        }
+    }
+
+    /// Keep a refused set with several sensors missing, to blame once their frames come.
+    fn keep_unblamed(&mut self, set: &PendingSet) {
+        let missing = (0..self.sensors)
+            .filter(|&s| !self.health.is_excluded(s) && set.frames[s].is_none())
+            .count();
+        if missing < 2 {
+            return;
+        }
+        if self.unblamed.len() == UNBLAMED_KEPT {
+            self.unblamed.pop_front();
+        }
+        self.unblamed.push_back(Unblamed {
+            seq: set.seq,
+            captures: set
+                .frames
+                .iter()
+                .map(|f| f.as_ref().map(|f| f.frame.capture_ts_us))
+                .collect(),
+        });
+    }
+
+    /// A frame for a set refused with several sensors missing: once every included
+    /// sensor's capture is known, blame the one whose capture, left out, brings the rest
+    /// into the window (it held the others' readout up: `out_of_window`).
+    fn late_for_unblamed(&mut self, seq: u32, idx: usize, ts: u32, now_us: u64) {
+        let Some(at) = self.unblamed.iter().position(|u| u.seq == seq) else {
+            return;
+        };
+        self.unblamed[at].captures[idx] = Some(ts);
+        let health = &self.health;
+        let captures = &self.unblamed[at].captures;
+        let complete = (0..self.sensors).all(|s| health.is_excluded(s) || captures[s].is_some());
+        if !complete {
+            return;
+        }
+        let max = self.limits.max_spread_us;
+        let included = |skip: usize| {
+            captures
+                .iter()
+                .enumerate()
+                .filter(move |(s, c)| *s != skip && !health.is_excluded(*s) && c.is_some())
+                .filter_map(|(_, c)| *c)
+        };
+        let culprit = (0..self.sensors).find(|&s| {
+            !health.is_excluded(s)
+                && spread_of(included(usize::MAX)) > max
+                && spread_of(included(s)) <= max
+        });
+        self.unblamed.remove(at);
+        if let Some(sensor) = culprit {
+            self.blame(sensor, Reason::OutOfWindow, now_us);
         }
     }
 
@@ -419,6 +494,7 @@ impl TriggerGate {
         }
         if self.is_closed(seq) {
             self.stats.drops.add(Reason::Late, 1);
+            self.late_for_unblamed(seq, idx, rf.frame.capture_ts_us, now_us);
             return None;
         }
         let needed = self.health.included();
