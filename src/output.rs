@@ -94,6 +94,9 @@ pub struct RunReport {
     /// Gate policy `latest`: fusions of a frame already delivered in an earlier set (each
     /// frame counts once in the accounting); 0 under the other policies.
     pub frames_reused: u64,
+    /// Frames delivered in emitted sets, each counted once (`7 × sets` while every sensor
+    /// is in, fewer while the gate excludes some).
+    pub frames_in_sets: u64,
     /// Sensors left out of the sets at the end of the run because they kept failing the
     /// gate's window (the rest went on without them).
     pub excluded_sensors: Vec<ExcludedSensor>,

@@ -400,6 +400,7 @@ impl Session {
             set_latency_ms_p99: latency_ms(stats, 0.99),
             frames_received: stats.frames_in,
             frames_reused: stats.frames_reused,
+            frames_in_sets: stats.frames_out,
             excluded_sensors: self.excluded_sensors(stats),
             spread_histogram_us: stats.spread_buckets(),
             object: scene.as_ref().map(|s| s.object.clone()),
