@@ -26,10 +26,23 @@
 //! partners past `max_age_us` or was pushed out of a full queue; `late` for a frame not newer
 //! than its sensor's previous one or than its sensor's frame in the last set, and for a set
 //! older than `max_age_us` when emitted (`sets_rejected.late`); `duplicate` for a second
-//! frame with its sensor's previous capture time; `corrupt` as reported by the hub.
+//! frame with its sensor's previous capture time; `corrupt` as reported by the hub;
+//! `excluded` for an excluded sensor's frame.
+//!
+//! A sensor that keeps failing is excluded ([`super::exclusion`]), and the sets are matched
+//! among the others. A failure is blamed on one sensor, once per frame of its:
+//! - the heads span more than `max_spread_us` and leaving one sensor's head out brings the
+//!   rest inside it (`out_of_window`: a skewed or jittering capture);
+//! - frames age out, or overflow a queue, while exactly one sensor has none (`incomplete`);
+//! - a set is too old when emitted and was on time before its last frame arrived (`late`:
+//!   a stale delivery).
+//!
+//! An excluded sensor's frames are judged against the sets emitted without it
+//! ([`judge`]) until enough fit in a row for it to rejoin.
 
 use std::collections::VecDeque;
 
+use super::exclusion::{Change, Health};
 use super::{GateLimits, GateStats, Reason};
 use crate::frame::{FrameSet, ReceivedFrame};
 use crate::hub::HubEvent;
@@ -46,6 +59,12 @@ pub struct ApproximateGate {
     /// Sets emitted so far (the emitted sets' `trigger_seq`).
     next_seq: u32,
     stats: GateStats,
+    health: Health,
+    /// Sensors that keep failing are excluded (else every set they fail is refused).
+    excluding: bool,
+    /// Per sensor, the capture (host µs) its last strike was about: one strike per frame.
+    struck_us: Vec<Option<u64>>,
+    judge: Judge,
 }
 
 /// The best window found so far: the queue index per sensor, its start, end and pivot.
@@ -68,7 +87,17 @@ impl ApproximateGate {
             newest_us: vec![None; sensors],
             next_seq: 0,
             stats: GateStats::default(),
+            health: Health::new(sensors),
+            excluding: true,
+            struck_us: vec![None; sensors],
+            judge: Judge::default(),
         }
+    }
+
+    /// A strict gate: no sensor is ever excluded, and every set one fails is refused.
+    pub fn without_exclusion(mut self) -> Self {
+        self.excluding = false;
+        self
     }
 
     pub(crate) fn stats_mut(&mut self) -> &mut GateStats {
@@ -94,12 +123,19 @@ impl ApproximateGate {
         self.stats.drops.add(reason, n as u64);
     }
 
+    /// The sensors a set needs now (every one not excluded), in sensor order.
+    fn active(&self) -> Vec<usize> {
+        (0..self.sensors)
+            .filter(|&s| !self.health.is_excluded(s))
+            .collect()
+    }
+
     /// Feed one hub event at host time `now_us`; returns the set it completed, if emitted.
     pub fn push(&mut self, event: HubEvent, now_us: u64) -> Option<FrameSet> {
         match event {
             HubEvent::Frame(frame) => {
                 self.stats.frames_in += 1;
-                self.accept(frame);
+                self.accept(frame, now_us);
                 self.search(now_us)
             }
             HubEvent::Corrupt { .. } => {
@@ -113,7 +149,7 @@ impl ApproximateGate {
         }
     }
 
-    fn accept(&mut self, rf: ReceivedFrame) {
+    fn accept(&mut self, rf: ReceivedFrame, now_us: u64) {
         let idx = usize::from(rf.frame.sensor.0);
         if idx >= self.sensors {
             self.drop_frames(Reason::Corrupt, 1);
@@ -126,11 +162,18 @@ impl ApproximateGate {
             _ => {}
         }
         self.newest_us[idx] = Some(t);
+        if self.health.is_excluded(idx) {
+            self.drop_frames(Reason::Excluded, 1);
+            // Judged by when the gate got it, as its set's age is.
+            let verdicts = self.judge.frame(self.limits, idx, t, now_us);
+            return self.judged(verdicts);
+        }
         let queue = &mut self.queues[idx];
         queue.push_back(rf);
         if queue.len() > self.queue_size {
             queue.pop_front();
             self.drop_frames(Reason::Incomplete, 1);
+            self.blame_missing(t, now_us);
         }
     }
 
@@ -138,49 +181,121 @@ impl ApproximateGate {
         self.queues[sensor][at].capture_host_us
     }
 
-    /// The earliest and the latest frame of the window at `at` (the first sensor of each
-    /// on ties): (sensor, time) each.
-    fn bounds(&self, at: &[usize]) -> ((usize, u64), (usize, u64)) {
-        let first = self.time(0, at[0]);
-        let mut lo = (0, first);
-        let mut hi = (0, first);
-        for (s, &i) in at.iter().enumerate().skip(1) {
-            let t = self.time(s, i);
+    /// The earliest and the latest frame of the window at `at` among the `active` sensors
+    /// (the first sensor of each on ties): (sensor, time) each.
+    fn bounds(&self, at: &[usize], active: &[usize]) -> ((usize, u64), (usize, u64)) {
+        let mut lo = (usize::MAX, u64::MAX);
+        let mut hi = (usize::MAX, 0);
+        for &s in active {
+            let t = self.time(s, at[s]);
             if t < lo.1 {
                 lo = (s, t);
             }
-            if t > hi.1 {
+            if hi.0 == usize::MAX || t > hi.1 {
                 hi = (s, t);
             }
         }
         (lo, hi)
     }
 
+    /// The spread of the `active` sensors' heads, leaving `skip` out.
+    fn heads_spread_without_us(&self, active: &[usize], skip: usize) -> u64 {
+        let times = active
+            .iter()
+            .filter(|&&s| s != skip)
+            .map(|&s| self.time(s, 0));
+        let (lo, hi) = times.fold((u64::MAX, 0), |(lo, hi), t| (lo.min(t), hi.max(t)));
+        hi.saturating_sub(lo)
+    }
+
     /// Drop heads that have no partner within the window: while the heads span more than
-    /// `max_spread_us`, the earliest head cannot be in any in-window set.
-    fn drop_unmatchable_heads(&mut self) -> bool {
+    /// `max_spread_us`, the earliest head cannot be in any in-window set. A head whose
+    /// removal would bring the others inside the window is struck.
+    fn drop_unmatchable_heads(&mut self, now_us: u64) -> bool {
+        let max = u64::from(self.limits.max_spread_us);
         loop {
-            if self.queues.iter().any(VecDeque::is_empty) {
+            let active = self.active();
+            if active.iter().any(|&s| self.queues[s].is_empty()) {
                 return false;
             }
             let heads = vec![0; self.sensors];
-            let ((lo_s, lo), (_, hi)) = self.bounds(&heads);
-            if hi - lo <= u64::from(self.limits.max_spread_us) {
+            let ((lo_s, lo), (_, hi)) = self.bounds(&heads, &active);
+            if hi - lo <= max {
                 return true;
+            }
+            if self.excluding && active.len() > 1 {
+                let odd = active
+                    .iter()
+                    .copied()
+                    .find(|&s| self.heads_spread_without_us(&active, s) <= max);
+                if let Some(s) = odd {
+                    let t = self.time(s, 0);
+                    if self.strike(s, t, Reason::OutOfWindow, now_us) {
+                        continue;
+                    }
+                }
             }
             self.queues[lo_s].pop_front();
             self.drop_frames(Reason::OutOfWindow, 1);
         }
     }
 
+    /// Strike `sensor` for its frame captured at `capture_us` (once per frame); true if
+    /// that excluded it.
+    fn strike(&mut self, sensor: usize, capture_us: u64, reason: Reason, now_us: u64) -> bool {
+        if !self.excluding || self.struck_us[sensor] == Some(capture_us) {
+            return false;
+        }
+        self.struck_us[sensor] = Some(capture_us);
+        if self.health.blame(sensor, reason, now_us) != Change::Excluded {
+            return false;
+        }
+        let queue = std::mem::take(&mut self.queues[sensor]);
+        self.drop_frames(Reason::Excluded, queue.len());
+        self.stats.exclusions += 1;
+        self.stats.excluded = self.health.exclusions();
+        true
+    }
+
+    /// A frame captured at `capture_us` went without partners (aged out, or pushed out of
+    /// its queue): blame the one active sensor that has no frame, if only one has none. One
+    /// strike per set's worth of frames: the partners' captures lie within the window.
+    fn blame_missing(&mut self, capture_us: u64, now_us: u64) {
+        if let Some(sensor) = self.only_empty_queue() {
+            self.blame_missing_on(sensor, capture_us, now_us);
+        }
+    }
+
+    /// The one active sensor with no frame waiting, if exactly one has none.
+    fn only_empty_queue(&self) -> Option<usize> {
+        let mut empty = self
+            .active()
+            .into_iter()
+            .filter(|&s| self.queues[s].is_empty());
+        let first = empty.next()?;
+        empty.next().is_none().then_some(first)
+    }
+
+    fn blame_missing_on(&mut self, sensor: usize, capture_us: u64, now_us: u64) {
+        let max = u64::from(self.limits.max_spread_us);
+        if self.struck_us[sensor].is_some_and(|t| capture_us <= t + max) {
+            return;
+        }
+        self.strike(sensor, capture_us, Reason::Incomplete, now_us);
+    }
+
     /// Emit the next set if the queues prove it. (Should one frame prove two sets, the
     /// second waits in the queues for the next frame.)
     fn search(&mut self, now_us: u64) -> Option<FrameSet> {
-        if self.sensors == 0 || !self.drop_unmatchable_heads() {
+        if self.sensors == 0 || !self.drop_unmatchable_heads(now_us) {
+            return None;
+        }
+        let active = self.active();
+        if active.is_empty() {
             return None;
         }
         let mut at = vec![0; self.sensors];
-        let ((_, start_us), (pivot, end_us)) = self.bounds(&at);
+        let ((_, start_us), (pivot, end_us)) = self.bounds(&at, &active);
         let mut best = Candidate {
             at: at.clone(),
             start_us,
@@ -188,23 +303,24 @@ impl ApproximateGate {
             pivot,
         };
         loop {
-            let ((earliest, _), _) = self.bounds(&at);
+            let ((earliest, _), _) = self.bounds(&at, &active);
             if earliest == best.pivot && at[earliest] == best.at[earliest] {
-                return self.emit(best, now_us);
+                return self.emit(best, &active, now_us);
             }
             at[earliest] += 1;
             if at[earliest] >= self.queues[earliest].len() {
                 // Waiting for `earliest`: its next frame is no earlier than its last.
-                let bound_us = (0..self.sensors)
-                    .map(|s| self.time(s, at[s].min(self.queues[s].len() - 1)))
+                let bound_us = active
+                    .iter()
+                    .map(|&s| self.time(s, at[s].min(self.queues[s].len() - 1)))
                     .max()
                     .unwrap_or(0);
                 if bound_us.saturating_sub(best.end_us) >= best.end_us - best.start_us {
-                    return self.emit(best, now_us);
+                    return self.emit(best, &active, now_us);
                 }
                 return None;
             }
-            let ((_, start_us), (pivot, end_us)) = self.bounds(&at);
+            let ((_, start_us), (pivot, end_us)) = self.bounds(&at, &active);
             if end_us - start_us < best.end_us - best.start_us {
                 best = Candidate {
                     at: at.clone(),
@@ -214,16 +330,16 @@ impl ApproximateGate {
                 };
             }
             if end_us.saturating_sub(best.end_us) >= best.end_us - best.start_us {
-                return self.emit(best, now_us);
+                return self.emit(best, &active, now_us);
             }
         }
     }
 
-    fn emit(&mut self, best: Candidate, now_us: u64) -> Option<FrameSet> {
-        let mut frames = Vec::with_capacity(self.sensors);
-        for (s, &i) in best.at.iter().enumerate() {
+    fn emit(&mut self, best: Candidate, active: &[usize], now_us: u64) -> Option<FrameSet> {
+        let mut frames = Vec::with_capacity(active.len());
+        for &s in active {
             let queue = &mut self.queues[s];
-            let skipped = queue.drain(..i).count();
+            let skipped = queue.drain(..best.at[s]).count();
             self.stats.drops.add(Reason::OutOfWindow, skipped as u64);
             frames.extend(queue.pop_front());
         }
@@ -232,8 +348,16 @@ impl ApproximateGate {
         if age_us > self.limits.max_age_us {
             self.stats.reject(None, Reason::Late);
             self.stats.drops.add(Reason::Late, frames.len() as u64);
+            if let Some((sensor, capture_us)) = self.last_arrival_to_blame(&frames, best.start_us) {
+                self.strike(sensor, capture_us, Reason::Late, now_us);
+            }
             return None;
         }
+        for f in &frames {
+            self.health.passed(usize::from(f.frame.sensor.0));
+        }
+        let verdicts = self.judge.emitted(self.limits, best.start_us, best.end_us);
+        self.judged(verdicts);
         let set = FrameSet {
             trigger_seq: self.next_seq,
             frames,
@@ -246,21 +370,65 @@ impl ApproximateGate {
         Some(set)
     }
 
+    /// For a set too old when emitted: the frame that arrived last (sensor, capture), if it
+    /// alone came past `max_age_us` (the set waited for it; a set proven late by its
+    /// partners' next frames is nobody's fault).
+    fn last_arrival_to_blame(
+        &self,
+        frames: &[ReceivedFrame],
+        start_us: u64,
+    ) -> Option<(usize, u64)> {
+        let max_age = self.limits.max_age_us;
+        let mut arrivals: Vec<&ReceivedFrame> = frames.iter().collect();
+        arrivals.sort_unstable_by_key(|f| f.received_host_us);
+        let last = arrivals.last()?;
+        let before = arrivals.get(arrivals.len().checked_sub(2)?)?;
+        let age = |f: &ReceivedFrame| f.received_host_us.saturating_sub(start_us);
+        (age(last) > max_age && age(before) <= max_age)
+            .then(|| (usize::from(last.frame.sensor.0), last.capture_host_us))
+    }
+
+    /// Record verdicts on excluded sensors' frames: `(sensor, fitted)`.
+    fn judged(&mut self, verdicts: Vec<(usize, bool)>) {
+        for (sensor, fits) in verdicts {
+            if self.health.judge(sensor, fits) == Change::Rejoined {
+                self.stats.rejoins += 1;
+                self.stats.excluded = self.health.exclusions();
+            }
+        }
+    }
+
     /// Drop frames that have waited past `max_age_us` at `now_us` for partners that did not
     /// come (`incomplete`).
     pub fn tick(&mut self, now_us: u64) {
         let max_age = self.limits.max_age_us;
+        let missing = self.only_empty_queue();
+        let mut aged = Vec::new();
         for queue in &mut self.queues {
             while queue
                 .front()
                 .is_some_and(|f| now_us.saturating_sub(f.capture_host_us) > max_age)
             {
-                queue.pop_front();
+                aged.extend(queue.pop_front().map(|f| f.capture_host_us));
                 self.stats.drops.add(Reason::Incomplete, 1);
             }
         }
+        aged.sort_unstable();
+        if let Some(sensor) = missing {
+            for capture_us in aged {
+                self.blame_missing_on(sensor, capture_us, now_us);
+            }
+        }
+        let verdicts = self.judge.tick(self.limits, now_us);
+        self.judged(verdicts);
     }
 }
 
+mod judge;
+
+use judge::Judge;
+
+#[cfg(test)]
+mod exclusion_tests;
 #[cfg(test)]
 mod tests;

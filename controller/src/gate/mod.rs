@@ -71,11 +71,12 @@ impl Gate {
         Self::Latest(LatestGate::new(sensors, limits))
     }
 
-    /// A strict gate: a `trigger` gate that never excludes a failing sensor (the other
-    /// policies do not exclude anyway).
+    /// A strict gate: one that never excludes a failing sensor (`latest` does not
+    /// exclude anyway).
     pub fn without_exclusion(self) -> Self {
         match self {
             Self::Trigger(g) => Self::Trigger(g.without_exclusion()),
+            Self::Approximate(g) => Self::Approximate(g.without_exclusion()),
             other => other,
         }
     }
