@@ -510,3 +510,44 @@ fn a_capture_that_holds_up_the_readout_is_named_from_the_late_frames() {
     assert_eq!(s.excluded[0].sensor, 0);
     assert_eq!(s.excluded[0].reason, Reason::OutOfWindow);
 }
+
+#[test]
+fn sets_overtaken_in_flight_blame_nobody() {
+    // Sensor 2, read last, has its readout held up: its frames for sets k, k+1 and k+2
+    // come only after set k+3 completed. Those three sets are refused `incomplete`, but
+    // sensor 2 did nothing wrong, so it stays in, and every overtaking set passes whole.
+    let mut gate = Gate::new(3, LIMITS);
+    let mut sets = Vec::new();
+    let mut id = 0;
+    let mut push = |gate: &mut Gate, s: u8, seq: u32, arrival: u64| {
+        let t = u64::from(seq) * 10_000;
+        id += 1;
+        let HubEvent::Frame(mut rf) = frame(s, seq, t as u32, t, id) else {
+            unreachable!("frame() makes frames")
+        };
+        rf.received_host_us = arrival;
+        gate.push(HubEvent::Frame(rf), arrival)
+    };
+    for group in 0..4u32 {
+        let first = 4 * group;
+        for seq in first..first + 3 {
+            let t = u64::from(seq) * 10_000;
+            assert!(push(&mut gate, 0, seq, t + 1_000).is_none());
+            assert!(push(&mut gate, 1, seq, t + 2_000).is_none());
+        }
+        let last = first + 3;
+        let t = u64::from(last) * 10_000;
+        sets.extend(push(&mut gate, 0, last, t + 1_000));
+        sets.extend(push(&mut gate, 1, last, t + 2_000));
+        sets.extend(push(&mut gate, 2, last, t + 3_000));
+        for seq in first..last {
+            assert!(push(&mut gate, 2, seq, t + 4_000).is_none(), "late");
+        }
+        invariant(&gate);
+    }
+    let s = gate.stats();
+    assert!(s.excluded.is_empty(), "{:?}", s.excluded);
+    assert_eq!(sets.len(), 4);
+    assert!(sets.iter().all(|set| set.frames.len() == 3));
+    assert_eq!(s.sets_rejected.incomplete, 12);
+}

@@ -231,7 +231,7 @@ impl TriggerGate {
         }
         match self.culprit(&set, reason) {
             Some(sensor) => self.blame(sensor, reason, now_us),
-            None => self.keep_unblamed(&set),
+            None => self.keep_unblamed(&set, 2),
         }
     }
 
@@ -241,12 +241,13 @@ impl TriggerGate {
         }
     }
 
-    /// Keep a refused set with several sensors missing, to blame once their frames come.
-    fn keep_unblamed(&mut self, set: &PendingSet) {
+    /// Keep a refused set with at least `min_missing` sensors missing, to blame once their
+    /// frames come.
+    fn keep_unblamed(&mut self, set: &PendingSet, min_missing: usize) {
         let missing = (0..self.sensors)
             .filter(|&s| !self.health.is_excluded(s) && set.frames[s].is_none())
             .count();
-        if missing < 2 {
+        if missing < min_missing {
             return;
         }
         if self.unblamed.len() == UNBLAMED_KEPT {
@@ -417,7 +418,33 @@ impl TriggerGate {
         older.sort_by(|a, b| signed_diff(a.seq, b.seq).cmp(&0));
         for set in older {
             let reason = set.missing_reason();
-            self.reject(set, reason, now_us);
+            if self.in_flight(&set, reason, now_us) {
+                self.reject_in_flight(set, reason);
+            } else {
+                self.reject(set, reason, now_us);
+            }
+        }
+    }
+
+    /// Whether a set a newer one overtook was still in flight: frames the hub sent may not
+    /// have arrived, and it was not too old yet. Its missing frames are then no sensor's
+    /// fault (a readout held up, frames overtaken), so they are not blamed at once.
+    fn in_flight(&self, set: &PendingSet, reason: Reason, now_us: u64) -> bool {
+        let all_arrived = set.frames_sent.is_some_and(|sent| set.arrivals >= sent);
+        let born = set.earliest_capture_host_us.min(set.created_us);
+        reason == Reason::Incomplete
+            && !all_arrived
+            && now_us.saturating_sub(born) <= self.limits.max_age_us
+    }
+
+    /// Refuse a set overtaken in flight: counted as any refusal, but kept for blaming
+    /// once its missing frames arrive (a capture out of step is then named).
+    fn reject_in_flight(&mut self, set: PendingSet, reason: Reason) {
+        self.stats.reject(Some(set.seq), reason);
+        self.stats.drops.add(reason, set.present as u64);
+        self.close(set.seq);
+        if self.excluding {
+            self.keep_unblamed(&set, 1);
         }
     }
 
