@@ -223,11 +223,14 @@ impl ApproximateGate {
             if hi - lo <= max {
                 return true;
             }
-            if self.excluding && active.len() > 1 {
-                let odd = active
+            if self.excluding {
+                // The one head whose removal fits the rest (none if two would: then it is
+                // not clear which is out of step).
+                let mut fitting = active
                     .iter()
                     .copied()
-                    .find(|&s| self.heads_spread_without_us(&active, s) <= max);
+                    .filter(|&s| self.heads_spread_without_us(&active, s) <= max);
+                let odd = fitting.next().filter(|_| fitting.next().is_none());
                 if let Some(s) = odd {
                     let t = self.time(s, 0);
                     if self.strike(s, t, Reason::OutOfWindow, now_us) {

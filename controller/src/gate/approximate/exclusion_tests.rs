@@ -187,3 +187,19 @@ fn at_most_half_the_sensors_are_left_out() {
     assert!(excluded(&gate).len() <= 3, "{:?}", excluded(&gate));
     accounted(&gate);
 }
+
+#[test]
+fn two_sensors_apart_blame_neither() {
+    // With two sensors out of step, either could be the odd one: nobody is struck, and
+    // the strict behaviour (refusal) stands.
+    let mut gate = ApproximateGate::new(2, LIMITS, 8);
+    let input: Vec<(usize, u64, u64)> = (0..30u64)
+        .flat_map(|k| {
+            let c = 1_000_000 + k * PERIOD_US;
+            [(0, c, c + 500), (1, c + 3_000, c + 3_500)]
+        })
+        .collect();
+    assert!(feed(&mut gate, &input).is_empty());
+    assert!(excluded(&gate).is_empty());
+    accounted(&gate);
+}
