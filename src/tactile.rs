@@ -9,15 +9,18 @@
 //! On a hardware hub (`hub.transport` other than `sim`) every sensor needs a model file,
 //! and the references come from the first live sets, untouched ([`Tactile::open`]).
 //!
-//! Each gated set goes through [`Tactile::process`], the sensors in parallel, and comes out
-//! as the controller's per-sensor readings (`None` for a sensor whose frame failed).
+//! Each frame is worked on as it arrives ([`Tactile::frame_arrived`], streaming: see
+//! [`gelgrip_plugins::pipeline::stream`]), before the gate decides on its set; each gated
+//! set goes through [`Tactile::process`], which takes what was worked on ahead for its very
+//! frames and processes the rest, the sensors in parallel, and comes out as the
+//! controller's per-sensor readings (`None` for a sensor whose frame failed).
 
 use std::path::PathBuf;
 
 use anyhow::Context;
 
 use gelgrip_controller::config::AppConfig;
-use gelgrip_controller::frame::FrameSet;
+use gelgrip_controller::frame::{FrameSet, ReceivedFrame};
 use gelgrip_controller::fusion::SensorReading;
 use gelgrip_controller::runtime::ports::{DepthWindow, Sensing};
 use gelgrip_plugins::calibrate;
@@ -27,7 +30,8 @@ use gelgrip_plugins::dataset::PressDataset;
 use gelgrip_plugins::gradient::{GradientModel, MlpMode};
 use gelgrip_plugins::lut::Input;
 use gelgrip_plugins::lut::LutModel;
-use gelgrip_plugins::pipeline::{Needs, SensorPipeline, StageChoice, process_present, process_set};
+use gelgrip_plugins::pipeline::stream::{FrameKey, StreamingSensors};
+use gelgrip_plugins::pipeline::{Needs, SensorPipeline, StageChoice};
 
 use gelgrip_sim::config::SimConfig;
 use gelgrip_sim::pool::SensorCamera;
@@ -63,7 +67,7 @@ pub fn cache_dir() -> PathBuf {
 
 /// Every sensor's pipeline.
 pub struct Tactile {
-    pipes: Vec<SensorPipeline>,
+    pipes: StreamingSensors,
     geometry: Vec<(f64, f64, f64)>,
     results: Vec<Result<ContactSummary, gelgrip_plugins::pipeline::PipelineError>>,
     /// On a hardware hub, each sensor's untouched frames gathered so far for its reference
@@ -94,7 +98,7 @@ impl Tactile {
         }
         let n = pipes.len();
         Ok(Self {
-            pipes,
+            pipes: StreamingSensors::new(pipes, Needs::DEPTH),
             geometry,
             results: (0..n).map(|_| Ok(ContactSummary::default())).collect(),
             pending_reference: live.then(|| vec![Vec::new(); n]),
@@ -134,11 +138,13 @@ impl Tactile {
             return true;
         }
         // The sensors in parallel, as in process_set.
+        let pipes = &self.pipes;
         std::thread::scope(|scope| {
-            for (i, (pipe, kept)) in self.pipes.iter_mut().zip(pending.iter()).enumerate() {
+            for (i, kept) in pending.iter().enumerate() {
                 scope.spawn(move || {
                     let quiet: Vec<&[u8]> = kept.iter().map(Vec::as_slice).collect();
-                    if let Err(e) = pipe.calibrate(&quiet) {
+                    let done = pipes.with_pipe_mut(i, |pipe| pipe.calibrate(&quiet));
+                    if let Some(Err(e)) = done {
                         tracing::error!(
                             sensor = i,
                             "reference from live frames failed: {e}; its finger holds"
@@ -157,37 +163,56 @@ impl Tactile {
 
     /// Sensor `i`'s last reconstructed depth window (mm, row-major), its width and height,
     /// and the depth above which a pixel counts as contact, mm.
+    /// `None` while the pipeline's buffers hold a frame worked on ahead of its set.
     pub fn depth_window(&self, i: usize) -> Option<(Vec<f32>, usize, usize, f32)> {
-        let pipe = self.pipes.get(i)?;
-        let (depth, (_, _, w, h)) = pipe.last_depth_mm();
-        if w == 0 || h == 0 {
-            return None;
+        self.pipes
+            .with_committed_pipe(i, |pipe| {
+                let (depth, (_, _, w, h)) = pipe.last_depth_mm();
+                if w == 0 || h == 0 {
+                    return None;
+                }
+                let threshold = pipe.noise().map_or(0.05, |n| n.depth_threshold_mm);
+                Some((depth.to_vec(), w, h, threshold))
+            })
+            .flatten()
+    }
+
+    /// A frame has arrived, before the gate decides on its set: work on it now (nothing
+    /// while the live references are still being gathered).
+    pub fn frame_arrived(&self, frame: &ReceivedFrame) {
+        if self.pending_reference.is_some() {
+            return;
         }
-        let threshold = pipe.noise().map_or(0.05, |n| n.depth_threshold_mm);
-        Some((depth.to_vec(), w, h, threshold))
+        self.pipes.arrive(
+            usize::from(frame.frame.sensor.0),
+            FrameKey {
+                trigger_seq: frame.frame.trigger_seq,
+                jpeg: frame.frame.jpeg.clone(),
+            },
+        );
     }
 
     /// Process one gated set into per-sensor readings: `None` for a sensor whose pipeline
     /// failed, and for one the gate left out of the set (excluded).
     pub fn process(&mut self, set: &FrameSet) -> Vec<Option<SensorReading>> {
         let n = self.pipes.len();
-        let mut by_sensor: Vec<Option<&[u8]>> = vec![None; n];
+        let mut by_sensor: Vec<Option<FrameKey>> = vec![None; n];
         for f in &set.frames {
             if let Some(slot) = by_sensor.get_mut(usize::from(f.frame.sensor.0)) {
-                *slot = Some(f.frame.jpeg.as_ref());
+                *slot = Some(FrameKey {
+                    trigger_seq: f.frame.trigger_seq,
+                    jpeg: f.frame.jpeg.clone(),
+                });
             }
         }
-        if by_sensor.iter().all(Option::is_some) {
-            let frames: Vec<&[u8]> = by_sensor.iter().flatten().copied().collect();
-            if self.gather_reference(&frames) {
-                return vec![None; n];
+        if self.pending_reference.is_some() {
+            if by_sensor.iter().all(Option::is_some) {
+                let frames: Vec<&[u8]> = by_sensor.iter().flatten().map(|k| &k.jpeg[..]).collect();
+                self.gather_reference(&frames);
             }
-            process_set(&mut self.pipes, &frames, Needs::DEPTH, &mut self.results);
-        } else if self.pending_reference.is_some() {
             return vec![None; n];
-        } else {
-            process_present(&mut self.pipes, &by_sensor, Needs::DEPTH, &mut self.results);
         }
+        self.pipes.process(&by_sensor, &mut self.results);
         self.results
             .iter()
             .zip(&self.geometry)
@@ -213,6 +238,10 @@ impl Tactile {
 impl Sensing for Tactile {
     fn process(&mut self, set: &FrameSet) -> Vec<Option<SensorReading>> {
         Tactile::process(self, set)
+    }
+
+    fn frame_arrived(&mut self, frame: &ReceivedFrame) {
+        Tactile::frame_arrived(self, frame);
     }
 
     fn reference_sets_missing(&self) -> usize {

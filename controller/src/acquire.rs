@@ -10,7 +10,7 @@ use std::sync::Arc;
 use crate::actuator::XM430_W350;
 use crate::clock::Clock;
 use crate::config::{GatePolicy, GateSettings, Limit};
-use crate::frame::FrameSet;
+use crate::frame::{FrameSet, ReceivedFrame};
 use crate::gate::window::control_spread;
 use crate::gate::{Gate, GateLimits, SetDecision};
 use crate::grasp::Tuning;
@@ -93,6 +93,8 @@ pub struct Acquisition {
     cpu_clock: Option<CpuClock>,
     receive_cpu_ns: u64,
     tap: Option<Box<dyn AcquisitionTap>>,
+    /// The frame the last step brought, until taken.
+    arrived: Option<ReceivedFrame>,
 }
 
 impl std::fmt::Debug for Acquisition {
@@ -122,6 +124,7 @@ impl Acquisition {
             cpu_clock: None,
             receive_cpu_ns: 0,
             tap: None,
+            arrived: None,
         }
     }
 
@@ -180,6 +183,10 @@ impl Acquisition {
         if let Some(tap) = self.tap.as_mut() {
             tap.event(&event, now);
         }
+        self.arrived = match &event {
+            HubEvent::Frame(f) => Some(f.clone()),
+            _ => None,
+        };
         let cpu_start = self.cpu_clock.map(|c| c());
         let emitted = self.gate.push(event, now);
         self.gate.tick(now);
@@ -192,6 +199,12 @@ impl Acquisition {
             self.receive_cpu_ns += c().saturating_sub(start);
         }
         Ok(emitted)
+    }
+
+    /// The frame the last [`Acquisition::step`] brought (whatever the gate made of it),
+    /// once: for the pipelines to work on it before its set is complete.
+    pub fn take_arrived(&mut self) -> Option<ReceivedFrame> {
+        self.arrived.take()
     }
 
     /// Step until the gate emits a set or the clock passes `deadline_us`.

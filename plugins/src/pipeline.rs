@@ -22,6 +22,8 @@ use crate::mlp::INPUTS;
 use crate::poisson::{PoissonPlan, Solver};
 use crate::undistort::Remap;
 
+pub mod stream;
+
 /// Registered stage names, per slot.
 pub const STAGES: [(&str, &[&str]); 7] = [
     ("decode", &["jpeg"]),
@@ -189,6 +191,11 @@ impl SensorPipeline {
     /// Pixel size after decode scaling, mm.
     pub fn mm_per_px(&self) -> f64 {
         self.mm_per_px
+    }
+
+    /// Whether processing a frame may change the reference (`reference = "drift"`).
+    pub fn updates_reference(&self) -> bool {
+        self.choice.stages.reference_alpha > 0.0
     }
 
     /// The noise thresholds in force.

@@ -344,7 +344,9 @@ impl GentleGrasp {
             time_to_stable_s: self.time_to_stable_s,
             loop_latency_ms_p50: lat.loop_p50,
             loop_latency_ms_p99: lat.loop_p99,
+            capture_to_command_ms_p50: lat.capture_p50,
             capture_to_command_ms_p99: lat.capture_p99,
+            loop_own_ms_p99: lat.own_p99,
             pipeline_ms_p99: lat.pipeline_p99,
             final_force_n: outcome.as_ref().map(|o| o.final_force_n),
             reason: match (&outcome, self.interrupt_reason) {

@@ -56,8 +56,12 @@ pub struct Latencies {
     pub loop_p50: Option<f64>,
     /// p99 loop latency.
     pub loop_p99: Option<f64>,
+    /// Median capture-to-command latency.
+    pub capture_p50: Option<f64>,
     /// p99 capture-to-command latency.
     pub capture_p99: Option<f64>,
+    /// p99 of the loop's own share: the loop latency less the sensing, plus the observers.
+    pub own_p99: Option<f64>,
     /// p99 of the pipelines' share of the loop.
     pub pipeline_p99: Option<f64>,
 }
@@ -71,6 +75,8 @@ pub struct LoopLatency {
     pub capture_ms: LatencyHistogram,
     /// The tactile pipelines' share.
     pub pipeline_ms: LatencyHistogram,
+    /// The loop's own share: fusion, the controller, the servo write and the observers.
+    pub own_ms: LatencyHistogram,
 }
 
 impl LoopLatency {
@@ -79,7 +85,9 @@ impl LoopLatency {
         Latencies {
             loop_p50: self.loop_ms.quantile_ms(0.5),
             loop_p99: self.loop_ms.quantile_ms(0.99),
+            capture_p50: self.capture_ms.quantile_ms(0.5),
             capture_p99: self.capture_ms.quantile_ms(0.99),
+            own_p99: self.own_ms.quantile_ms(0.99),
             pipeline_p99: self.pipeline_ms.quantile_ms(0.99),
         }
     }

@@ -354,6 +354,13 @@ impl Runtime {
 
     /// What a hub step brought: a set for the driver, an end, or nothing.
     fn on_step(&mut self, step: Result<Option<FrameSet>, HubError>) -> Option<EndReason> {
+        // Streaming: the pipelines start on a frame as soon as it is in, before its set
+        // completes (the gate still decides on the set; see Sensing::frame_arrived).
+        if let Some(frame) = self.acq.take_arrived()
+            && let Some(driver) = self.driver.as_mut()
+        {
+            driver.plant_mut().sensing_mut().frame_arrived(&frame);
+        }
         match step {
             Err(HubError::Finished { detail }) => {
                 tracing::info!("{detail}");
@@ -375,7 +382,13 @@ impl Runtime {
             Some(driver) => driver.on_set(set, now),
             None => Ok(None),
         };
-        if let Err(e) = self.report(Some(set), now) {
+        let observers = std::time::Instant::now();
+        let reported = self.report(Some(set), now);
+        if let Some(d) = self.driver.as_mut() {
+            d.plant_mut()
+                .observed(observers.elapsed().as_secs_f64() * 1e3);
+        }
+        if let Err(e) = reported {
             return Some(self.fault(e));
         }
         match outcome {

@@ -57,6 +57,8 @@ pub struct Sensed {
     pub handed_over: Instant,
     /// The set's age at emission, ms.
     pub set_age_ms: f64,
+    /// The pipelines' share of the loop, ms.
+    pub sensing_ms: f64,
 }
 
 /// What a driver did with one set: a row of the task log.
@@ -90,6 +92,8 @@ pub struct Plant {
     /// The goals last written, and the set they answered (`None` for a stop or e-stop).
     last_goals: Option<(Option<u32>, Vec<FingerGoal>)>,
     latency: LoopLatency,
+    /// The last set's loop time less its sensing, ms, until the observers have run.
+    own_pending_ms: Option<f64>,
     last: Option<FusedSet>,
     step: Option<TaskStep>,
     /// Recovered servo faults.
@@ -129,6 +133,7 @@ impl Plant {
             last_sensed_seq: None,
             last_goals: None,
             latency: LoopLatency::default(),
+            own_pending_ms: None,
             last: None,
             step: None,
             recovered: Vec::new(),
@@ -152,9 +157,8 @@ impl Plant {
         self.last_sensed_seq = Some(set.trigger_seq);
         let sensing = &mut self.sensing;
         let readings = off_executor(|| sensing.process(set));
-        self.latency
-            .pipeline_ms
-            .record_ms(handed_over.elapsed().as_secs_f64() * 1e3);
+        let sensing_ms = handed_over.elapsed().as_secs_f64() * 1e3;
+        self.latency.pipeline_ms.record_ms(sensing_ms);
         if self.states.is_empty() {
             self.states = self.read()?;
         }
@@ -166,6 +170,7 @@ impl Plant {
             ),
             handed_over,
             set_age_ms: set.latency_us() as f64 / 1e3,
+            sensing_ms,
         })
     }
 
@@ -237,6 +242,7 @@ impl Plant {
         self.latency
             .capture_ms
             .record_ms(sensed.set_age_ms + loop_ms);
+        self.own_pending_ms = Some((loop_ms - sensed.sensing_ms).max(0.0));
         self.states = self.read()?;
         Ok(())
     }
@@ -323,6 +329,14 @@ impl Plant {
         let bus = &mut self.bus;
         if let Err(e) = off_executor(|| bus.set_torque(false)) {
             tracing::warn!("could not turn servo torque off: {e}");
+        }
+    }
+
+    /// The observers of the last set took `observers_ms`: the loop's own share of that set
+    /// (its loop time less its sensing, plus the observers) is complete.
+    pub fn observed(&mut self, observers_ms: f64) {
+        if let Some(own) = self.own_pending_ms.take() {
+            self.latency.own_ms.record_ms(own + observers_ms.max(0.0));
         }
     }
 

@@ -3,7 +3,7 @@
 //! simulator's ground truth, and what its observers and the dashboard's control requests
 //! get. The root `gelgrip` library implements them; the runtime depends on no adapter.
 
-use crate::frame::FrameSet;
+use crate::frame::{FrameSet, ReceivedFrame};
 use crate::fusion::SensorReading;
 use crate::runtime::control::{LoopRequest, Refusal};
 use crate::runtime::driver::Driver;
@@ -27,6 +27,11 @@ pub trait Sensing: Send {
     /// Process one gated set into per-sensor readings (`None` for a sensor whose frame
     /// failed, or while the references are still being gathered).
     fn process(&mut self, set: &FrameSet) -> Vec<Option<SensorReading>>;
+    /// A frame has arrived, before the gate decides on its set: a pipeline that streams
+    /// starts its work now, so that [`Sensing::process`] finds it done. Whatever is worked
+    /// on ahead for a set the gate refuses must never come out of `process` (default:
+    /// nothing is done ahead).
+    fn frame_arrived(&mut self, _frame: &ReceivedFrame) {}
     /// Gated sets still needed for the sensors' references (0 when they have them).
     fn reference_sets_missing(&self) -> usize;
     /// Take `set` toward the references.

@@ -31,8 +31,14 @@ pub struct TaskReport {
     pub loop_latency_ms_p50: Option<f64>,
     /// p99 loop latency, ms.
     pub loop_latency_ms_p99: Option<f64>,
+    /// Median capture-to-command latency (the set's age at emission plus the loop
+    /// latency), ms.
+    pub capture_to_command_ms_p50: Option<f64>,
     /// p99 capture-to-command latency, ms.
     pub capture_to_command_ms_p99: Option<f64>,
+    /// p99 of the loop's own share: fusion, the controller step, the servo write and the
+    /// observers (the publishers), without the sensing, ms.
+    pub loop_own_ms_p99: Option<f64>,
     /// p99 of the tactile pipelines' share of the loop (JPEG to contact, every sensor),
     /// ms: the loop's own overhead is the loop latency less this.
     pub pipeline_ms_p99: Option<f64>,
