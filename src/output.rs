@@ -66,6 +66,11 @@ pub struct RunReport {
     pub max_age_us: u64,
     /// Median set latency (emission − earliest capture), ms.
     pub set_latency_ms_p50: Option<f64>,
+    /// The bus model's latency for the layout (earliest capture to the set's last frame at
+    /// the host), ms.
+    pub bus_latency_ms: f64,
+    /// The bus model's set period, ms.
+    pub bus_set_period_ms: f64,
     /// The scene's object (a run on a scene).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub object: Option<String>,

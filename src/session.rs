@@ -398,6 +398,8 @@ impl Session {
             max_age_us: acq.gate().limits().max_age_us,
             set_latency_ms_p50: latency_ms(stats, 0.5),
             set_latency_ms_p99: latency_ms(stats, 0.99),
+            bus_latency_ms: self.description.prediction.set_latency_us / 1e3,
+            bus_set_period_ms: self.description.prediction.set_period_us / 1e3,
             frames_received: stats.frames_in,
             frames_reused: stats.frames_reused,
             frames_in_sets: stats.frames_out,
