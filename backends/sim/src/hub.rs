@@ -6,10 +6,18 @@
 //! deadlines and a virtual clock runs them as fast as the host can. The coordinator side
 //! decodes every frame with `gelgrip_hubwire` exactly as a CH347 host would, so injected
 //! corruption is caught by the real CRC checks.
+//!
+//! With a scene, the frames are rendered off the caller's thread ([`render`]): a trigger
+//! takes the world's height maps at its time and queues their JPEGs on the renderer, and its
+//! set is scheduled on the bus once they are made, at the latest when the set's events are
+//! due (nothing of a set is delivered before its trigger), so a simulated run measures the
+//! loop, not the renderer. The frames, the schedule and the random draws are those of
+//! rendering at the trigger.
 
 use std::cmp::Reverse;
-use std::collections::BinaryHeap;
+use std::collections::{BinaryHeap, VecDeque};
 use std::sync::Arc;
+use std::sync::mpsc::Receiver;
 
 use async_trait::async_trait;
 use bytes::Bytes;
@@ -28,12 +36,53 @@ use gelgrip_hubwire::spi_frame::{self, FrameHeader, HEADER_LEN, TRAILER_LEN};
 use gelgrip_hubwire::timing::BusModel;
 
 use crate::board_clock::BoardClock;
-use crate::config::SimConfig;
+use crate::config::{SensorFaults, SimConfig};
 use crate::pool::{EncodeError, FramePool};
-use crate::scene_frames::SceneFrames;
+use crate::scene_frames::{SceneFrames, height_maps};
 use crate::timeline::{BoardInput, BusParams, schedule_set};
 use crate::unit::rng_for;
 use crate::world::SharedWorld;
+
+pub mod render;
+
+use render::{RenderThread, Rendered};
+
+/// A scene's frames: its world (stepped and read at each trigger) and its renderer.
+#[derive(Debug)]
+struct Scene {
+    world: SharedWorld,
+    sensors: usize,
+    renderer: RenderThread,
+}
+
+impl Scene {
+    /// The faults injected at run time, per sensor (`None`: the configured ones).
+    fn injected_faults(&self, sensors: usize) -> Vec<Option<SensorFaults>> {
+        match self.world.lock() {
+            Ok(w) => (0..sensors)
+                .map(|i| w.injected_faults(i).cloned())
+                .collect(),
+            Err(_) => vec![None; sensors],
+        }
+    }
+
+    /// Whether the world has the hub unplugged at host time `at_us`.
+    fn hub_unplugged(&self, at_us: u64) -> bool {
+        self.world.lock().is_ok_and(|w| w.hub_unplugged(at_us))
+    }
+}
+
+/// A trigger whose frames are being rendered: scheduled on the bus once they are made.
+#[derive(Debug)]
+struct Deferred {
+    seq: u32,
+    start_ns: u64,
+    nth: u64,
+    unplugged: bool,
+    injected: Vec<Option<SensorFaults>>,
+    /// The scene's frames (`None`: the pool's).
+    frames: Option<Receiver<Rendered>>,
+}
 
 #[derive(Debug)]
 enum Pending {
@@ -74,7 +123,9 @@ pub struct SimHub {
     bus_free_ns: u64,
     time_map: HubTimeMap,
     /// With a scene: frames rendered from the shared world at each capture.
-    scene: Option<SceneFrames>,
+    scene: Option<Scene>,
+    /// Triggers fired whose sets are not scheduled yet (their frames are being rendered).
+    deferred: VecDeque<Deferred>,
     /// Each board's own clock (the `clock_drift_ppm` fault).
     clocks: Vec<BoardClock>,
 }
@@ -135,6 +186,7 @@ impl SimHub {
             triggers_fired: 0,
             bus_free_ns: start * 1000,
             scene: None,
+            deferred: VecDeque::new(),
         })
     }
 
@@ -146,9 +198,18 @@ impl SimHub {
         clock: Arc<dyn Clock>,
         world: SharedWorld,
     ) -> Result<Self, EncodeError> {
-        let scene = SceneFrames::new(world, layout, &cfg)?;
+        let frames = SceneFrames::new(world.clone(), layout, &cfg)?;
+        let sensors = frames.sensors();
+        let renderer = RenderThread::spawn(frames).map_err(|e| EncodeError {
+            sensor: 0,
+            source: e.into(),
+        })?;
         let mut hub = Self::new(layout, trigger, cfg, clock)?;
-        hub.scene = Some(scene);
+        hub.scene = Some(Scene {
+            world,
+            sensors,
+            renderer,
+        });
         Ok(hub)
     }
 
@@ -181,27 +242,23 @@ impl SimHub {
     /// Each board's share of the set whose trigger starts at `start_ns`.
     fn board_inputs(
         &mut self,
-        seq: u32,
-        start_ns: u64,
+        d: &Deferred,
         captured: Option<Vec<Bytes>>,
-        unplugged: bool,
     ) -> Vec<(BoardInput, Option<Vec<u8>>, bool)> {
+        let (seq, start_ns, nth, unplugged) = (d.seq, d.start_ns, d.nth, d.unplugged);
         let n = self.description.sensors;
         let receipts = i2c::capture_instants_ns(
             self.bus.trigger,
             u8::try_from(n).unwrap_or(u8::MAX),
             self.bus.i2c_hz,
         );
-        let nth = self.triggers_fired;
-        self.triggers_fired += 1;
-        let injected = self
-            .scene
-            .as_ref()
-            .map_or_else(|| vec![None; n], |s| s.injected_faults(n));
         (0..n)
             .map(|b| {
-                let faults = injected[b]
-                    .clone()
+                let faults = d
+                    .injected
+                    .get(b)
+                    .cloned()
+                    .flatten()
                     .or_else(|| self.cfg.faults.get(b).cloned())
                     .unwrap_or_default();
                 let jitter_ns = self.draw_jitter_ns(self.cfg.capture_jitter_us)
@@ -258,6 +315,79 @@ impl SimHub {
         } else {
             0
         }
+    }
+
+    /// Schedule the deferred triggers on the bus, oldest first: all of them, or (with
+    /// `before_ns`) those whose set may have an event due by then. Waits for their frames.
+    fn schedule_deferred(&mut self, before_ns: Option<u64>) -> Result<(), HubError> {
+        while let Some(d) = self.deferred.front() {
+            if before_ns.is_some_and(|t| t < d.start_ns) {
+                break;
+            }
+            let Some(d) = self.deferred.pop_front() else {
+                break;
+            };
+            self.schedule(d)?;
+        }
+        Ok(())
+    }
+
+    /// Schedule the set of trigger `d` on the bus and queue its events.
+    fn schedule(&mut self, d: Deferred) -> Result<(), HubError> {
+        let captured = match &d.frames {
+            Some(rx) => Some(
+                rx.recv()
+                    .map_err(|_| HubError::Config {
+                        detail: "the simulated cameras' renderer has stopped".into(),
+                    })?
+                    .map_err(|e| HubError::Config {
+                        detail: e.to_string(),
+                    })?,
+            ),
+            None => None,
+        };
+        let (seq, start_ns, unplugged) = (d.seq, d.start_ns, d.unplugged);
+        let boards = self.board_inputs(&d, captured);
+        let inputs: Vec<BoardInput> = boards.iter().map(|(i, _, _)| *i).collect();
+        let mut times = schedule_set(&self.bus, start_ns, &inputs);
+        if unplugged {
+            // No board answers: the host learns it only when its wait for the set runs
+            // out, a set period after the trigger (so an outage costs a set per period).
+            let period_ns = (self.description.prediction.set_period_us * 1000.0) as u64;
+            times.set_end_ns = times.set_end_ns.max(start_ns + period_ns);
+            times.bus_free_ns = times.bus_free_ns.max(times.set_end_ns);
+        }
+        let mut sent = 0u8;
+        let mut silent_boards = Vec::new();
+        for (b, ((_, wire, silent), t)) in boards.into_iter().zip(&times.boards).enumerate() {
+            if silent {
+                silent_boards.push(b as u8);
+            }
+            if let (Some(wire), Some(at)) = (wire, t.delivered_ns) {
+                sent += 1;
+                let trigger_hub_us = self.hub_us(t.trigger_receipt_ns);
+                let board = b as u8;
+                self.enqueue(
+                    at,
+                    Pending::Frame {
+                        board,
+                        seq,
+                        trigger_hub_us,
+                        wire,
+                    },
+                );
+            }
+        }
+        for board in silent_boards {
+            self.enqueue(times.set_end_ns, Pending::Silent { board, seq });
+        }
+        let set_end = Pending::SetEnd {
+            seq,
+            frames_sent: sent,
+        };
+        self.enqueue(times.set_end_ns, set_end);
+        self.bus_free_ns = times.bus_free_ns;
+        Ok(())
     }
 
     fn receive(&mut self, event: Pending) -> HubEvent {
@@ -330,62 +460,43 @@ impl HubTransport for SimHub {
     }
 
     async fn trigger(&mut self, seq: u32) -> Result<(), HubError> {
+        // The bus is free for this set once the sets before it are scheduled.
+        self.schedule_deferred(None)?;
         let now_us = self.clock.now_us();
-        let start_ns = self.bus_free_ns.max(now_us * 1000);
+        let n = self.description.sensors;
         let nth = self.triggers_fired;
-        let captured = match self.scene.as_mut() {
-            Some(scene) => Some(scene.capture(now_us, nth).map_err(|e| HubError::Config {
-                detail: e.to_string(),
-            })?),
-            None => None,
+        self.triggers_fired += 1;
+        let (frames, unplugged, injected) = match &self.scene {
+            Some(scene) => {
+                let maps = height_maps(&scene.world, scene.sensors, now_us);
+                (
+                    Some(scene.renderer.render(maps, nth)),
+                    scene.hub_unplugged(now_us),
+                    scene.injected_faults(n),
+                )
+            }
+            None => (None, false, vec![None; n]),
         };
-        let unplugged = self.scene.as_ref().is_some_and(|s| s.hub_unplugged(now_us));
-        let boards = self.board_inputs(seq, start_ns, captured, unplugged);
-        let inputs: Vec<BoardInput> = boards.iter().map(|(i, _, _)| *i).collect();
-        let mut times = schedule_set(&self.bus, start_ns, &inputs);
-        if unplugged {
-            // No board answers: the host learns it only when its wait for the set runs
-            // out, a set period after the trigger (so an outage costs a set per period).
-            let period_ns = (self.description.prediction.set_period_us * 1000.0) as u64;
-            times.set_end_ns = times.set_end_ns.max(start_ns + period_ns);
-            times.bus_free_ns = times.bus_free_ns.max(times.set_end_ns);
-        }
-        let mut sent = 0u8;
-        let mut silent_boards = Vec::new();
-        for (b, ((_, wire, silent), t)) in boards.into_iter().zip(&times.boards).enumerate() {
-            if silent {
-                silent_boards.push(b as u8);
-            }
-            if let (Some(wire), Some(at)) = (wire, t.delivered_ns) {
-                sent += 1;
-                let trigger_hub_us = self.hub_us(t.trigger_receipt_ns);
-                let board = b as u8;
-                self.enqueue(
-                    at,
-                    Pending::Frame {
-                        board,
-                        seq,
-                        trigger_hub_us,
-                        wire,
-                    },
-                );
-            }
-        }
-        for board in silent_boards {
-            self.enqueue(times.set_end_ns, Pending::Silent { board, seq });
-        }
-        let set_end = Pending::SetEnd {
+        self.deferred.push_back(Deferred {
             seq,
-            frames_sent: sent,
-        };
-        self.enqueue(times.set_end_ns, set_end);
-        self.bus_free_ns = times.bus_free_ns;
+            start_ns: self.bus_free_ns.max(now_us * 1000),
+            nth,
+            unplugged,
+            injected,
+            frames,
+        });
+        if self.scene.is_none() {
+            self.schedule_deferred(None)?;
+        }
         Ok(())
     }
 
     /// Cancel-safe: the event stays queued until its time has come, so a caller that drops
     /// this future (for example in a `select!`) loses nothing.
     async fn next_event(&mut self) -> Result<HubEvent, HubError> {
+        // A set being rendered is scheduled before anything at or after its trigger.
+        let due = self.queue.peek().map(|Reverse((at_ns, _, _))| *at_ns);
+        self.schedule_deferred(due)?;
         let Reverse((at_ns, _, _)) = *self.queue.peek().ok_or(HubError::Idle)?;
         self.clock.sleep_until(at_ns.div_ceil(1000)).await;
         let Reverse((_, _, slot)) = self.queue.pop().ok_or(HubError::Idle)?;

@@ -98,17 +98,25 @@ impl SceneFrames {
     /// Advance the world to `now_us` and return every sensor's frame for capture `nth`.
     /// Height maps and JPEGs of the touched pads are made in parallel.
     pub fn capture(&mut self, now_us: u64, nth: u64) -> Result<Vec<Bytes>, EncodeError> {
-        let maps: Vec<Option<HeightMap>> = {
-            let Ok(mut w) = self.world.lock() else {
-                // A poisoned world cannot be stepped: serve untouched pads rather than stop.
-                return Ok(self.flat_frames(nth));
-            };
-            w.advance_to(now_us);
-            let w = &*w;
-            (0..self.cameras.len())
-                .into_par_iter()
-                .map(|s| w.height_map(s))
-                .collect()
+        let maps = height_maps(&self.world, self.cameras.len(), now_us);
+        self.render(maps, nth)
+    }
+
+    /// The world this renders.
+    pub fn world(&self) -> &SharedWorld {
+        &self.world
+    }
+
+    /// Every sensor's frame for capture `nth` from its height map (`None`: untouched),
+    /// `maps` from [`height_maps`] (`None`: the world could not be read; every pad is
+    /// served untouched). The JPEGs of the touched pads are made in parallel.
+    pub fn render(
+        &mut self,
+        maps: Option<Vec<Option<HeightMap>>>,
+        nth: u64,
+    ) -> Result<Vec<Bytes>, EncodeError> {
+        let Some(maps) = maps else {
+            return Ok(self.flat_frames(nth));
         };
         let keyed: Vec<Option<(u64, HeightMap)>> = maps
             .into_iter()
@@ -157,11 +165,30 @@ impl SceneFrames {
         Ok(out)
     }
 
+    /// Sensors rendered.
+    pub fn sensors(&self) -> usize {
+        self.cameras.len()
+    }
+
     fn flat_frames(&self, nth: u64) -> Vec<Bytes> {
         (0..self.cameras.len())
             .map(|s| self.flat.frame(s, nth).cloned().unwrap_or_default())
             .collect()
     }
+}
+
+/// Advance `world` to `now_us` and take the height map of each of its first `sensors` pads
+/// (`None`: untouched), in parallel; `None` when the world is poisoned (it cannot be
+/// stepped).
+pub fn height_maps(
+    world: &SharedWorld,
+    sensors: usize,
+    now_us: u64,
+) -> Option<Vec<Option<HeightMap>>> {
+    let mut w = world.lock().ok()?;
+    w.advance_to(now_us);
+    let w = &*w;
+    Some((0..sensors).into_par_iter().map(|s| w.height_map(s)).collect())
 }
 
 #[cfg(test)]
