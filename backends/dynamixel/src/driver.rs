@@ -1,13 +1,23 @@
-//! [`DynamixelBus`]: the [`ServoBus`] port on XM430-W350-T servos through `dynamixel2`.
+//! [`DynamixelBus`]: the [`ServoBus`] port on XM430-W350-T servos, over gelgrip's own
+//! Protocol 2.0 codec on the serial port ([`link`]; why not `dynamixel2::Bus` is there).
 //!
 //! Configuration, per servo: torque off, Operating Mode 5 (current-based position), Current
-//! Limit, torque on. Goals go out in one sync write of addresses 102–119 (Goal Current, Goal
-//! Velocity, Profile Acceleration, Profile Velocity, Goal Position). State comes back in one
-//! sync read of addresses 70–146 (Hardware Error Status through Present Temperature).
+//! Limit, torque on. Then, once for the bus: Present Input Voltage is read from every servo,
+//! and a supply below the XM430-W350's rated minimum (10.0 V) is reported as a brown-out,
+//! naming the servo and the voltage ([`DynamixelBus::brown_outs`], and a `tracing` warning);
+//! and one Fast Sync Read (0x8A) of the state block tells whether the servos support it.
 //!
-//! Deadlines: every call waits at most the reply's wire time at the bus baud plus 34 ms, the
-//! padding of `dynamixel2` (the same as the official SDK). A sync read waits for that once per
-//! servo. Nothing blocks forever.
+//! Goals go out in one sync write of addresses 102–119 (Goal Current, Goal Velocity, Profile
+//! Acceleration, Profile Velocity, Goal Position); a goal outside what mode 5 accepts is
+//! refused here as [`DriverError::DataLimit`], since a sync write has no reply to carry the
+//! servo's. State comes back in one read of addresses 70–146 (Hardware Error Status through
+//! Present Temperature): a Fast Sync Read where the servos answered it, a Sync Read
+//! otherwise (`docs/servo-emulator.md` gives the bus time each takes).
+//!
+//! Errors: [`DriverError`] names the servo, and for a Data Limit or Access error the
+//! register and the value; a status packet whose LEN cannot hold a status is
+//! [`DriverError::Length`], never an underflow. Through the [`ServoBus`] port they become
+//! [`ServoError`]s with that text.
 //!
 //! Recovery: a servo whose Hardware Error Status is not 0 is rebooted and reconfigured, at
 //! most [`MAX_RECOVERY_TRIES`] times. If the fault persists, the read fails with
@@ -16,11 +26,17 @@
 //! Safe state: on a fault the caller holds, or releases at minimum current. The driver never
 //! raises the current limit beyond the configured cap.
 
+pub mod error;
+pub mod link;
+
 use gelgrip_controller::actuator::{
     FingerGoal, RecoveredFault, ServoBus, ServoError, ServoState, check_goal_count, recover,
 };
 
-use crate::control_table::addr;
+use crate::control_table::{MULTI_TURN_LIMIT, RATED_INPUT_V, addr, item_at};
+use crate::protocol::{BROADCAST_ID, FastSegment, Packet, instruction as ins, status_error};
+pub use error::DriverError;
+use link::{Link, STATUS_OVERHEAD};
 
 pub use gelgrip_controller::actuator::MAX_RECOVERY_TRIES;
 /// Operating Mode 5: current-based position control.
@@ -34,15 +50,30 @@ pub const DEG_PER_PULSE: f64 = 360.0 / 4096.0;
 
 const GOAL_BLOCK: u16 = addr::GOAL_CURRENT; // 102..120
 const GOAL_BLOCK_LEN: usize = 18;
-const STATE_BLOCK: u16 = addr::HARDWARE_ERROR_STATUS; // 70..147
-const STATE_BLOCK_LEN: u16 = 77;
+/// The state block: Hardware Error Status (70) through Present Temperature (146).
+pub const STATE_BLOCK: u16 = addr::HARDWARE_ERROR_STATUS;
+/// Its length, bytes.
+pub const STATE_BLOCK_LEN: u16 = 77;
 
-/// Three (or N) XM430s on one `dynamixel2` bus.
+/// One servo's supply as it reports it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SupplyReading {
+    /// Servo id.
+    pub id: u8,
+    /// Present Input Voltage, V.
+    pub input_v: f64,
+    /// Below the rated minimum ([`RATED_INPUT_V`]).
+    pub brown_out: bool,
+}
+
+/// Three (or N) XM430s on one serial port.
 pub struct DynamixelBus {
-    bus: dynamixel2::Bus<Vec<u8>, Vec<u8>>,
+    link: Link,
     ids: Vec<u8>,
     current_limit_ma: f64,
     recovered: Vec<RecoveredFault>,
+    fast_reads: bool,
+    brown_outs: Vec<SupplyReading>,
 }
 
 impl std::fmt::Debug for DynamixelBus {
@@ -50,36 +81,53 @@ impl std::fmt::Debug for DynamixelBus {
         f.debug_struct("DynamixelBus")
             .field("ids", &self.ids)
             .field("current_limit_ma", &self.current_limit_ma)
+            .field("fast_reads", &self.fast_reads)
             .finish()
-    }
-}
-
-fn map_err(id: u8, what: &str, e: dynamixel2::TransferError) -> ServoError {
-    use dynamixel2::{ReadError, TransferError};
-    match e {
-        TransferError::ReadError(ReadError::Io(io))
-            if io.kind() == std::io::ErrorKind::TimedOut =>
-        {
-            ServoError::Timeout {
-                id,
-                detail: what.to_string(),
-            }
-        }
-        TransferError::ReadError(ReadError::InvalidMessage(m)) => ServoError::Corrupt {
-            id,
-            detail: m.to_string(),
-        },
-        TransferError::ReadError(ReadError::MotorError(m)) => ServoError::Instruction {
-            id,
-            error: m.error_number(),
-            detail: what.to_string(),
-        },
-        other => ServoError::Bus(format!("{what} on servo {id}: {other}")),
     }
 }
 
 fn le_u32(b: &[u8], at: usize) -> u32 {
     u32::from_le_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]])
+}
+
+/// The value `bytes` written at `address` stand for (signed where the item is).
+fn value_of(address: u16, bytes: &[u8]) -> i64 {
+    let n = bytes.len().min(8);
+    let mut b = [0u8; 8];
+    b[..n].copy_from_slice(&bytes[..n]);
+    let v = i64::from_le_bytes(b);
+    let signed = item_at(address).is_some_and(|i| i.signed && usize::from(i.size) == n);
+    if signed && n > 0 {
+        let shift = 64 - 8 * n as u32;
+        (v << shift) >> shift
+    } else {
+        v
+    }
+}
+
+/// The typed error for status error byte `error` from servo `id` after an access of
+/// `address` (with `value` for a write).
+fn status_error_of(id: u8, error: u8, address: u16, value: Option<i64>, what: &str) -> DriverError {
+    let register = crate::control_table::name_of(address);
+    match error & 0x7F {
+        status_error::DATA_LIMIT => DriverError::DataLimit {
+            id,
+            register,
+            address,
+            value: value.unwrap_or(0),
+        },
+        status_error::ACCESS => DriverError::Access {
+            id,
+            register,
+            address,
+            value,
+        },
+        n => DriverError::Status {
+            id,
+            error: n,
+            what: what.to_string(),
+        },
+    }
 }
 
 impl DynamixelBus {
@@ -91,36 +139,254 @@ impl DynamixelBus {
         ids: &[u8],
         current_limit_ma: f64,
     ) -> Result<Self, ServoError> {
-        let bus = dynamixel2::Bus::open_with_buffers(port, baud, vec![0; 256], vec![0; 256])
-            .map_err(|e| ServoError::Bus(format!("opening {port} at {baud} baud: {e}")))?;
         if ids.is_empty() {
             return Err(ServoError::Invalid("no servo ids".into()));
         }
+        let link = Link::open(port, baud)
+            .map_err(|e| ServoError::Bus(format!("opening {port} at {baud} baud: {e}")))?;
         Ok(Self {
-            bus,
+            link,
             ids: ids.to_vec(),
             current_limit_ma,
             recovered: Vec::new(),
+            fast_reads: false,
+            brown_outs: Vec::new(),
         })
     }
 
-    fn configure_one(&mut self, id: u8) -> Result<(), ServoError> {
+    /// Whether state reads use Fast Sync Read (decided by [`ServoBus::configure`]).
+    pub fn uses_fast_reads(&self) -> bool {
+        self.fast_reads
+    }
+
+    /// Use Fast Sync Read for state reads or not (to compare the two).
+    pub fn set_fast_reads(&mut self, on: bool) {
+        self.fast_reads = on;
+    }
+
+    /// The servos found below the rated supply at configuration.
+    pub fn brown_outs(&self) -> &[SupplyReading] {
+        &self.brown_outs
+    }
+
+    /// One instruction to `id` and its status packet, with the status error checked.
+    fn transact(
+        &mut self,
+        p: &Packet,
+        reply_params: usize,
+        address: u16,
+        value: Option<i64>,
+        what: &str,
+    ) -> Result<Vec<u8>, DriverError> {
+        self.link.send(p)?;
+        let deadline = self.link.reply_deadline(STATUS_OVERHEAD + reply_params);
+        let reply = self.link.receive(p.id, p.id, deadline, what)?;
+        let error = reply.params[0];
+        if error & 0x7F != 0 {
+            return Err(status_error_of(p.id, error, address, value, what));
+        }
+        Ok(reply.params[1..].to_vec())
+    }
+
+    /// Ping `id`: its model number and firmware version.
+    pub fn ping(&mut self, id: u8) -> Result<(u16, u8), DriverError> {
+        let p = Packet {
+            id,
+            instruction: ins::PING,
+            params: vec![],
+        };
+        let d = self.transact(&p, 3, 0, None, "ping")?;
+        match d[..] {
+            [lo, hi, fw] => Ok((u16::from_le_bytes([lo, hi]), fw)),
+            _ => Err(DriverError::Corrupt {
+                id,
+                detail: format!("{} ping bytes", d.len()),
+            }),
+        }
+    }
+
+    /// Write `bytes` at `address` of servo `id`.
+    pub fn write(&mut self, id: u8, address: u16, bytes: &[u8]) -> Result<(), DriverError> {
+        let mut params = address.to_le_bytes().to_vec();
+        params.extend_from_slice(bytes);
+        let p = Packet {
+            id,
+            instruction: ins::WRITE,
+            params,
+        };
+        let what = format!("write of {}", crate::control_table::name_of(address));
+        self.transact(&p, 0, address, Some(value_of(address, bytes)), &what)
+            .map(|_| ())
+    }
+
+    /// Read `len` bytes at `address` of servo `id`.
+    pub fn read(&mut self, id: u8, address: u16, len: u16) -> Result<Vec<u8>, DriverError> {
+        let mut params = address.to_le_bytes().to_vec();
+        params.extend_from_slice(&len.to_le_bytes());
+        let p = Packet {
+            id,
+            instruction: ins::READ,
+            params,
+        };
+        let what = format!("read of {}", crate::control_table::name_of(address));
+        let d = self.transact(&p, usize::from(len), address, None, &what)?;
+        if d.len() != usize::from(len) {
+            return Err(DriverError::Corrupt {
+                id,
+                detail: format!("{} bytes, expected {len}", d.len()),
+            });
+        }
+        Ok(d)
+    }
+
+    /// Reboot servo `id`.
+    pub fn reboot_servo(&mut self, id: u8) -> Result<(), DriverError> {
+        let p = Packet {
+            id,
+            instruction: ins::REBOOT,
+            params: vec![],
+        };
+        self.transact(&p, 0, 0, None, "reboot").map(|_| ())
+    }
+
+    /// Sync Read of `len` bytes at `address` from `ids`: one status packet each, in order.
+    pub fn sync_read(
+        &mut self,
+        ids: &[u8],
+        address: u16,
+        len: u16,
+    ) -> Result<Vec<Vec<u8>>, DriverError> {
+        let p = Self::sync_read_packet(ins::SYNC_READ, ids, address, len);
+        self.link.send(&p)?;
+        let deadline = self.link.reply_deadline(STATUS_OVERHEAD + usize::from(len));
+        ids.iter()
+            .map(|&id| {
+                let r = self.link.receive(id, id, deadline, "sync read")?;
+                self.check_data(id, r.params[0], &r.params[1..], address, len)
+            })
+            .collect()
+    }
+
+    /// Fast Sync Read of `len` bytes at `address` from `ids`: one combined status packet.
+    pub fn fast_sync_read(
+        &mut self,
+        ids: &[u8],
+        address: u16,
+        len: u16,
+    ) -> Result<Vec<Vec<u8>>, DriverError> {
+        let plan: Vec<(u8, u16, u16)> = ids.iter().map(|&id| (id, address, len)).collect();
+        let p = Self::sync_read_packet(ins::FAST_SYNC_READ, ids, address, len);
+        self.fast_read(&p, &plan, "fast sync read")
+    }
+
+    /// Fast Bulk Read of (id, address, len) entries: one combined status packet.
+    pub fn fast_bulk_read(&mut self, plan: &[(u8, u16, u16)]) -> Result<Vec<Vec<u8>>, DriverError> {
+        let mut params = Vec::with_capacity(plan.len() * 5);
+        for (id, a, n) in plan {
+            params.push(*id);
+            params.extend_from_slice(&a.to_le_bytes());
+            params.extend_from_slice(&n.to_le_bytes());
+        }
+        let p = Packet {
+            id: BROADCAST_ID,
+            instruction: ins::FAST_BULK_READ,
+            params,
+        };
+        self.fast_read(&p, plan, "fast bulk read")
+    }
+
+    fn sync_read_packet(instruction: u8, ids: &[u8], address: u16, len: u16) -> Packet {
+        let mut params = address.to_le_bytes().to_vec();
+        params.extend_from_slice(&len.to_le_bytes());
+        params.extend_from_slice(ids);
+        Packet {
+            id: BROADCAST_ID,
+            instruction,
+            params,
+        }
+    }
+
+    fn fast_read(
+        &mut self,
+        p: &Packet,
+        plan: &[(u8, u16, u16)],
+        what: &str,
+    ) -> Result<Vec<Vec<u8>>, DriverError> {
+        let first = plan.first().map_or(0, |e| e.0);
+        self.link.send(p)?;
+        let lens: Vec<usize> = plan.iter().map(|e| usize::from(e.2)).collect();
+        let bytes = 8 + lens.iter().map(|n| n + 4).sum::<usize>();
+        let deadline = self.link.reply_deadline(bytes);
+        let reply = self.link.receive(BROADCAST_ID, first, deadline, what)?;
+        let segments = FastSegment::split(&reply, &lens).ok_or_else(|| DriverError::Corrupt {
+            id: first,
+            detail: format!("{what}: segments or their CRCs do not match {lens:?}"),
+        })?;
+        plan.iter()
+            .zip(segments)
+            .map(|(&(id, a, n), s)| {
+                if s.id != id {
+                    return Err(DriverError::Corrupt {
+                        id,
+                        detail: format!("{what}: segment of id {}", s.id),
+                    });
+                }
+                self.check_data(id, s.error, &s.data, a, n)
+            })
+            .collect()
+    }
+
+    fn check_data(
+        &self,
+        id: u8,
+        error: u8,
+        data: &[u8],
+        address: u16,
+        len: u16,
+    ) -> Result<Vec<u8>, DriverError> {
+        if error & 0x7F != 0 {
+            return Err(status_error_of(id, error, address, None, "read"));
+        }
+        if data.len() != usize::from(len) {
+            return Err(DriverError::Corrupt {
+                id,
+                detail: format!("{} bytes, expected {len}", data.len()),
+            });
+        }
+        Ok(data.to_vec())
+    }
+
+    /// Every servo's Present Input Voltage; those below the rated minimum are warned of.
+    pub fn check_supply(&mut self) -> Result<Vec<SupplyReading>, DriverError> {
+        let mut out = Vec::with_capacity(self.ids.len());
+        for id in self.ids.clone() {
+            let d = self.read(id, addr::PRESENT_INPUT_VOLTAGE, 2)?;
+            let input_v = f64::from(u16::from_le_bytes([d[0], d[1]])) / 10.0;
+            let brown_out = input_v < RATED_INPUT_V.0;
+            if brown_out {
+                tracing::warn!(
+                    "brown-out: servo {id} reports {input_v:.1} V input, below the XM430-W350's rated {:.1} V minimum: check the supply and its wiring",
+                    RATED_INPUT_V.0
+                );
+            }
+            out.push(SupplyReading {
+                id,
+                input_v,
+                brown_out,
+            });
+        }
+        self.brown_outs = out.iter().filter(|r| r.brown_out).copied().collect();
+        Ok(out)
+    }
+
+    fn configure_one(&mut self, id: u8) -> Result<(), DriverError> {
         let limit = (self.current_limit_ma / MA_PER_UNIT)
             .round()
             .clamp(0.0, 1193.0) as u16;
-        self.bus
-            .write_u8(id, addr::TORQUE_ENABLE, 0)
-            .map_err(|e| map_err(id, "torque off", e))?;
-        self.bus
-            .write_u8(id, addr::OPERATING_MODE, CURRENT_BASED_POSITION)
-            .map_err(|e| map_err(id, "operating mode", e))?;
-        self.bus
-            .write_u16(id, addr::CURRENT_LIMIT, limit)
-            .map_err(|e| map_err(id, "current limit", e))?;
-        self.bus
-            .write_u8(id, addr::TORQUE_ENABLE, 1)
-            .map_err(|e| map_err(id, "torque on", e))?;
-        Ok(())
+        self.write(id, addr::TORQUE_ENABLE, &[0])?;
+        self.write(id, addr::OPERATING_MODE, &[CURRENT_BASED_POSITION])?;
+        self.write(id, addr::CURRENT_LIMIT, &limit.to_le_bytes())?;
+        self.write(id, addr::TORQUE_ENABLE, &[1])
     }
 
     fn decode_state(data: &[u8]) -> ServoState {
@@ -137,37 +403,44 @@ impl DynamixelBus {
         }
     }
 
-    /// One sync read of the state block. A servo that did not answer, or answered badly, is
-    /// reported by its own id and cause (`dynamixel2::Bus::sync_read` would drop the cause).
+    /// One read of every servo's state block.
     fn read_raw(&mut self) -> Result<Vec<ServoState>, ServoError> {
-        const WHAT: &str = "sync read of the state block";
-        let mut replies = Vec::with_capacity(self.ids.len());
-        self.bus
-            .sync_read_cb(&self.ids, STATE_BLOCK, STATE_BLOCK_LEN, |r| {
-                replies.push(r.map(|r| r.data.to_vec()));
-            })
-            .map_err(|e| map_err(self.ids[0], WHAT, e.into()))?;
-        if replies.len() != self.ids.len() {
-            return Err(ServoError::Bus(format!(
-                "{} of {} servos answered the sync read",
-                replies.len(),
-                self.ids.len()
-            )));
+        let ids = self.ids.clone();
+        let blocks = if self.fast_reads {
+            self.fast_sync_read(&ids, STATE_BLOCK, STATE_BLOCK_LEN)?
+        } else {
+            self.sync_read(&ids, STATE_BLOCK, STATE_BLOCK_LEN)?
+        };
+        Ok(blocks.iter().map(|b| Self::decode_state(b)).collect())
+    }
+
+    /// The goal block of one servo; a goal mode 5 refuses is a Data Limit error here.
+    fn goal_block(&self, id: u8, g: &FingerGoal) -> Result<Vec<u8>, DriverError> {
+        let current =
+            (g.goal_current_ma.clamp(0.0, self.current_limit_ma) / MA_PER_UNIT).round() as i16;
+        let velocity = (g.profile_velocity_rpm.max(0.0) / RPM_PER_UNIT)
+            .round()
+            .min(32767.0) as u32;
+        let pulses = (g.position_deg / DEG_PER_PULSE).round();
+        if !(-(MULTI_TURN_LIMIT as f64)..=MULTI_TURN_LIMIT as f64).contains(&pulses) {
+            return Err(DriverError::DataLimit {
+                id,
+                register: "Goal Position",
+                address: addr::GOAL_POSITION,
+                value: if pulses.is_finite() {
+                    pulses as i64
+                } else {
+                    i64::MAX
+                },
+            });
         }
-        self.ids
-            .iter()
-            .zip(replies)
-            .map(|(&id, r)| {
-                let data = r.map_err(|e| map_err(id, WHAT, e.into()))?;
-                if data.len() != usize::from(STATE_BLOCK_LEN) {
-                    return Err(ServoError::Corrupt {
-                        id,
-                        detail: format!("{} state bytes, expected {STATE_BLOCK_LEN}", data.len()),
-                    });
-                }
-                Ok(Self::decode_state(&data))
-            })
-            .collect()
+        let mut d = Vec::with_capacity(GOAL_BLOCK_LEN);
+        d.extend_from_slice(&current.to_le_bytes());
+        d.extend_from_slice(&0u32.to_le_bytes()); // goal velocity: unused in mode 5
+        d.extend_from_slice(&0u32.to_le_bytes()); // profile acceleration: none
+        d.extend_from_slice(&velocity.to_le_bytes());
+        d.extend_from_slice(&(pulses as i32).to_le_bytes());
+        Ok(d)
     }
 }
 
@@ -180,43 +453,40 @@ impl ServoBus for DynamixelBus {
         for id in self.ids.clone() {
             self.configure_one(id)?;
         }
+        self.check_supply()?;
+        let ids = self.ids.clone();
+        self.fast_reads = self
+            .fast_sync_read(&ids, STATE_BLOCK, STATE_BLOCK_LEN)
+            .is_ok();
+        tracing::info!(
+            fast_sync_read = self.fast_reads,
+            "servos {ids:?} configured"
+        );
         Ok(())
     }
 
     fn set_torque(&mut self, on: bool) -> Result<(), ServoError> {
         for id in self.ids.clone() {
-            self.bus
-                .write_u8(id, addr::TORQUE_ENABLE, u8::from(on))
-                .map_err(|e| map_err(id, "torque enable", e))?;
+            self.write(id, addr::TORQUE_ENABLE, &[u8::from(on)])?;
         }
         Ok(())
     }
 
     fn write_goals(&mut self, goals: &[FingerGoal]) -> Result<(), ServoError> {
         check_goal_count(goals, self.ids.len())?;
-        let limit = self.current_limit_ma;
-        let data: Vec<dynamixel2::instructions::SyncWriteData<Vec<u8>>> = self
-            .ids
-            .iter()
-            .zip(goals)
-            .map(|(id, g)| {
-                let mut d = Vec::with_capacity(GOAL_BLOCK_LEN);
-                let current = (g.goal_current_ma.clamp(0.0, limit) / MA_PER_UNIT).round() as i16;
-                let velocity = (g.profile_velocity_rpm.max(0.0) / RPM_PER_UNIT).round() as u32;
-                let position = (g.position_deg / DEG_PER_PULSE).round() as i32;
-                d.extend_from_slice(&current.to_le_bytes());
-                d.extend_from_slice(&0u32.to_le_bytes()); // goal velocity: unused in mode 5
-                d.extend_from_slice(&0u32.to_le_bytes()); // profile acceleration: none
-                d.extend_from_slice(&velocity.to_le_bytes());
-                d.extend_from_slice(&position.to_le_bytes());
-                dynamixel2::instructions::SyncWriteData {
-                    motor_id: *id,
-                    data: d,
-                }
-            })
-            .collect();
-        self.bus
-            .sync_write(GOAL_BLOCK, GOAL_BLOCK_LEN as u16, &data)
+        let mut params = GOAL_BLOCK.to_le_bytes().to_vec();
+        params.extend_from_slice(&(GOAL_BLOCK_LEN as u16).to_le_bytes());
+        for (&id, g) in self.ids.iter().zip(goals) {
+            params.push(id);
+            params.extend(self.goal_block(id, g)?);
+        }
+        let p = Packet {
+            id: BROADCAST_ID,
+            instruction: ins::SYNC_WRITE,
+            params,
+        };
+        self.link
+            .send(&p)
             .map_err(|e| ServoError::Bus(format!("sync write of goals: {e}")))
     }
 
@@ -236,7 +506,12 @@ impl ServoBus for DynamixelBus {
             .ids
             .get(finger)
             .ok_or_else(|| ServoError::Invalid(format!("no finger {finger}")))?;
-        self.bus.reboot(id).map_err(|e| map_err(id, "reboot", e))?;
-        self.configure_one(id)
+        self.reboot_servo(id)?;
+        self.configure_one(id)?;
+        Ok(())
+    }
+
+    fn take_recovered(&mut self) -> Vec<RecoveredFault> {
+        std::mem::take(&mut self.recovered)
     }
 }

@@ -8,6 +8,13 @@
 //! CRC is the CRC-16 of ROBOTIS (`dynamixel2::checksum`), over every byte from the header to
 //! the last parameter as sent (stuffed). A status packet has INST = 0x55 and its first
 //! parameter is the error byte.
+//!
+//! Fast Sync Read (0x8A) and Fast Bulk Read (0x9A) are answered by one status packet from
+//! the broadcast id that the servos build together: after the header, each servo in turn
+//! appends `ERR ID DATA… CRC_L CRC_H`, its CRC that of the whole packet so far; the last
+//! servo's CRC is the packet's. Each servo sends its own segment, so the packet is not
+//! stuffed as a whole: this codec neither stuffs nor unstuffs a status packet from the
+//! broadcast id (ROBOTIS's SDK reads them the same way). See [`FastSegment`].
 
 use thiserror::Error;
 
@@ -46,6 +53,10 @@ pub mod instruction {
     pub const BULK_READ: u8 = 0x92;
     /// Bulk write.
     pub const BULK_WRITE: u8 = 0x93;
+    /// Fast sync read: one combined reply.
+    pub const FAST_SYNC_READ: u8 = 0x8A;
+    /// Fast bulk read: one combined reply.
+    pub const FAST_BULK_READ: u8 = 0x9A;
 }
 
 /// Status error numbers (bits 0–6 of the error byte); bit 7 is the hardware alert.
@@ -99,8 +110,10 @@ pub enum PacketError {
         computed: u16,
     },
     /// LEN below 3 or above [`MAX_LEN`].
-    #[error("packet length {len} outside 3..={MAX_LEN}")]
+    #[error("packet for id {id} with LEN {len}, outside 3..={MAX_LEN}")]
     Length {
+        /// The packet's id byte.
+        id: u8,
         /// The LEN field.
         len: usize,
     },
@@ -154,7 +167,11 @@ impl Packet {
         let mut body = Vec::with_capacity(self.params.len() + 1);
         body.push(self.instruction);
         body.extend_from_slice(&self.params);
-        let body = stuff(&body);
+        let body = if is_fast_reply(self.id, Some(self.instruction)) {
+            body
+        } else {
+            stuff(&body)
+        };
         let len = (body.len() + 2) as u16;
         let mut out = Vec::with_capacity(body.len() + 9);
         out.extend_from_slice(&HEADER);
@@ -164,6 +181,76 @@ impl Packet {
         let c = crc(&out);
         out.extend_from_slice(&c.to_le_bytes());
         out
+    }
+}
+
+/// A status packet from the broadcast id: a Fast Sync/Bulk Read reply, never stuffed.
+fn is_fast_reply(id: u8, instruction: Option<u8>) -> bool {
+    id == BROADCAST_ID && instruction == Some(instruction::STATUS)
+}
+
+/// One servo's part of a Fast Sync/Bulk Read reply.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct FastSegment {
+    /// The servo's id.
+    pub id: u8,
+    /// Its status error byte.
+    pub error: u8,
+    /// The bytes it read.
+    pub data: Vec<u8>,
+}
+
+impl FastSegment {
+    /// The one reply packet carrying `segments` in order, each followed by the CRC of the
+    /// packet up to it (the last one's is the packet's own, added by [`Packet::encode`]).
+    pub fn reply(segments: &[FastSegment]) -> Packet {
+        let params_len = segments
+            .iter()
+            .map(|s| s.data.len() + 4)
+            .sum::<usize>()
+            .saturating_sub(2);
+        let len = (params_len + 3) as u16;
+        let mut wire = HEADER.to_vec();
+        wire.push(BROADCAST_ID);
+        wire.extend_from_slice(&len.to_le_bytes());
+        wire.push(instruction::STATUS);
+        for (i, s) in segments.iter().enumerate() {
+            wire.push(s.error);
+            wire.push(s.id);
+            wire.extend_from_slice(&s.data);
+            if i + 1 < segments.len() {
+                let c = crc(&wire);
+                wire.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+        Packet {
+            id: BROADCAST_ID,
+            instruction: instruction::STATUS,
+            params: wire[8..].to_vec(),
+        }
+    }
+
+    /// Split a fast reply's parameters into segments of `lens` data bytes each, checking
+    /// each intermediate CRC. `None` when the sizes or a CRC do not match.
+    pub fn split(reply: &Packet, lens: &[usize]) -> Option<Vec<FastSegment>> {
+        let wire = reply.encode();
+        let mut at = 8;
+        let mut out = Vec::with_capacity(lens.len());
+        for (i, &n) in lens.iter().enumerate() {
+            let seg = wire.get(at..at + 2 + n)?;
+            out.push(FastSegment {
+                error: seg[0],
+                id: seg[1],
+                data: seg[2..].to_vec(),
+            });
+            at += 2 + n;
+            let stored = u16::from_le_bytes([*wire.get(at)?, *wire.get(at + 1)?]);
+            if i + 1 < lens.len() && stored != crc(&wire[..at]) {
+                return None;
+            }
+            at += 2;
+        }
+        (at == wire.len()).then_some(out)
     }
 }
 
@@ -225,8 +312,9 @@ impl PacketDecoder {
         }
         let len = usize::from(u16::from_le_bytes([self.buf[5], self.buf[6]]));
         if !(3..=MAX_LEN).contains(&len) {
+            let id = self.buf[4];
             self.buf.drain(..1);
-            return Some(Err(PacketError::Length { len }));
+            return Some(Err(PacketError::Length { id, len }));
         }
         let total = 7 + len;
         if self.buf.len() < total {
@@ -243,11 +331,16 @@ impl PacketDecoder {
                 computed,
             }));
         }
-        let body = unstuff(&self.buf[7..total - 2]);
+        let raw = &self.buf[7..total - 2];
+        let body = if is_fast_reply(id, raw.first().copied()) {
+            raw.to_vec()
+        } else {
+            unstuff(raw)
+        };
         self.buf.drain(..total);
         let (instruction, params) = match body.split_first() {
             Some((i, p)) => (*i, p.to_vec()),
-            None => return Some(Err(PacketError::Length { len })),
+            None => return Some(Err(PacketError::Length { id, len })),
         };
         Some(Ok(Packet {
             id,
@@ -292,6 +385,47 @@ mod tests {
         let mut d = PacketDecoder::new();
         d.push(&wire);
         assert_eq!(d.next_packet(), Some(Ok(p)));
+    }
+
+    #[test]
+    fn a_fast_reply_round_trips_unstuffed_with_running_crcs() {
+        let segments = vec![
+            FastSegment {
+                id: 1,
+                error: 0,
+                data: vec![0xFF, 0xFF, 0xFD, 0x00],
+            },
+            FastSegment {
+                id: 2,
+                error: 0x80,
+                data: vec![7, 8, 9, 10],
+            },
+            FastSegment {
+                id: 3,
+                error: 0x06,
+                data: vec![1, 2, 3, 4],
+            },
+        ];
+        let reply = FastSegment::reply(&segments);
+        let wire = reply.encode();
+        assert_eq!(
+            wire.len(),
+            8 + 3 * (4 + 4),
+            "LEN = 1 + n × (len + 4), no stuffing"
+        );
+        assert_eq!(u16::from_le_bytes([wire[5], wire[6]]), 1 + 3 * 8);
+        assert_eq!(&wire[8..14], &[0, 1, 0xFF, 0xFF, 0xFD, 0x00]);
+        let first_crc = u16::from_le_bytes([wire[14], wire[15]]);
+        assert_eq!(first_crc, crc(&wire[..14]));
+        let mut d = PacketDecoder::new();
+        d.push(&wire);
+        let decoded = d.next_packet().expect("a packet").expect("valid");
+        assert_eq!(decoded, reply);
+        assert_eq!(FastSegment::split(&decoded, &[4, 4, 4]), Some(segments));
+        let mut bad = decoded.clone();
+        bad.params[6] ^= 1; // the first intermediate CRC
+        assert_eq!(FastSegment::split(&bad, &[4, 4, 4]), None);
+        assert_eq!(FastSegment::split(&decoded, &[4, 4]), None);
     }
 
     proptest! {

@@ -51,10 +51,10 @@ fn dynamixel2_client_accepts_our_packets_over_a_pty() {
     assert_eq!(ping.data.model, 1020);
     assert_eq!(ping.data.firmware, 45);
     bus.write_u8(1, 11, 5).expect("operating mode, torque off");
-    bus.write_u32(1, 116, 0x01FD_FFFF).expect("write answered"); // LE bytes FF FF FD 01: stuffed both ways
+    bus.write_u32(1, 116, 0xFFFD_FFFF).expect("write answered"); // -131073, LE bytes FF FF FD FF: stuffed both ways
     assert_eq!(
         bus.read_u32(1, 116).expect("read answered").data,
-        0x01FD_FFFF
+        0xFFFD_FFFF
     );
     assert_eq!(bus.read_u16(1, 0).expect("model").data, 1020);
     let err = bus.action(1).expect_err("instruction error");
@@ -63,6 +63,6 @@ fn dynamixel2_client_accepts_our_packets_over_a_pty() {
     drop(bus);
     let seen = device.join().expect("device thread");
     assert_eq!(seen.len(), 6);
-    assert_eq!(seen[2].params, vec![116, 0, 0xFF, 0xFF, 0xFD, 0x01]);
+    assert_eq!(seen[2].params, vec![116, 0, 0xFF, 0xFF, 0xFD, 0xFF]);
     drop(slave);
 }

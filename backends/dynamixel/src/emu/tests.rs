@@ -2,6 +2,7 @@
 //! bad CRCs, are in `protocol`).
 
 use super::*;
+use crate::protocol::{BROADCAST_ID, FastSegment, instruction as ins};
 
 fn pkt(id: u8, instruction: u8, params: &[u8]) -> Packet {
     Packet {
@@ -65,7 +66,11 @@ fn sync_and_bulk_read_and_write() {
         .iter()
         .map(|p| u32::from_le_bytes([p.params[1], p.params[2], p.params[3], p.params[4]]))
         .collect();
-    assert_eq!(values, vec![100, 0, 300]);
+    assert_eq!(
+        values,
+        vec![100, 2048, 300],
+        "2: its goal at boot, the shaft"
+    );
     // bulk write LED on 2, Goal Current 50 on 3; bulk read them back
     let w = [2, 65, 0, 1, 0, 1, 3, 102, 0, 2, 0, 50, 0];
     assert!(
@@ -169,5 +174,129 @@ fn registered_write_waits_for_action_and_status_level_is_honoured() {
     assert_eq!(
         bus.handle(&pkt(1, ins::READ, &[65, 0, 1, 0]))[0].params,
         vec![0, 0]
+    );
+}
+
+fn read_u32(bus: &mut ServoBusEmulator, id: u8, a: u16) -> (u8, i32) {
+    let r = bus.handle(&pkt(id, ins::READ, &[a as u8, (a >> 8) as u8, 4, 0]));
+    let p = &r[0].params;
+    (p[0], i32::from_le_bytes([p[1], p[2], p[3], p[4]]))
+}
+
+#[test]
+fn goal_position_beyond_the_limit_is_a_data_limit_error_in_modes_3_4_and_5() {
+    let mut bus = ServoBusEmulator::new(&[1]);
+    let write = |bus: &mut ServoBusEmulator, v: i32| {
+        let mut p = vec![116, 0];
+        p.extend(v.to_le_bytes());
+        error_of(&bus.handle(&pkt(1, ins::WRITE, &p))[0])
+    };
+    assert_eq!(
+        write(&mut bus, 5000),
+        err::DATA_LIMIT,
+        "mode 3, Max Position Limit 4095"
+    );
+    assert_eq!(
+        read_u32(&mut bus, 1, 116).1,
+        2048,
+        "the refused goal was not written"
+    );
+    for mode in [4u8, 5] {
+        bus.handle(&pkt(1, ins::WRITE, &[11, 0, mode]));
+        assert_eq!(write(&mut bus, 5000), 0, "mode {mode}: multi-turn");
+        assert_eq!(write(&mut bus, 1_048_576), err::DATA_LIMIT, "mode {mode}");
+    }
+}
+
+#[test]
+fn present_input_voltage_follows_the_supply_and_a_brown_out_raises_the_alert() {
+    let mut bus = ServoBusEmulator::new(&[1, 2]);
+    let volts = |bus: &mut ServoBusEmulator| bus.handle(&pkt(2, ins::READ, &[144, 0, 2, 0]));
+    assert_eq!(volts(&mut bus)[0].params, vec![0, 120, 0]);
+    bus.set_supply_v(9.6);
+    assert_eq!(
+        volts(&mut bus)[0].params,
+        vec![0, 96, 0],
+        "above Min Voltage Limit 9.5 V"
+    );
+    bus.set_supply_v(9.0);
+    let r = volts(&mut bus);
+    assert_eq!(r[0].params, vec![err::ALERT, 90, 0]);
+    let hw = bus.handle(&pkt(2, ins::READ, &[70, 0, 1, 0]));
+    assert_eq!(
+        hw[0].params[1],
+        control_table::hardware_error::INPUT_VOLTAGE
+    );
+}
+
+#[test]
+fn a_quarter_turn_takes_the_no_load_time_however_the_clock_is_sliced() {
+    let expected_s = 0.25 / (46.0 / 60.0);
+    for slice_s in [0.0005, 0.02, 0.11] {
+        let mut bus = ServoBusEmulator::new(&[1]);
+        bus.handle(&pkt(1, ins::WRITE, &[116, 0, 0, 12, 0, 0])); // 3072
+        bus.handle(&pkt(1, ins::WRITE, &[64, 0, 1]));
+        let mut t = 0.0;
+        while bus.servo_mut(1).expect("servo").position() != 3072.0 && t < 2.0 {
+            bus.advance(slice_s);
+            t += slice_s;
+        }
+        assert!(
+            (t - expected_s).abs() <= slice_s + 0.002,
+            "slices of {slice_s} s: {t} s"
+        );
+        let moving = bus.handle(&pkt(1, ins::READ, &[122, 0, 1, 0]));
+        assert_eq!(moving[0].params, vec![0, 0]);
+    }
+}
+
+#[test]
+fn fast_sync_and_fast_bulk_read_answer_in_one_packet() {
+    let mut bus = ServoBusEmulator::new(&[1, 2, 3]);
+    let r = bus.handle(&pkt(
+        BROADCAST_ID,
+        ins::FAST_SYNC_READ,
+        &[132, 0, 4, 0, 1, 2, 3],
+    ));
+    assert_eq!(r.len(), 1);
+    assert_eq!(r[0].id, BROADCAST_ID);
+    let segments = FastSegment::split(&r[0], &[4, 4, 4]).expect("three segments");
+    assert_eq!(
+        segments.iter().map(|s| s.id).collect::<Vec<_>>(),
+        vec![1, 2, 3]
+    );
+    assert!(segments.iter().all(|s| s.data == 2048i32.to_le_bytes()));
+    let plan = [1, 144, 0, 2, 0, 3, 146, 0, 1, 0];
+    let r = bus.handle(&pkt(BROADCAST_ID, ins::FAST_BULK_READ, &plan));
+    let segments = FastSegment::split(&r[0], &[2, 1]).expect("two segments");
+    assert_eq!(segments[0].data, vec![120, 0]);
+    assert_eq!(segments[1].data, vec![25]);
+    let absent = bus.handle(&pkt(
+        BROADCAST_ID,
+        ins::FAST_SYNC_READ,
+        &[132, 0, 4, 0, 1, 9],
+    ));
+    assert!(absent.is_empty(), "the chain breaks at a missing servo");
+}
+
+#[test]
+fn indirect_data_reads_and_writes_its_target() {
+    let mut bus = ServoBusEmulator::new(&[1]);
+    // Indirect Address 1 -> LED (65); write Indirect Data 1, read LED.
+    assert_eq!(
+        error_of(&bus.handle(&pkt(1, ins::WRITE, &[168, 0, 65, 0]))[0]),
+        0
+    );
+    assert_eq!(
+        error_of(&bus.handle(&pkt(1, ins::WRITE, &[224, 0, 1]))[0]),
+        0
+    );
+    assert_eq!(
+        bus.handle(&pkt(1, ins::READ, &[65, 0, 1, 0]))[0].params,
+        vec![0, 1]
+    );
+    assert_eq!(
+        bus.handle(&pkt(1, ins::READ, &[224, 0, 1, 0]))[0].params,
+        vec![0, 1]
     );
 }
