@@ -551,3 +551,37 @@ fn sets_overtaken_in_flight_blame_nobody() {
     assert!(sets.iter().all(|set| set.frames.len() == 3));
     assert_eq!(s.sets_rejected.incomplete, 12);
 }
+
+#[test]
+fn a_set_aged_out_while_the_hub_still_reads_it_blames_nobody() {
+    // Sensor 2, read last, comes after the age limit on every set because another board's
+    // capture held the readout up; the hub's set end follows it. The sets are refused
+    // `incomplete`, but sensor 2 lost nothing, so it stays in. A silent sensor, whose
+    // set end says it was not sent, is still blamed (the dead-sensor tests).
+    let mut gate = Gate::new(3, LIMITS);
+    for seq in 0..6u32 {
+        let t = u64::from(seq) * 30_000;
+        let push = |gate: &mut Gate, s: u8, arrival: u64| {
+            let HubEvent::Frame(mut rf) =
+                frame(s, seq, t as u32, t, u64::from(seq * 3) + u64::from(s))
+            else {
+                unreachable!("frame() makes frames")
+            };
+            rf.received_host_us = arrival;
+            assert!(gate.push(HubEvent::Frame(rf), arrival).is_none());
+        };
+        push(&mut gate, 0, t + 1_000);
+        push(&mut gate, 1, t + 2_000);
+        gate.tick(t + 61_000);
+        push(&mut gate, 2, t + 62_000);
+        let end = HubEvent::SetEnd {
+            trigger_seq: seq,
+            frames_sent: 3,
+        };
+        assert!(gate.push(end, t + 62_100).is_none());
+        invariant(&gate);
+    }
+    let s = gate.stats();
+    assert_eq!(s.sets_rejected.incomplete, 6);
+    assert!(s.excluded.is_empty(), "{:?}", s.excluded);
+}

@@ -586,7 +586,8 @@ impl TriggerGate {
     }
 
     /// Reject pending sets older than `max_age` at `now_us` (by their earliest capture, or by
-    /// when the gate first heard of them if no frame arrived).
+    /// when the gate first heard of them if no frame arrived). A set the hub is still
+    /// reading blames nobody at once ([`Self::reject_in_flight`]).
     pub fn tick(&mut self, now_us: u64) {
         let max_age = self.limits.max_age_us;
         let mut i = 0;
@@ -597,7 +598,13 @@ impl TriggerGate {
             if aged {
                 let set = self.pending.swap_remove(i);
                 let reason = set.missing_reason();
-                self.reject(set, reason, now_us);
+                // The hub has not finished reading it (no set end yet): its missing frames
+                // are held up on the bus, not lost, so they are named once they come.
+                if reason == Reason::Incomplete && set.frames_sent.is_none() {
+                    self.reject_in_flight(set, reason);
+                } else {
+                    self.reject(set, reason, now_us);
+                }
             } else {
                 i += 1;
             }
