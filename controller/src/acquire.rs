@@ -32,8 +32,9 @@ pub fn contact_servo_deg_s() -> f64 {
 ///   one pixel ([`control_spread`] at [`contact_servo_deg_s`]), but never below 1.5 × the
 ///   bus's predicted trigger spread (a bus cannot capture tighter than it does); 1.5 × the
 ///   bus's spread alone for a layout without finger mechanics;
-/// - age: 2 × the predicted set latency; for `approximate`, plus one set period, the
-///   longest it waits for the frames that prove a set minimal.
+/// - age: 2 × the predicted set latency; for `approximate`, plus 2 set periods: it waits
+///   up to a period for the frames that prove a set minimal, and a capture later than a
+///   period (a board triggered every other time) doubles the period.
 pub fn gate_limits(
     settings: &GateSettings,
     layout: &HandLayout,
@@ -53,7 +54,7 @@ pub fn gate_limits(
             Limit::Fixed(us) => us,
             Limit::Auto => {
                 let proof_us = match settings.policy {
-                    GatePolicy::Approximate => prediction.set_period_us,
+                    GatePolicy::Approximate => 2.0 * prediction.set_period_us,
                     GatePolicy::Trigger | GatePolicy::Latest => 0.0,
                 };
                 (2.0 * prediction.set_latency_us + proof_us).ceil() as u64
