@@ -4,6 +4,9 @@
 
 use thiserror::Error;
 
+pub mod label;
+pub mod sheet;
+
 use crate::dataset::{DatasetError, PressDataset, PressTruth};
 use crate::gradient::{GradientModel, background_key, frame_key};
 use crate::lut::{Input, LutModel, LutTrainer};
