@@ -1,6 +1,9 @@
-//! `gelgrip servo scan|ping|read|write`: field tools for a Dynamixel bus, through the
-//! `dynamixel2` client. Timeouts, CRC failures and servo errors each get a message that says
-//! what happened and what to check.
+//! `gelgrip servo scan|ping|read|write|check`: field tools for a Dynamixel bus. Scan, ping,
+//! read and write go through the `dynamixel2` client; `check` through gelgrip's own driver
+//! (`gelgrip_dynamixel::driver`): each servo's model, firmware and supply voltage, a
+//! brown-out warning below the XM430-W350's rated 10.0 V, and whether the servos answer Fast
+//! Sync Read. Timeouts, CRC failures and servo errors each get a message that says what
+//! happened and what to check.
 
 use anyhow::Context;
 use clap::{Args, ValueEnum};
@@ -145,7 +148,48 @@ pub fn run(args: ServoArgs) -> anyhow::Result<u8> {
                 format!("servo {id} @{a} [{len}] <- {v}"),
             );
         }
+        ServoAction::Check => {
+            drop(bus); // the driver opens the port itself
+            return check(&args);
+        }
     }
+    Ok(0)
+}
+
+/// `servo check`: model, firmware and supply of each servo, brown-outs, fast reads.
+fn check(args: &ServoArgs) -> anyhow::Result<u8> {
+    use gelgrip_dynamixel::control_table::RATED_INPUT_V;
+    use gelgrip_dynamixel::driver::{DynamixelBus, STATE_BLOCK, STATE_BLOCK_LEN};
+    let mut bus = DynamixelBus::open(&args.port, args.baud, &args.ids, 0.0)
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let supply = bus.check_supply().map_err(|e| anyhow::anyhow!("{e}"))?;
+    let mut servos = Vec::with_capacity(supply.len());
+    let mut lines = Vec::with_capacity(supply.len() + 1);
+    for r in &supply {
+        let (model, firmware) = bus.ping(r.id).map_err(|e| anyhow::anyhow!("{e}"))?;
+        servos.push(json!({"id": r.id, "model": model, "firmware": firmware,
+            "input_v": r.input_v, "brown_out": r.brown_out}));
+        lines.push(format!(
+            "servo {}: model {model}, firmware {firmware}, {:.1} V input{}",
+            r.id,
+            r.input_v,
+            if r.brown_out { " (BROWN-OUT)" } else { "" }
+        ));
+    }
+    let fast = bus
+        .fast_sync_read(&args.ids, STATE_BLOCK, STATE_BLOCK_LEN)
+        .is_ok();
+    lines.push(format!(
+        "fast sync read: {}",
+        if fast { "yes" } else { "no" }
+    ));
+    let brown_out = supply.iter().any(|r| r.brown_out);
+    print(
+        args,
+        json!({"servos": servos, "rated_min_v": RATED_INPUT_V.0, "brown_out": brown_out,
+            "fast_sync_read": fast}),
+        lines.join("\n"),
+    );
     Ok(0)
 }
 
@@ -160,6 +204,9 @@ pub enum ServoAction {
     Read,
     /// Write a value (little-endian, --len bytes) to the control table.
     Write,
+    /// Each servo of --ids: model, firmware, supply voltage (brown-out below the rated
+    /// 10.0 V), and whether they answer Fast Sync Read.
+    Check,
 }
 
 /// `gelgrip servo`.
@@ -177,6 +224,9 @@ pub struct ServoArgs {
     /// Servo id.
     #[arg(long, value_parser = clap::value_parser!(u8).range(0..=252))]
     pub id: Option<u8>,
+    /// Servo ids (`check`).
+    #[arg(long, value_delimiter = ',', default_value = "1,2,3", value_parser = clap::value_parser!(u8).range(0..=252))]
+    pub ids: Vec<u8>,
     /// Control-table address.
     #[arg(long)]
     pub addr: Option<u16>,

@@ -61,6 +61,12 @@ impl ServoEmulator {
         Self::launch(name, "servos", &["--ids", ids, "--baud", &baud.to_string()])
     }
 
+    /// Start `gelgrip emulate servos --link <tmp>/<name>/dxl ARGS…` and wait for its JSON
+    /// line.
+    pub fn start_with(name: &str, args: &[&str]) -> Self {
+        Self::launch(name, "servos", args)
+    }
+
     /// Start `gelgrip emulate hub --link <tmp>/<name>/hub --usb USB` and wait for its JSON
     /// line.
     pub fn start_hub(name: &str, usb: &str) -> Self {
