@@ -146,3 +146,38 @@ fn a_brown_out_is_read_by_the_sdk_and_warned_of_by_gelgrip() {
     }
     emu.stop();
 }
+
+/// gelgrip's driver reading the state block of three servos at 1 Mbps, by Sync Read and by
+/// Fast Sync Read, on the emulator (which charges each instruction its bus time): the
+/// median time per set each way, against the bus time the bytes on the wire give.
+#[test]
+fn the_driver_reads_a_set_faster_by_fast_sync_read_at_1_mbps() {
+    use gelgrip_controller::actuator::ServoBus;
+    use gelgrip_dynamixel::driver::{DynamixelBus, state_read_bus_time_us};
+    let emu = common::ServoEmulator::start("dxl-bus-time", "1,2,3", 1_000_000);
+    let mut bus = DynamixelBus::open(emu.path(), 1_000_000, &[1, 2, 3], 500.0).expect("open");
+    bus.configure().expect("configure");
+    assert!(bus.uses_fast_reads());
+    let mut median_us = |fast: bool| {
+        bus.set_fast_reads(fast);
+        let mut t: Vec<f64> = (0..60)
+            .map(|_| {
+                let t0 = std::time::Instant::now();
+                bus.read_state().expect("state");
+                t0.elapsed().as_secs_f64() * 1e6
+            })
+            .collect();
+        t.sort_by(f64::total_cmp);
+        t[t.len() / 2]
+    };
+    let (plain, fast) = (median_us(false), median_us(true));
+    let wire_plain = state_read_bus_time_us(&[1, 2, 3], false, 1_000_000, 500.0);
+    let wire_fast = state_read_bus_time_us(&[1, 2, 3], true, 1_000_000, 500.0);
+    eprintln!(
+        "state read per set at 1 Mbps: sync read {plain:.0} us (bus {wire_plain:.0}), \
+         fast sync read {fast:.0} us (bus {wire_fast:.0})"
+    );
+    assert!(plain >= wire_plain && fast >= wire_fast, "{plain} {fast}");
+    assert!(fast < plain, "fast {fast:.0} us, sync {plain:.0} us");
+    emu.stop();
+}

@@ -55,6 +55,35 @@ pub const STATE_BLOCK: u16 = addr::HARDWARE_ERROR_STATUS;
 /// Its length, bytes.
 pub const STATE_BLOCK_LEN: u16 = 77;
 
+/// The bus time of one state read of `ids` at `baud`, µs: the instruction, the replies and
+/// the servos' Return Delay Time (`return_delay_us` each; one for a Fast Sync Read, whose
+/// servos append their segments back to back), 10 bits a byte. From the encoded packets.
+pub fn state_read_bus_time_us(ids: &[u8], fast: bool, baud: u32, return_delay_us: f64) -> f64 {
+    let instruction = if fast {
+        ins::FAST_SYNC_READ
+    } else {
+        ins::SYNC_READ
+    };
+    let request = DynamixelBus::sync_read_packet(instruction, ids, STATE_BLOCK, STATE_BLOCK_LEN);
+    let data = vec![0u8; usize::from(STATE_BLOCK_LEN)];
+    let (reply_bytes, delays) = if fast {
+        let segments: Vec<FastSegment> = ids
+            .iter()
+            .map(|&id| FastSegment {
+                id,
+                error: 0,
+                data: data.clone(),
+            })
+            .collect();
+        (FastSegment::reply(&segments).encode().len(), 1.0)
+    } else {
+        let one = Packet::status(1, 0, &data).encode().len();
+        (one * ids.len(), ids.len() as f64)
+    };
+    let bytes = request.encode().len() + reply_bytes;
+    bytes as f64 * 10.0 * 1e6 / f64::from(baud.max(1)) + delays * return_delay_us
+}
+
 /// One servo's supply as it reports it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SupplyReading {

@@ -8,7 +8,9 @@ use std::time::{Duration, Instant};
 
 use gelgrip_controller::actuator::{FingerGoal, ServoBus, ServoError};
 use gelgrip_dynamixel::control_table::addr;
-use gelgrip_dynamixel::driver::{DriverError, DynamixelBus, STATE_BLOCK, STATE_BLOCK_LEN};
+use gelgrip_dynamixel::driver::{
+    DriverError, DynamixelBus, STATE_BLOCK, STATE_BLOCK_LEN, state_read_bus_time_us,
+};
 use serialport::{SerialPort, TTYPort};
 
 mod common;
@@ -162,4 +164,24 @@ fn a_brown_out_is_reported_with_servo_and_voltage() {
     e.emu.lock().expect("emulator").set_supply_v(12.0);
     bus.configure().expect("configure");
     assert!(bus.brown_outs().is_empty());
+}
+
+#[test]
+fn a_fast_sync_read_of_three_state_blocks_saves_two_return_delays_and_13_bytes() {
+    let ids = [1, 2, 3];
+    // Sync Read: 17-byte instruction, three 88-byte replies, three 500 µs delays (factory
+    // Return Delay Time 250 × 2 µs). Fast: one reply of 8 + 3 × (77 + 4) bytes, one delay.
+    let plain = state_read_bus_time_us(&ids, false, 1_000_000, 500.0);
+    let fast = state_read_bus_time_us(&ids, true, 1_000_000, 500.0);
+    assert!(
+        (plain - (17.0 + 3.0 * 88.0) * 10.0 - 1500.0).abs() < 1e-6,
+        "{plain}"
+    );
+    assert!(
+        (fast - (17.0 + 251.0) * 10.0 - 500.0).abs() < 1e-6,
+        "{fast}"
+    );
+    let no_delay = state_read_bus_time_us(&ids, false, 1_000_000, 0.0)
+        - state_read_bus_time_us(&ids, true, 1_000_000, 0.0);
+    assert!((no_delay - 130.0).abs() < 1e-6, "{no_delay}");
 }
