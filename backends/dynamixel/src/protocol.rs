@@ -430,6 +430,28 @@ mod tests {
 
     proptest! {
         #[test]
+        fn any_bytes_decode_or_are_refused_without_panicking(
+            bytes in proptest::collection::vec(any::<u8>(), 0..300),
+            lens in proptest::collection::vec(0usize..100, 0..5),
+        ) {
+            let mut wire = HEADER.to_vec();
+            wire.extend(&bytes);
+            let mut d = PacketDecoder::new();
+            d.push(&wire);
+            while d.pending() > 0 {
+                match d.next_packet() {
+                    Some(Ok(p)) => {
+                        let _ = FastSegment::split(&p, &lens);
+                    }
+                    Some(Err(_)) => {}
+                    None => d.on_idle(),
+                }
+            }
+            let p = Packet { id: BROADCAST_ID, instruction: instruction::STATUS, params: bytes };
+            let _ = FastSegment::split(&p, &lens);
+        }
+
+        #[test]
         fn packets_round_trip_through_garbage_and_chunking(
             packets in proptest::collection::vec((0u8..=253, any::<u8>(), proptest::collection::vec(any::<u8>(), 0..64)), 1..6),
             garbage in proptest::collection::vec(0u8..0xFF, 0..20),
