@@ -363,6 +363,7 @@ def median_ms(run):
 
 
 def check_fast_reads(bus, ids):
+    bus.sync_write(TORQUE_ENABLE, 1, {i: 0 for i in ids})  # at rest: both reads see one state
     start, length = HARDWARE_ERROR_STATUS, PRESENT_TEMPERATURE + 1 - HARDWARE_ERROR_STATUS
     plain = dxl.GroupSyncRead(bus.port, bus.ph, start, length)
     fast = dxl.GroupSyncRead(bus.port, bus.ph, start, length)
