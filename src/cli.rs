@@ -77,6 +77,9 @@ pub use gelgrip::UsageError;
 pub enum CalibrateCommand {
     /// Collect a press dataset on the simulator: ball presses at random places and depths.
     Collect(CollectArgs),
+    /// Label a folder of presses automatically: detect each contact circle against
+    /// `background.png`, write a press dataset, `rejected.csv` and `contact-sheet.png`.
+    Label(LabelArgs),
     /// Train a gradient model on a press dataset (the last 10% of rows are held out).
     Train(TrainArgs),
     /// Evaluate a gradient model on a press dataset: gx_mae, gy_mae, depth_mae_mm.
@@ -214,6 +217,7 @@ pub use crate::commands::calibrate::ModelKind;
 pub use crate::commands::calibrate::TrainArgs;
 pub use crate::commands::calibrate::TransferArgs;
 pub use crate::commands::calibrate_force::ForceArgs;
+pub use crate::commands::calibrate_label::LabelArgs;
 pub use crate::commands::check_config::CheckConfigArgs;
 pub use crate::commands::depth::DepthArgs;
 pub use crate::commands::emulate::EmulateServosArgs;

@@ -153,15 +153,7 @@ impl PressDataset {
         );
         std::fs::write(&toml_path, text).map_err(io_err(&toml_path))?;
         background.write_png(&dir.join("background.png"))?;
-        let mut csv = format!("{CSV_HEADER}\n");
-        for p in presses {
-            csv += &format!(
-                "{},{:.3},{:.3},{:.3}\n",
-                p.file, p.center_x_px, p.center_y_px, p.contact_radius_px
-            );
-        }
-        let csv_path = dir.join("presses.csv");
-        std::fs::write(&csv_path, csv).map_err(io_err(&csv_path))
+        write_presses_csv(dir, presses)
     }
 
     /// Ball radius in px.
@@ -213,6 +205,19 @@ fn parse_csv(text: &str) -> Result<Vec<Press>, String> {
             })
         })
         .collect()
+}
+
+/// Write `presses.csv` of `presses` into `dir` (replacing it).
+pub fn write_presses_csv(dir: &Path, presses: &[Press]) -> Result<(), DatasetError> {
+    let mut csv = format!("{CSV_HEADER}\n");
+    for p in presses {
+        csv += &format!(
+            "{},{:.3},{:.3},{:.3}\n",
+            p.file, p.center_x_px, p.center_y_px, p.contact_radius_px
+        );
+    }
+    let csv_path = dir.join("presses.csv");
+    std::fs::write(&csv_path, csv).map_err(io_err(&csv_path))
 }
 
 /// Ground truth of one press on a `width × height` image: depth (px) per pixel, zero

@@ -1,4 +1,5 @@
-//! `gelgrip calibrate collect|train|eval|transfer|bake`: press datasets, LUT and MLP
+//! `gelgrip calibrate collect|train|eval|transfer|bake` (`label` is in `calibrate_label`,
+//! collecting through a hardware hub in `calibrate_collect_hw`): press datasets, LUT and MLP
 //! training, zero-shot transfer, baking and evaluation with the contract's metrics.
 
 use crate::cli::parse_within;
@@ -16,13 +17,14 @@ use gelgrip_plugins::mlp::train::TrainOptions;
 use gelgrip_plugins::mlp::transfer::{Fit, transfer};
 use gelgrip_plugins::poisson::Solver;
 
-use crate::cli::CalibrateCommand;
+use crate::cli::{CalibrateCommand, UsageError};
 use gelgrip::{progress, simcam, wiring};
 
 /// Run a calibrate subcommand; returns the exit code.
 pub async fn run(cmd: CalibrateCommand) -> anyhow::Result<u8> {
     match cmd {
-        CalibrateCommand::Collect(a) => collect(a),
+        CalibrateCommand::Collect(a) => collect(a).await,
+        CalibrateCommand::Label(a) => crate::commands::calibrate_label::run(a),
         CalibrateCommand::Train(a) => train(a),
         CalibrateCommand::Eval(a) => eval(a),
         CalibrateCommand::Transfer(a) => transfer_cmd(a),
@@ -31,10 +33,26 @@ pub async fn run(cmd: CalibrateCommand) -> anyhow::Result<u8> {
     }
 }
 
-fn collect(args: CollectArgs) -> anyhow::Result<u8> {
+async fn collect(args: CollectArgs) -> anyhow::Result<u8> {
     let registry = wiring::registry();
     let config = wiring::load_config(args.config.as_deref(), &registry)?;
-    let (cam, sim) = simcam::camera(&config, &args.sensor)?;
+    if config.hub.transport != "sim" {
+        return crate::commands::calibrate_collect_hw::collect(&args, &config).await;
+    }
+    let (cam, mut sim) = simcam::camera(&config, &args.sensor)?;
+    if let Some(mm) = args
+        .mm_per_px
+        .filter(|mm| (mm - cam.mm_per_px).abs() > 1e-12)
+    {
+        return Err(UsageError(format!(
+            "--mm-per-px {mm}: the simulated {} has {} mm/px",
+            args.sensor, cam.mm_per_px
+        ))
+        .into());
+    }
+    if let Some(mm) = args.ball_mm {
+        sim.ball_diameter_mm = mm;
+    }
     eprintln!(
         "collecting {} presses on simulated sensor {} into {}",
         args.presses,
@@ -336,9 +354,18 @@ pub struct CollectArgs {
     /// Output directory.
     #[arg(long)]
     pub out: PathBuf,
-    /// Configuration (default: the embedded simulated gripper).
+    /// Configuration (default: the embedded simulated gripper). With a hardware hub
+    /// (`cdc`, `ch347`), the presses are taken through it, prompted on stderr and
+    /// confirmed on stdin (docs/calibration.md).
     #[arg(long)]
     pub config: Option<PathBuf>,
+    /// Diameter of the ball pressed, mm (required on a hardware hub; on the simulator, its
+    /// ball instead of `[hub.sim] ball_diameter_mm`).
+    #[arg(long, value_parser = crate::commands::calibrate_label::parse_ball_mm)]
+    pub ball_mm: Option<f64>,
+    /// Pixel size on the gel, mm (default: the layout's, for the sensor).
+    #[arg(long, value_parser = crate::commands::calibrate_label::parse_mm_per_px)]
+    pub mm_per_px: Option<f64>,
 }
 
 /// Gradient model kinds.

@@ -160,7 +160,7 @@ fn reading(grams: f64, volumes: &[(bool, f64)]) -> WeightReading {
 
 /// Stdin's lines, read on their own thread (a blocking read on the runtime's pool would
 /// hold the runtime open at exit); the channel closes with stdin.
-fn stdin_lines() -> mpsc::Receiver<String> {
+pub(crate) fn stdin_lines() -> mpsc::Receiver<String> {
     let (tx, rx) = mpsc::channel(4);
     std::thread::spawn(move || {
         use std::io::BufRead;

@@ -6,6 +6,13 @@
 //! on stdout answers it: `{"sensor", "weight_g", "force_n", "depth_mm"}`, or
 //! `{"sensor", "weight_g", "error"}`.
 //!
+//! With `--presses-on-stdin` the boards show calibration ball presses instead, for
+//! `calibrate collect`: each stdin line `SENSOR X_PX Y_PX DEPTH_MM [BALL_MM]` presses a ball
+//! (`[hub.sim] ball_diameter_mm` unless given) there, `SENSOR lift` lifts it, and one JSON
+//! line answers: `{"sensor", "center_x_px", "center_y_px", "depth_mm", "ball_mm",
+//! "contact_radius_px"}`, `{"sensor", "lifted": true}` or `{"sensor", "error"}`. Weight lines
+//! (`SENSOR GRAMS`) are taken too.
+//!
 //! As for `emulate servos` (CONTRACTS.md): the pseudo-terminal is served first, then the
 //! symlink PATH is created, then one JSON line `{"link", "pty", "usb", "sensors"}` goes to
 //! stdout. The link is removed on SIGINT or SIGTERM.
@@ -38,15 +45,16 @@ pub async fn run(args: EmulateHubArgs) -> anyhow::Result<u8> {
         section.table = toml::Table::new();
         SimConfig::from_section(&section, &config.layout)?
     };
-    let (cameras, weights): (Box<dyn BoardCameras>, _) = if args.weights_on_stdin {
-        let (cameras, control) =
-            weighted_cameras(&config.layout, &sim).context("rendering the boards' frames")?;
-        (Box::new(cameras), Some(control))
-    } else {
-        let cameras =
-            SimCameras::presses(&config.layout, &sim).context("rendering the boards' frames")?;
-        (Box::new(cameras), None)
-    };
+    let (cameras, weights): (Box<dyn BoardCameras>, _) =
+        if args.weights_on_stdin || args.presses_on_stdin {
+            let (cameras, control) =
+                weighted_cameras(&config.layout, &sim).context("rendering the boards' frames")?;
+            (Box::new(cameras), Some(control))
+        } else {
+            let cameras = SimCameras::presses(&config.layout, &sim)
+                .context("rendering the boards' frames")?;
+            (Box::new(cameras), None)
+        };
     let usb = match args.usb {
         UsbArg::Fs => UsbSpeed::Full,
         UsbArg::Hs => UsbSpeed::High,
@@ -76,7 +84,8 @@ pub async fn run(args: EmulateHubArgs) -> anyhow::Result<u8> {
     );
     if let Some(control) = weights {
         let layout = config.layout.clone();
-        std::thread::spawn(move || serve_weights(&layout, &control));
+        let ball_mm = sim.ball_diameter_mm;
+        std::thread::spawn(move || serve_weights(&layout, &control, ball_mm));
     }
     tracing::info!(
         sensors,
@@ -91,14 +100,19 @@ pub async fn run(args: EmulateHubArgs) -> anyhow::Result<u8> {
 
 /// Read `SENSOR GRAMS` lines from stdin until it closes, placing each weight and answering
 /// each line with one JSON line on stdout.
-fn serve_weights(layout: &HandLayout, control: &WeightControl) {
+fn serve_weights(layout: &HandLayout, control: &WeightControl, ball_mm: f64) {
     use std::io::{BufRead, Write};
     for line in std::io::stdin().lock().lines() {
         let Ok(line) = line else { break };
         if line.trim().is_empty() {
             continue;
         }
-        let answer = place_weight(layout, control, &line);
+        let words: Vec<&str> = line.split_whitespace().collect();
+        let answer = if words.len() == 2 && words[1] != "lift" {
+            place_weight(layout, control, &line)
+        } else {
+            press_ball(layout, control, &line, ball_mm)
+        };
         let mut out = std::io::stdout().lock();
         let _ = writeln!(out, "{answer}");
         let _ = out.flush();
@@ -136,6 +150,50 @@ fn place_weight(layout: &HandLayout, control: &WeightControl, line: &str) -> ser
     }
 }
 
+/// Press or lift the ball one stdin line asks for (`SENSOR X_PX Y_PX DEPTH_MM [BALL_MM]`
+/// or `SENSOR lift`); the JSON answer.
+fn press_ball(
+    layout: &HandLayout,
+    control: &WeightControl,
+    line: &str,
+    ball_mm: f64,
+) -> serde_json::Value {
+    let words: Vec<&str> = line.split_whitespace().collect();
+    let sensor = words.first().copied().unwrap_or("");
+    let fail = |why: String| {
+        tracing::warn!("presses: `{line}`: {why}");
+        serde_json::json!({ "sensor": sensor, "error": why })
+    };
+    let Some(board) = layout.index_of(sensor) else {
+        return fail(format!(
+            "no sensor `{sensor}`; sensors: {}",
+            layout.id_list()
+        ));
+    };
+    if words.len() == 2 && words[1] == "lift" {
+        return match control.place(board, 0.0) {
+            Ok(_) => serde_json::json!({ "sensor": sensor, "lifted": true }),
+            Err(e) => fail(e.to_string()),
+        };
+    }
+    let nums: Option<Vec<f64>> = words[1..].iter().map(|w| w.parse().ok()).collect();
+    let Some(nums) = nums.filter(|n| n.len() == 3 || n.len() == 4) else {
+        return fail("expected `SENSOR X_PX Y_PX DEPTH_MM [BALL_MM]` or `SENSOR lift`".into());
+    };
+    let ball = nums.get(3).copied().unwrap_or(ball_mm);
+    match control.press_ball(board, (nums[0], nums[1]), ball, nums[2]) {
+        Ok(p) => serde_json::json!({
+            "sensor": sensor,
+            "center_x_px": p.center_x_px,
+            "center_y_px": p.center_y_px,
+            "depth_mm": p.depth_mm,
+            "ball_mm": p.ball_mm,
+            "contact_radius_px": p.contact_radius_px,
+        }),
+        Err(e) => fail(e.to_string()),
+    }
+}
+
 /// USB speed of an emulated hub's link.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum UsbArg {
@@ -166,4 +224,9 @@ pub struct EmulateHubArgs {
     /// (`SENSOR 0` lifts it), answered by one JSON line on stdout (for `calibrate force`).
     #[arg(long)]
     pub weights_on_stdin: bool,
+    /// Calibration ball presses on request: each stdin line `SENSOR X_PX Y_PX DEPTH_MM
+    /// [BALL_MM]` presses a ball there (`SENSOR lift` lifts it), answered by one JSON line
+    /// on stdout (for `calibrate collect` on a hub).
+    #[arg(long)]
+    pub presses_on_stdin: bool,
 }

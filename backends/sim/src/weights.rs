@@ -46,9 +46,27 @@ pub enum WeightError {
         /// The heaviest the pad carries within its depth range, g.
         max_grams: f64,
     },
+    /// Not a ball press the pad can show.
+    #[error("not a ball press this sensor can show: {0}")]
+    BadPress(String),
     /// Rendering the press failed.
     #[error(transparent)]
     Encode(#[from] EncodeError),
+}
+
+/// A calibration ball press in place.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BallPress {
+    /// Centre, px.
+    pub center_x_px: f64,
+    /// Centre, px.
+    pub center_y_px: f64,
+    /// Ball diameter, mm.
+    pub ball_mm: f64,
+    /// Indentation, mm.
+    pub depth_mm: f64,
+    /// Radius of the contact circle, px (the press dataset's label).
+    pub contact_radius_px: f64,
 }
 
 /// A weight in place.
@@ -77,6 +95,7 @@ pub struct WeightControl {
     frames: BoardFrames,
     cameras: Vec<SensorCamera>,
     noise_pool: u64,
+    shown: Arc<std::sync::atomic::AtomicU64>,
 }
 
 /// Cameras for every sensor of `layout`, all untouched, and their control.
@@ -91,6 +110,7 @@ pub fn weighted_cameras(
         frames: Arc::new(Mutex::new(vec![Vec::new(); cameras.len()])),
         cameras,
         noise_pool: cfg.noise_pool.max(1) as u64,
+        shown: Arc::default(),
     };
     for board in 0..control.cameras.len() {
         control.place(board, 0.0)?;
@@ -128,6 +148,62 @@ impl WeightControl {
             grams,
             force_n,
             depth_mm,
+        })
+    }
+}
+
+impl WeightControl {
+    /// Press a ball of `ball_mm` `depth_mm` deep at `centre` (px) on board `board`, shown
+    /// until the next press, weight or lift ([`WeightControl::place`] with 0 g lifts it).
+    /// Each press gets camera noise of its own.
+    pub fn press_ball(
+        &self,
+        board: usize,
+        (cx, cy): (f64, f64),
+        ball_mm: f64,
+        depth_mm: f64,
+    ) -> Result<BallPress, WeightError> {
+        let cam = self.cameras.get(board).ok_or(WeightError::NoBoard {
+            board,
+            boards: self.cameras.len(),
+        })?;
+        let r_mm = ball_mm / 2.0;
+        let finite = [cx, cy, ball_mm, depth_mm].iter().all(|v| v.is_finite());
+        if !finite || ball_mm <= 0.0 || !(0.0..=r_mm.min(MAX_DEPTH_MM)).contains(&depth_mm) {
+            return Err(WeightError::BadPress(format!(
+                "ball {ball_mm} mm, {depth_mm} mm deep: expected a ball over 0 mm pressed 0 to {:.2} mm deep",
+                r_mm.min(MAX_DEPTH_MM)
+            )));
+        }
+        let (w, h) = (cam.width as f64, cam.height as f64);
+        if !(0.0..w).contains(&cx) || !(0.0..h).contains(&cy) {
+            return Err(WeightError::BadPress(format!(
+                "centre ({cx}, {cy}) px is off the {w}x{h} px pad"
+            )));
+        }
+        let map = HeightMap::ball_press(
+            cam.width,
+            cam.height,
+            cam.mm_per_px,
+            (cx, cy),
+            ball_mm,
+            depth_mm,
+        );
+        let nth = self
+            .shown
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let first = 6_000_000 + nth * self.noise_pool;
+        let frames = (0..self.noise_pool)
+            .map(|k| cam.jpeg(&map, first + k).map(Bytes::from))
+            .collect::<Result<Vec<_>, _>>()?;
+        self.frames.lock().unwrap_or_else(PoisonError::into_inner)[board] = frames;
+        Ok(BallPress {
+            center_x_px: cx,
+            center_y_px: cy,
+            ball_mm,
+            depth_mm,
+            contact_radius_px: (r_mm * r_mm - (r_mm - depth_mm).powi(2)).max(0.0).sqrt()
+                / cam.mm_per_px,
         })
     }
 }
@@ -232,5 +308,25 @@ mod tests {
         }
         let err = control.place(7, 10.0).expect_err("no board 7");
         assert!(err.to_string().contains("no sensor board 7"), "{err}");
+    }
+
+    #[test]
+    fn a_ball_press_is_shown_on_request_and_lifted() {
+        let (mut cams, control) = weighted_cameras(&layout(), &cfg()).expect("cams");
+        let flat = cams.capture(0, 0, 0);
+        let p = control
+            .press_ball(0, (100.0, 80.0), 6.0, 0.5)
+            .expect("press");
+        let expected = (9.0f64 - 2.5 * 2.5).sqrt() / control.cameras[0].mm_per_px;
+        assert!((p.contact_radius_px - expected).abs() < 1e-9, "{p:?}");
+        assert_ne!(cams.capture(0, 0, 0), flat);
+        for bad in [(1e6, 80.0, 0.5), (100.0, 80.0, 4.0), (f64::NAN, 80.0, 0.5)] {
+            let err = control
+                .press_ball(0, (bad.0, bad.1), 6.0, bad.2)
+                .expect_err("bad");
+            assert!(matches!(err, WeightError::BadPress(_)), "{err}");
+        }
+        control.place(0, 0.0).expect("lifted");
+        assert_eq!(cams.capture(0, 0, 0).len(), flat.len());
     }
 }

@@ -1,0 +1,303 @@
+//! `gelgrip calibrate collect` on a hardware hub (`cdc`, `ch347` or their emulators, as
+//! the config says): a press dataset of a real sensor, labelled as it is collected.
+//!
+//! The sensor's frames come through the configured hub and gate, as in a run. The user is
+//! prompted on stderr (lines starting `> `) and answers on stdin:
+//! 1. with the sensor untouched, Enter: [`BACKGROUND_FRAMES`] frames are averaged into
+//!    `background.png`;
+//! 2. for each press, the user presses the ball; the command waits for a contact, waits
+//!    until [`SETTLE_FRAMES`] frames in a row show the same circle, averages the next
+//!    [`AVERAGE_FRAMES`] and labels that ([`calibrate_label::label_one`]); Enter keeps the
+//!    press, `r` and Enter redoes it. A kept press is written (`press_NNN.png`, and
+//!    `presses.csv` rewritten) at once. The next press must first be lifted off, or moved.
+//!
+//! SIGINT or stdin closing ends the session early: every press already kept stays on disk
+//! and in `presses.csv`, and the command says how many (exit 0 on SIGINT, 1 when stdin
+//! closed).
+
+use std::path::Path;
+use std::pin::Pin;
+use std::time::Duration;
+
+use anyhow::Context;
+use tokio::sync::mpsc;
+
+use gelgrip_controller::acquire::Acquisition;
+use gelgrip_controller::clock::Clock;
+use gelgrip_controller::config::AppConfig;
+use gelgrip_plugins::calibrate::label::{ContactCircle, detect};
+use gelgrip_plugins::dataset::{DatasetInfo, Press, PressDataset, write_presses_csv};
+use gelgrip_plugins::image::RgbImage;
+
+use crate::cli::{ClockArg, CollectArgs, UsageError};
+use crate::commands::calibrate_force_hw::stdin_lines;
+use crate::commands::calibrate_label::label_one;
+use gelgrip::wiring;
+
+/// Frames averaged into the background.
+pub const BACKGROUND_FRAMES: usize = 10;
+/// Frames in a row showing the same circle before a press counts as settled.
+pub const SETTLE_FRAMES: usize = 3;
+/// Frames averaged into a press once it has settled.
+pub const AVERAGE_FRAMES: usize = 5;
+/// Two circles are the same when their centres are this close, px…
+const SAME_CENTRE_PX: f64 = 1.0;
+/// …and their radii within this share.
+const SAME_RADIUS: f64 = 0.03;
+/// Longest wait for one synchronized set before the hub counts as gone.
+const SET_TIMEOUT: Duration = Duration::from_secs(5);
+
+/// How the session ended early.
+#[derive(Debug)]
+enum Stop {
+    Signal,
+    StdinClosed,
+    Failed(anyhow::Error),
+}
+
+impl From<anyhow::Error> for Stop {
+    fn from(e: anyhow::Error) -> Self {
+        Self::Failed(e)
+    }
+}
+
+/// Collect `args.presses` presses of `args.sensor` through the configured hub.
+pub async fn collect(args: &CollectArgs, config: &AppConfig) -> anyhow::Result<u8> {
+    let id = args.sensor.as_str();
+    let index = config.layout.index_of(id).ok_or_else(|| {
+        UsageError(format!(
+            "no sensor `{id}` in layout `{}`; sensors: {}",
+            config.layout.name,
+            config.layout.id_list()
+        ))
+    })?;
+    let ball_mm = args.ball_mm.ok_or_else(|| {
+        UsageError(
+            "--ball-mm is required on a hardware hub: the diameter of the ball you press".into(),
+        )
+    })?;
+    let mm_per_px = args
+        .mm_per_px
+        .unwrap_or(config.layout.sensors[index].mm_per_px);
+    let info = DatasetInfo {
+        ball_diameter_mm: ball_mm,
+        mm_per_px,
+    };
+    let clock = wiring::make_clock(ClockArg::Real.into());
+    let acq = wiring::open_acquisition(config, &wiring::registry(), clock.clone())
+        .await
+        .with_context(|| format!("opening the {} hub", config.hub.transport))?;
+    let mut s = Session {
+        acq,
+        index,
+        clock,
+        stdin: stdin_lines(),
+        signal: Box::pin(crate::commands::run::shutdown_signal()),
+    };
+    let mut kept = Vec::new();
+    let wanted = args.presses as usize;
+    eprintln!(
+        "calibrate collect on {id} through the {} hub: {wanted} presses of a {ball_mm} mm ball at {mm_per_px} mm/px into {}",
+        config.hub.transport,
+        args.out.display()
+    );
+    let outcome = session(&mut s, &args.out, &info, wanted, &mut kept).await;
+    let n = kept.len();
+    let place = args.out.display();
+    match outcome {
+        Ok(()) => {
+            println!("{place}: {n} presses kept, ball {ball_mm} mm, {mm_per_px} mm/px");
+            Ok(0)
+        }
+        Err(Stop::Signal) => {
+            println!(
+                "interrupted: {n} of {wanted} presses kept in {place} (presses.csv lists them)"
+            );
+            Ok(0)
+        }
+        Err(Stop::StdinClosed) => {
+            println!(
+                "stdin closed: {n} of {wanted} presses kept in {place} (presses.csv lists them)"
+            );
+            Ok(1)
+        }
+        Err(Stop::Failed(e)) => {
+            eprintln!("{n} of {wanted} presses kept in {place} (presses.csv lists them)");
+            Err(e)
+        }
+    }
+}
+
+async fn session(
+    s: &mut Session,
+    out: &Path,
+    info: &DatasetInfo,
+    wanted: usize,
+    kept: &mut Vec<Press>,
+) -> Result<(), Stop> {
+    s.prompt_line("leave the sensor untouched, then press Enter")
+        .await?;
+    let background = average(&s.frames(BACKGROUND_FRAMES).await?)?;
+    PressDataset::write_index(out, info, &background, &[]).map_err(anyhow::Error::from)?;
+    let ball_radius_px = info.ball_diameter_mm / 2.0 / info.mm_per_px;
+    let mut last: Option<ContactCircle> = None;
+    while kept.len() < wanted {
+        eprintln!(
+            "> press the ball on the sensor and hold it still (press {} of {wanted})",
+            kept.len() + 1
+        );
+        let img = s.settled_press(&background, last).await?;
+        let circle = match label_one(&img, &background, ball_radius_px) {
+            Ok(c) => c,
+            Err(reason) => {
+                eprintln!("  not usable: {reason}; lift the ball and press again");
+                last = detect(&img, &background).ok();
+                continue;
+            }
+        };
+        last = Some(circle);
+        eprintln!(
+            "  contact at ({:.1}, {:.1}) px, radius {:.1} px, score {:.2}",
+            circle.center_x_px, circle.center_y_px, circle.contact_radius_px, circle.score
+        );
+        let answer = s
+            .prompt_line("keep it? Enter keeps it, `r` then Enter redoes it")
+            .await?;
+        if answer.trim().eq_ignore_ascii_case("r") {
+            eprintln!("  redo: lift the ball and press again");
+            continue;
+        }
+        let file = format!("press_{:03}.png", kept.len());
+        img.write_png(&out.join(&file))
+            .map_err(anyhow::Error::from)?;
+        kept.push(Press {
+            file,
+            center_x_px: circle.center_x_px,
+            center_y_px: circle.center_y_px,
+            contact_radius_px: circle.contact_radius_px,
+        });
+        write_presses_csv(out, kept).map_err(anyhow::Error::from)?;
+        eprintln!("  kept {} of {wanted}", kept.len());
+    }
+    Ok(())
+}
+
+/// The live session: the hub's sets, stdin's lines and the shutdown signal.
+struct Session {
+    acq: Acquisition,
+    index: usize,
+    clock: std::sync::Arc<dyn Clock>,
+    stdin: mpsc::Receiver<String>,
+    signal: Pin<Box<dyn Future<Output = ()> + Send>>,
+}
+
+impl Session {
+    /// Prompt `> step` and wait for a line, keeping the hub's sets flowing meanwhile.
+    async fn prompt_line(&mut self, step: &str) -> Result<String, Stop> {
+        eprintln!("> {step}");
+        loop {
+            tokio::select! {
+                line = self.stdin.recv() => return line.ok_or(Stop::StdinClosed),
+                () = &mut self.signal => return Err(Stop::Signal),
+                step = self.acq.step() => { step.context("the hub, between presses")?; }
+            }
+        }
+    }
+
+    /// The sensor's next frame, decoded; stdin lines meanwhile are ignored.
+    async fn frame(&mut self) -> Result<RgbImage, Stop> {
+        loop {
+            let deadline = self.clock.now_us() + SET_TIMEOUT.as_micros() as u64;
+            let set = tokio::select! {
+                set = self.acq.next_set_before(deadline) => set.context("the hub")?,
+                () = &mut self.signal => return Err(Stop::Signal),
+                line = self.stdin.recv() => {
+                    if line.is_none() {
+                        return Err(Stop::StdinClosed);
+                    }
+                    continue;
+                }
+            };
+            let Some(set) = set else {
+                return Err(Stop::Failed(anyhow::anyhow!(
+                    "no synchronized set from the hub in {} s",
+                    SET_TIMEOUT.as_secs()
+                )));
+            };
+            let frame = set
+                .frames
+                .get(self.index)
+                .context("a set without this sensor's frame")?;
+            return Ok(
+                RgbImage::from_jpeg("a frame", &frame.frame.jpeg).map_err(anyhow::Error::from)?
+            );
+        }
+    }
+
+    async fn frames(&mut self, n: usize) -> Result<Vec<RgbImage>, Stop> {
+        let mut out = Vec::with_capacity(n);
+        while out.len() < n {
+            out.push(self.frame().await?);
+        }
+        Ok(out)
+    }
+
+    /// Wait for a contact that is not `last` (the press just kept or refused, until it
+    /// is lifted or moved), for it to settle, and average it.
+    async fn settled_press(
+        &mut self,
+        background: &RgbImage,
+        mut last: Option<ContactCircle>,
+    ) -> Result<RgbImage, Stop> {
+        let mut run: Vec<ContactCircle> = Vec::new();
+        loop {
+            let img = self.frame().await?;
+            let Ok(c) = detect(&img, background) else {
+                last = None;
+                run.clear();
+                continue;
+            };
+            if last.is_some_and(|l| same(&l, &c)) {
+                continue;
+            }
+            last = None;
+            if run.last().is_some_and(|p| !same(p, &c)) {
+                run.clear();
+            }
+            run.push(c);
+            if run.len() >= SETTLE_FRAMES {
+                return Ok(average(&self.frames(AVERAGE_FRAMES).await?)?);
+            }
+        }
+    }
+}
+
+fn same(a: &ContactCircle, b: &ContactCircle) -> bool {
+    (a.center_x_px - b.center_x_px).hypot(a.center_y_px - b.center_y_px) <= SAME_CENTRE_PX
+        && (a.contact_radius_px / b.contact_radius_px - 1.0).abs() <= SAME_RADIUS
+}
+
+/// The per-pixel mean of `frames` (all one size), rounded.
+fn average(frames: &[RgbImage]) -> anyhow::Result<RgbImage> {
+    let first = frames.first().context("no frames to average")?;
+    let mut sum = vec![0u32; first.data.len()];
+    for f in frames {
+        anyhow::ensure!(
+            f.data.len() == sum.len(),
+            "frames of different sizes: {}x{} and {}x{}",
+            first.width,
+            first.height,
+            f.width,
+            f.height
+        );
+        sum.iter_mut()
+            .zip(&f.data)
+            .for_each(|(s, v)| *s += u32::from(*v));
+    }
+    let n = frames.len() as u32;
+    Ok(RgbImage {
+        width: first.width,
+        height: first.height,
+        data: sum.iter().map(|s| ((s + n / 2) / n) as u8).collect(),
+    })
+}

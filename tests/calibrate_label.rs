@@ -1,0 +1,539 @@
+//! `gelgrip calibrate label` and the contact detection under it: accuracy on the
+//! simulator's presses across ball sizes and depths, every bad-input case, and `calibrate
+//! collect` over the emulated CDC hub (presses on request) into a LUT.
+
+mod common;
+
+use std::io::{BufRead, BufReader, Write};
+use std::path::{Path, PathBuf};
+use std::process::{Child, ChildStdin, Command, Output, Stdio};
+
+use common::{gelgrip, json, ok, s, scratch};
+use gelgrip::{simcam, wiring};
+use gelgrip_plugins::calibrate::label::detect;
+use gelgrip_plugins::dataset::PressDataset;
+use gelgrip_plugins::image::RgbImage;
+use gelgrip_sim::scene::HeightMap;
+use rand::{Rng, SeedableRng};
+
+/// Simulator presses of balls of 4, 6 and 10 mm at depths of 0.15–0.9 mm, anywhere on the
+/// pad: the centre within 1 px and the radius within 5% of the truth on at least 95%.
+#[test]
+fn simulator_presses_are_labelled_to_a_pixel() {
+    let config = wiring::load_config(None, &wiring::registry()).expect("default config");
+    let (cam, _) = simcam::camera(&config, "f1.tip").expect("camera");
+    let n = 10u64;
+    let mut sum = vec![0u32; cam.width * cam.height * 3];
+    for jpeg in simcam::no_contact_frames(&cam, 1_000_000, n).expect("frames") {
+        let img = simcam::decode(&cam, &jpeg).expect("decode");
+        sum.iter_mut()
+            .zip(&img.data)
+            .for_each(|(s, v)| *s += u32::from(*v));
+    }
+    let background = RgbImage {
+        width: cam.width,
+        height: cam.height,
+        data: sum.iter().map(|s| ((s + 5) / 10) as u8).collect(),
+    };
+    let flat = RgbImage {
+        width: cam.width,
+        height: cam.height,
+        data: cam.rgb(&HeightMap::flat(cam.width, cam.height), 1),
+    };
+    let mut worst_raw = 0.0f64;
+    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(27);
+    let (mut good, mut total, mut worst_c, mut worst_r) = (0, 0, 0.0f64, 0.0f64);
+    for ball_mm in [4.0, 6.0, 10.0] {
+        for i in 0..12u64 {
+            let r_mm: f64 = ball_mm / 2.0;
+            let depth: f64 = rng.random_range(0.15..0.9f64).min(0.9 * r_mm);
+            let a_px = (r_mm * r_mm - (r_mm - depth).powi(2)).sqrt() / cam.mm_per_px;
+            let m = a_px + 4.0;
+            let cx = rng.random_range(m..cam.width as f64 - m);
+            let cy = rng.random_range(m..cam.height as f64 - m);
+            let map = HeightMap::ball_press(
+                cam.width,
+                cam.height,
+                cam.mm_per_px,
+                (cx, cy),
+                ball_mm,
+                depth,
+            );
+            let jpeg = cam.jpeg(&map, 2_000_000 + i).expect("render");
+            let img = simcam::decode(&cam, &jpeg).expect("decode");
+            total += 1;
+            let line = format!(
+                "ball {ball_mm} mm, {depth:.2} mm deep: truth ({cx:.2}, {cy:.2}) r {a_px:.2}"
+            );
+            // The same press before JPEG: the decoded frames' colour sits about half a
+            // pixel right and down of the geometry (chroma siting), the rendered RGB does not.
+            let raw = RgbImage {
+                width: cam.width,
+                height: cam.height,
+                data: cam.rgb(&map, 2_000_000 + i),
+            };
+            if let Ok(c) = detect(&raw, &flat) {
+                worst_raw = worst_raw.max((c.center_x_px - cx).hypot(c.center_y_px - cy));
+            }
+            match detect(&img, &background) {
+                Ok(c) => {
+                    let dc = (c.center_x_px - cx).hypot(c.center_y_px - cy);
+                    let dr = (c.contact_radius_px / a_px - 1.0).abs();
+                    worst_c = worst_c.max(dc);
+                    worst_r = worst_r.max(dr);
+                    good += usize::from(dc <= 1.0 && dr <= 0.05);
+                    eprintln!(
+                        "{line}: found ({:.2}, {:.2}) r {:.2}, score {:.2}: {dc:.2} px, {:.1}%",
+                        c.center_x_px,
+                        c.center_y_px,
+                        c.contact_radius_px,
+                        c.score,
+                        dr * 100.0
+                    );
+                }
+                Err(e) => eprintln!("{line}: rejected: {e}"),
+            }
+        }
+    }
+    eprintln!(
+        "{good} of {total} within 1 px and 5%; worst {worst_c:.2} px, {:.1}%",
+        worst_r * 100.0
+    );
+    eprintln!("before JPEG: worst centre error {worst_raw:.2} px");
+    assert!(good as f64 >= 0.95 * total as f64, "{good} of {total}");
+    assert!(worst_raw < 0.25, "{worst_raw}");
+}
+
+/// Collect `n` simulator presses (with their true labels) into `dir`.
+fn sim_presses(dir: &std::path::Path, n: &str) {
+    ok(&gelgrip(&[
+        "calibrate",
+        "collect",
+        "--sensor",
+        "f1.tip",
+        "--presses",
+        n,
+        "--out",
+        s(dir),
+    ]));
+}
+
+/// A label run on a folder of simulator presses with three bad images among them: the good
+/// ones become a dataset near their true labels, the bad ones are listed with their reason.
+#[test]
+fn label_writes_a_dataset_the_rejected_and_a_contact_sheet() {
+    let dir = scratch("label");
+    let (sim, input, out) = (dir.join("sim"), dir.join("in"), dir.join("out"));
+    sim_presses(&sim, "6");
+    std::fs::create_dir_all(&input).expect("in");
+    for f in std::fs::read_dir(&sim).expect("sim").flatten() {
+        let name = f.file_name().into_string().expect("name");
+        if name.ends_with(".png") {
+            std::fs::copy(f.path(), input.join(&name)).expect("copy");
+        }
+    }
+    std::fs::write(input.join("garbage.png"), b"not a png at all").expect("garbage");
+    RgbImage::new(32, 24)
+        .write_png(&input.join("small.png"))
+        .expect("small");
+    std::fs::copy(sim.join("background.png"), input.join("untouched.png")).expect("copy");
+    let report = json(&gelgrip(&[
+        "calibrate",
+        "label",
+        "--in",
+        s(&input),
+        "--out",
+        s(&out),
+        "--ball-mm",
+        "6",
+        "--mm-per-px",
+        "0.0625",
+        "--json",
+    ]));
+    assert_eq!(report["labelled"], 6, "{report}");
+    let rejected = report["rejected"].as_array().expect("rejected");
+    let reason = |file: &str| {
+        rejected
+            .iter()
+            .find(|r| r["file"] == file)
+            .and_then(|r| r["reason"].as_str())
+            .map(str::to_string)
+            .unwrap_or_default()
+    };
+    assert!(reason("garbage.png").starts_with("unreadable"), "{report}");
+    assert!(reason("small.png").starts_with("wrong size"), "{report}");
+    assert!(
+        reason("untouched.png").starts_with("no contact"),
+        "{report}"
+    );
+    assert_eq!(rejected.len(), 3, "{report}");
+    let truth = PressDataset::load(&sim).expect("sim dataset");
+    let labelled = PressDataset::load(&out).expect("the output is a press dataset");
+    assert_eq!(labelled.info.ball_diameter_mm, 6.0);
+    for (t, l) in truth.presses.iter().zip(&labelled.presses) {
+        assert_eq!(t.file, l.file);
+        let dc = (t.center_x_px - l.center_x_px).hypot(t.center_y_px - l.center_y_px);
+        assert!(
+            dc < 1.0 && (l.contact_radius_px / t.contact_radius_px - 1.0).abs() < 0.05,
+            "{t:?} {l:?}"
+        );
+        labelled
+            .press_image(l)
+            .expect("the press image is in the dataset");
+    }
+    for p in report["presses"].as_array().expect("presses") {
+        let score = p["score"].as_f64().expect("score");
+        assert!(
+            (0.0..=1.0).contains(&score) && p["center_x_px"].is_f64(),
+            "{p}"
+        );
+    }
+    let csv = std::fs::read_to_string(out.join("rejected.csv")).expect("rejected.csv");
+    assert!(
+        csv.starts_with("file,reason\n") && csv.lines().count() == 4,
+        "{csv}"
+    );
+    assert!(
+        csv.contains("\ngarbage.png,") || csv.contains("\ngarbage.png,\""),
+        "{csv}"
+    );
+    let sheet = RgbImage::read_png(&out.join("contact-sheet.png")).expect("contact sheet");
+    assert!(sheet.width > 100 && sheet.height > 100);
+}
+
+/// A missing or unreadable background, or a folder without press images: exit 2 naming it.
+#[test]
+fn label_without_a_background_or_presses_exits_2() {
+    let dir = scratch("label-bad");
+    let args = |input: &std::path::Path| {
+        gelgrip(&[
+            "calibrate",
+            "label",
+            "--in",
+            s(input),
+            "--out",
+            s(&dir.join("out")),
+            "--ball-mm",
+            "6",
+            "--mm-per-px",
+            "0.0625",
+        ])
+    };
+    let input = dir.join("in");
+    std::fs::create_dir_all(&input).expect("in");
+    RgbImage::new(32, 24)
+        .write_png(&input.join("press_000.png"))
+        .expect("press");
+    let out = args(&input);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("background.png"), "{stderr}");
+    std::fs::write(input.join("background.png"), b"garbage").expect("bad background");
+    let out = args(&input);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("background.png"), "{stderr}");
+    std::fs::remove_file(input.join("press_000.png")).expect("rm");
+    RgbImage::new(32, 24)
+        .write_png(&input.join("background.png"))
+        .expect("background");
+    let out = args(&input);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("no press images") && stderr.contains(s(&input)),
+        "{stderr}"
+    );
+    let out = args(&dir.join("missing"));
+    assert_eq!(out.status.code(), Some(2));
+}
+
+/// `gelgrip emulate hub --presses-on-stdin` on `dir/hub`, with the CDC config on it.
+struct PressHub {
+    child: Child,
+    stdin: ChildStdin,
+    answers: std::io::Lines<BufReader<std::process::ChildStdout>>,
+    config: PathBuf,
+}
+
+impl PressHub {
+    fn start(dir: &Path) -> Self {
+        let link = dir.join("hub");
+        let mut child = Command::new(env!("CARGO_BIN_EXE_gelgrip"))
+            .args(["emulate", "hub", "--presses-on-stdin", "--link", s(&link)])
+            .env("RUST_LOG", "warn")
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .spawn()
+            .expect("the emulator starts");
+        let stdin = child.stdin.take().expect("stdin");
+        let mut answers = BufReader::new(child.stdout.take().expect("stdout")).lines();
+        let hello = answers.next().expect("announcement").expect("a line");
+        assert!(hello.contains("\"pty\""), "{hello}");
+        let layout =
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/layouts/three-finger.toml");
+        let text = format!(
+            "version = 1\nlayout = {:?}\n[hub]\ntransport = \"cdc\"\ntrigger = \"broadcast\"\n\
+             [hub.cdc]\nport = {:?}\nusb = \"hs\"\n[gate]\npolicy = \"trigger\"\n\
+             [servos]\nbus = \"sim\"\n",
+            s(&layout),
+            s(&link)
+        );
+        let config = dir.join("hw.toml");
+        std::fs::write(&config, text).expect("config");
+        Self {
+            child,
+            stdin,
+            answers,
+            config,
+        }
+    }
+
+    /// Ask the emulator for `line`; its JSON answer.
+    fn ask(&mut self, line: &str) -> serde_json::Value {
+        writeln!(self.stdin, "{line}").expect("emulator stdin");
+        let answer = self.answers.next().expect("an answer").expect("a line");
+        serde_json::from_str(&answer).expect("the answer is JSON")
+    }
+}
+
+impl Drop for PressHub {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// How a collect session is driven: keep every press, or end it after `after` kept
+/// presses by SIGINT or by closing stdin.
+#[derive(Clone, Copy, PartialEq)]
+enum End {
+    Complete,
+    Sigint { after: usize },
+    CloseStdin { after: usize },
+}
+
+/// Run `calibrate collect` of `presses` on the hub into `out`, pressing a 6 mm ball at
+/// random places and depths on f1.tip at each prompt and keeping each press but the first
+/// (redone).
+fn collect_on_hub(hub: &mut PressHub, out: &Path, presses: &str, end: End) -> (Output, String) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_gelgrip"))
+        .args([
+            "calibrate",
+            "collect",
+            "--sensor",
+            "f1.tip",
+            "--presses",
+            presses,
+        ])
+        .args([
+            "--ball-mm",
+            "6",
+            "--mm-per-px",
+            "0.0625",
+            "--config",
+            s(&hub.config),
+        ])
+        .args(["--out", s(out)])
+        .env("RUST_LOG", "warn")
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("calibrate collect starts");
+    let mut stdin = child.stdin.take();
+    // A session that stops making progress fails the test instead of hanging it.
+    let done = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let (watch, pid) = (done.clone(), child.id().to_string());
+    std::thread::spawn(move || {
+        for _ in 0..1800 {
+            std::thread::sleep(std::time::Duration::from_millis(100));
+            if watch.load(std::sync::atomic::Ordering::Relaxed) {
+                return;
+            }
+        }
+        let _ = Command::new("kill").args(["-KILL", &pid]).status();
+    });
+    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(7);
+    let (mut kept, mut redone, mut log) = (0, false, String::new());
+    for line in BufReader::new(child.stderr.take().expect("stderr")).lines() {
+        let line = line.expect("stderr line");
+        log += &line;
+        log.push('\n');
+        let Some(step) = line.strip_prefix("> ") else {
+            if line.trim_start().starts_with("kept ") {
+                kept += 1;
+            }
+            continue;
+        };
+        match end {
+            End::Sigint { after } if kept == after && step.starts_with("press") => {
+                let pid = child.id().to_string();
+                Command::new("kill")
+                    .args(["-INT", &pid])
+                    .status()
+                    .expect("kill");
+                continue;
+            }
+            End::CloseStdin { after } if kept == after && step.starts_with("press") => {
+                stdin = None;
+                continue;
+            }
+            _ => {}
+        }
+        if step.starts_with("leave") {
+            assert_eq!(hub.ask("f1.tip lift")["lifted"], true);
+        }
+        if step.starts_with("press") {
+            let depth: f64 = rng.random_range(0.15..0.9);
+            let a_px = (9.0 - (3.0 - depth).powi(2)).sqrt() / 0.0625;
+            let m = a_px + 4.0;
+            let (x, y) = (
+                rng.random_range(m..320.0 - m),
+                rng.random_range(m..240.0 - m),
+            );
+            let answer = hub.ask(&format!("f1.tip {x:.2} {y:.2} {depth:.3}"));
+            assert!(answer["contact_radius_px"].is_f64(), "{answer}");
+        }
+        let reply = if step.starts_with("keep") && !redone {
+            redone = true;
+            "r"
+        } else {
+            ""
+        };
+        if let Some(w) = stdin.as_mut() {
+            writeln!(w, "{reply}").expect("collect stdin");
+        }
+    }
+    let out = child.wait_with_output().expect("collect exits");
+    done.store(true, std::sync::atomic::Ordering::Relaxed);
+    (out, log)
+}
+
+fn eval_json(model: &Path, data: &Path) -> serde_json::Value {
+    json(&gelgrip(&[
+        "calibrate",
+        "eval",
+        "--model",
+        s(model),
+        "--data",
+        s(data),
+        "--solver",
+        "none",
+        "--json",
+    ]))
+}
+
+fn train_lut(data: &Path, model: &Path) {
+    ok(&gelgrip(&[
+        "calibrate",
+        "train",
+        "--data",
+        s(data),
+        "--model",
+        "lut",
+        "--out",
+        s(model),
+    ]));
+}
+
+/// 20 presses collected over the emulated CDC hub on a pseudo-terminal, labelled as they
+/// come and trained into a LUT, read simulator presses as well as a LUT trained on 20
+/// simulator-collected presses with true labels: gx_mae and gy_mae within 10%.
+#[test]
+fn presses_collected_through_the_cdc_hub_train_a_lut_as_good_as_the_simulators() {
+    let dir = scratch("collect-hub");
+    let mut hub = PressHub::start(&dir);
+    let hub_data = dir.join("hub-presses");
+    let (out, log) = collect_on_hub(&mut hub, &hub_data, "20", End::Complete);
+    assert!(out.status.success(), "{:?}\n{log}", out.status);
+    assert!(
+        String::from_utf8_lossy(&out.stdout).contains("20 presses kept"),
+        "{out:?}"
+    );
+    assert!(log.contains("redo"), "{log}");
+    assert_eq!(
+        PressDataset::load(&hub_data)
+            .expect("dataset")
+            .presses
+            .len(),
+        20
+    );
+
+    let sim_data = dir.join("sim-presses");
+    sim_presses(&sim_data, "20");
+    let eval_cfg = dir.join("eval.toml");
+    let default = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/gelgripper-sim.toml"),
+    )
+    .expect("sim config")
+    .replace("seed = 1\n", "seed = 5\n")
+    .replace(
+        "\"layouts/",
+        &format!("\"{}/configs/layouts/", env!("CARGO_MANIFEST_DIR")),
+    );
+    std::fs::write(&eval_cfg, default).expect("eval config");
+    let eval_data = dir.join("eval-presses");
+    ok(&gelgrip(&[
+        "calibrate",
+        "collect",
+        "--sensor",
+        "f1.tip",
+        "--presses",
+        "10",
+        "--config",
+        s(&eval_cfg),
+        "--out",
+        s(&eval_data),
+    ]));
+    let (hub_lut, sim_lut) = (dir.join("hub.safetensors"), dir.join("sim.safetensors"));
+    train_lut(&hub_data, &hub_lut);
+    train_lut(&sim_data, &sim_lut);
+    let (h, m) = (
+        eval_json(&hub_lut, &eval_data),
+        eval_json(&sim_lut, &eval_data),
+    );
+    eprintln!("hub-collected LUT: {h}\nsimulator-collected LUT: {m}");
+    for k in ["gx_mae", "gy_mae"] {
+        let (a, b) = (h[k].as_f64().expect(k), m[k].as_f64().expect(k));
+        assert!(
+            (a / b - 1.0).abs() <= 0.1,
+            "{k}: hub {a:.4}, simulator {b:.4}"
+        );
+    }
+}
+
+/// SIGINT after two kept presses, or stdin closing after one: what was kept stays on disk
+/// and in presses.csv, and the command says how many.
+#[test]
+fn an_interrupted_collect_keeps_what_it_kept() {
+    let dir = scratch("collect-stop");
+    let mut hub = PressHub::start(&dir);
+    for (end, kept, code, said) in [
+        (
+            End::Sigint { after: 2 },
+            2,
+            0,
+            "interrupted: 2 of 5 presses kept",
+        ),
+        (
+            End::CloseStdin { after: 1 },
+            1,
+            1,
+            "stdin closed: 1 of 5 presses kept",
+        ),
+    ] {
+        let data = dir.join(format!("kept-{kept}"));
+        let (out, log) = collect_on_hub(&mut hub, &data, "5", end);
+        assert_eq!(out.status.code(), Some(code), "{log}");
+        assert!(
+            String::from_utf8_lossy(&out.stdout).contains(said),
+            "{out:?}\n{log}"
+        );
+        let ds = PressDataset::load(&data).expect("the kept presses are a dataset");
+        assert_eq!(ds.presses.len(), kept);
+        for p in &ds.presses {
+            ds.press_image(p).expect("each kept press is on disk");
+        }
+    }
+}
