@@ -1,15 +1,14 @@
-//! `gelgrip servo scan|ping|read|write|check`: field tools for a Dynamixel bus. Scan, ping,
-//! read and write go through the `dynamixel2` client; `check` through gelgrip's own driver
-//! (`gelgrip_dynamixel::driver`): each servo's model, firmware and supply voltage, a
-//! brown-out warning below the XM430-W350's rated 10.0 V, and whether the servos answer Fast
-//! Sync Read. Timeouts, CRC failures and servo errors each get a message that says what
-//! happened and what to check.
+//! `gelgrip servo scan|ping|read|write|check`: field tools for a Dynamixel bus, through
+//! gelgrip's own driver (`gelgrip_dynamixel::driver`), so a malformed status packet is an
+//! explained error, never a panic. `check` gives each servo's model, firmware and supply
+//! voltage, a brown-out warning below the XM430-W350's rated 10.0 V, and whether the servos
+//! answer Fast Sync Read. Timeouts, CRC failures and servo errors each get a message that
+//! says what happened and what to check.
 
-use anyhow::Context;
 use clap::{Args, ValueEnum};
 use serde_json::json;
 
-use dynamixel2::{ReadError, TransferError};
+use gelgrip_dynamixel::driver::{DriverError, DynamixelBus};
 
 use crate::cli::UsageError;
 
@@ -28,34 +27,25 @@ fn motor_error_name(n: u8) -> &'static str {
     }
 }
 
-/// Turn a dynamixel2 error into a message with the likely cause.
-fn explain(id: u8, e: TransferError) -> anyhow::Error {
+/// Turn a driver error into a message with the likely cause.
+fn explain(e: DriverError) -> anyhow::Error {
     match e {
-        TransferError::ReadError(ReadError::Io(io))
-            if io.kind() == std::io::ErrorKind::TimedOut =>
-        {
+        DriverError::Timeout { id, .. } => anyhow::anyhow!(
+            "no reply from servo {id} before the deadline (reply wire time + 34 ms): check that it is powered, its id, and the baud rate"
+        ),
+        DriverError::Corrupt { .. } | DriverError::Length { .. } => {
+            anyhow::anyhow!("{e} (noise on the bus, or two servos with one id?)")
+        }
+        DriverError::DataLimit { id, .. }
+        | DriverError::Access { id, .. }
+        | DriverError::Status { id, .. } => {
+            let n = e.status_error().unwrap_or(0);
             anyhow::anyhow!(
-                "no reply from servo {id} before the deadline (reply wire time + 34 ms): check that it is powered, its id, and the baud rate"
+                "servo {id} reported error {n:#04x}, {}: {e}",
+                motor_error_name(n)
             )
         }
-        TransferError::ReadError(ReadError::InvalidMessage(m)) => {
-            anyhow::anyhow!(
-                "corrupt reply from servo {id}: {m} (noise on the bus, or two servos with one id?)"
-            )
-        }
-        TransferError::ReadError(ReadError::MotorError(m)) => {
-            let n = m.error_number();
-            anyhow::anyhow!(
-                "servo {id} reported error {n:#04x}, {}{}",
-                motor_error_name(n),
-                if m.alert() {
-                    "; hardware alert is set: read address 70"
-                } else {
-                    ""
-                }
-            )
-        }
-        other => anyhow::anyhow!("bus error talking to servo {id}: {other}"),
+        DriverError::Io(_) => anyhow::anyhow!("bus error: {e}"),
     }
 }
 
@@ -73,16 +63,18 @@ fn print(args: &ServoArgs, value: serde_json::Value, text: String) {
 
 /// Run the command; returns the exit code.
 pub fn run(args: ServoArgs) -> anyhow::Result<u8> {
-    let mut bus = dynamixel2::Bus::open(&args.port, args.baud)
-        .with_context(|| format!("opening {} at {} baud", args.port, args.baud))?;
+    let ids = args.id.map_or_else(|| args.ids.clone(), |id| vec![id]);
+    let mut bus =
+        DynamixelBus::open(&args.port, args.baud, &ids, 0.0).map_err(|e| anyhow::anyhow!("{e}"))?;
     match args.action {
         ServoAction::Scan => {
             let found: Vec<serde_json::Value> = bus
                 .scan()
-                .map_err(|e| anyhow::anyhow!("scan failed to send: {e}"))?
+                .map_err(explain)?
                 .into_iter()
-                .filter_map(Result::ok)
-                .map(|r| json!({"id": r.motor_id, "model": r.data.model, "firmware": r.data.firmware}))
+                .map(
+                    |(id, model, firmware)| json!({"id": id, "model": model, "firmware": firmware}),
+                )
                 .collect();
             let text = format!(
                 "{} servo(s): {}",
@@ -93,14 +85,12 @@ pub fn run(args: ServoArgs) -> anyhow::Result<u8> {
         }
         ServoAction::Ping => {
             let id = need(args.id, "--id", "ping")?;
-            let r = bus.ping(id).map_err(|e| explain(id, e))?;
-            let text = format!(
-                "servo {id}: model {}, firmware {}",
-                r.data.model, r.data.firmware
-            );
+            let (model, firmware) = bus.ping(id).map_err(explain)?;
+            let alert = bus.last_alert();
+            let text = format!("servo {id}: model {model}, firmware {firmware}");
             print(
                 &args,
-                json!({"id": id, "model": r.data.model, "firmware": r.data.firmware, "alert": r.alert}),
+                json!({"id": id, "model": model, "firmware": firmware, "alert": alert}),
                 text,
             );
         }
@@ -110,21 +100,18 @@ pub fn run(args: ServoArgs) -> anyhow::Result<u8> {
                 need(args.addr, "--addr", "read")?,
             );
             let len = args.len.unwrap_or(1);
-            let r = bus.read(id, a, len).map_err(|e| explain(id, e))?;
-            let value = (len <= 4).then(|| {
-                r.data
-                    .iter()
-                    .rev()
-                    .fold(0u64, |v, b| v << 8 | u64::from(*b))
-            });
+            let data = bus.read(id, a, len).map_err(explain)?;
+            let alert = bus.last_alert();
+            let value =
+                (len <= 4).then(|| data.iter().rev().fold(0u64, |v, b| v << 8 | u64::from(*b)));
             let text = format!(
                 "servo {id} @{a} [{len}]: {:?}{}",
-                r.data,
+                data,
                 value.map_or(String::new(), |v| format!(" = {v}"))
             );
             print(
                 &args,
-                json!({"id": id, "addr": a, "len": len, "bytes": r.data, "value": value, "alert": r.alert}),
+                json!({"id": id, "addr": a, "len": len, "bytes": data, "value": value, "alert": alert}),
                 text,
             );
         }
@@ -141,32 +128,27 @@ pub fn run(args: ServoArgs) -> anyhow::Result<u8> {
                 )));
             }
             let bytes = &v.to_le_bytes()[..len];
-            bus.write(id, a, bytes).map_err(|e| explain(id, e))?;
+            bus.write(id, a, bytes).map_err(explain)?;
             print(
                 &args,
                 json!({"id": id, "addr": a, "len": len, "value": v}),
                 format!("servo {id} @{a} [{len}] <- {v}"),
             );
         }
-        ServoAction::Check => {
-            drop(bus); // the driver opens the port itself
-            return check(&args);
-        }
+        ServoAction::Check => return check(&mut bus, &args),
     }
     Ok(0)
 }
 
 /// `servo check`: model, firmware and supply of each servo, brown-outs, fast reads.
-fn check(args: &ServoArgs) -> anyhow::Result<u8> {
+fn check(bus: &mut DynamixelBus, args: &ServoArgs) -> anyhow::Result<u8> {
     use gelgrip_dynamixel::control_table::RATED_INPUT_V;
-    use gelgrip_dynamixel::driver::{DynamixelBus, STATE_BLOCK, STATE_BLOCK_LEN};
-    let mut bus = DynamixelBus::open(&args.port, args.baud, &args.ids, 0.0)
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
-    let supply = bus.check_supply().map_err(|e| anyhow::anyhow!("{e}"))?;
+    use gelgrip_dynamixel::driver::{STATE_BLOCK, STATE_BLOCK_LEN};
+    let supply = bus.check_supply().map_err(explain)?;
     let mut servos = Vec::with_capacity(supply.len());
     let mut lines = Vec::with_capacity(supply.len() + 1);
     for r in &supply {
-        let (model, firmware) = bus.ping(r.id).map_err(|e| anyhow::anyhow!("{e}"))?;
+        let (model, firmware) = bus.ping(r.id).map_err(explain)?;
         servos.push(json!({"id": r.id, "model": model, "firmware": firmware,
             "input_v": r.input_v, "brown_out": r.brown_out}));
         lines.push(format!(
@@ -224,7 +206,7 @@ pub struct ServoArgs {
     /// Servo id.
     #[arg(long, value_parser = clap::value_parser!(u8).range(0..=252))]
     pub id: Option<u8>,
-    /// Servo ids (`check`).
+    /// Servo ids (`check`; the others use --id).
     #[arg(long, value_delimiter = ',', default_value = "1,2,3", value_parser = clap::value_parser!(u8).range(0..=252))]
     pub ids: Vec<u8>,
     /// Control-table address.

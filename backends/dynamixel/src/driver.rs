@@ -76,6 +76,7 @@ pub struct DynamixelBus {
     recovered: Vec<RecoveredFault>,
     fast_reads: bool,
     brown_outs: Vec<SupplyReading>,
+    last_alert: bool,
 }
 
 impl std::fmt::Debug for DynamixelBus {
@@ -113,6 +114,7 @@ impl DynamixelBus {
             recovered: Vec::new(),
             fast_reads: false,
             brown_outs: Vec::new(),
+            last_alert: false,
         })
     }
 

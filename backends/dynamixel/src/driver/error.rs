@@ -54,7 +54,10 @@ pub enum DriverError {
         value: i64,
     },
     /// Access Error (0x07): a read-only or undefined address, or EEPROM with torque on.
-    #[error("servo {id}: Access Error on {register} (address {address}, value {value:?})")]
+    #[error(
+        "servo {id}: Access Error on {register} (address {address}{})",
+        value.map(|v| format!(", value {v}")).unwrap_or_default()
+    )]
     Access {
         /// Servo id.
         id: u8,

@@ -67,13 +67,13 @@ impl Link {
         Ok(())
     }
 
-    /// The next status packet from packet id `from` within `deadline`, checked: LEN within
-    /// 4..=[`MAX_LEN`], CRC, status instruction, id. Errors name servo `id` (the first servo
-    /// of a fast read's reply from the broadcast id). A servo's status error is left in
-    /// `params[0]` for the caller, who knows what was asked.
+    /// The next status packet from packet id `from` (any id if `None`) within `deadline`,
+    /// checked: LEN within 4..=[`MAX_LEN`], CRC, status instruction, id. Errors name servo
+    /// `id` (the first servo of a fast read's reply from the broadcast id). A servo's status
+    /// error is left in `params[0]` for the caller, who knows what was asked.
     pub fn receive(
         &mut self,
-        from: u8,
+        from: Option<u8>,
         id: u8,
         deadline: Duration,
         what: &str,
@@ -87,7 +87,7 @@ impl Link {
                     Ok(p) if p.params.is_empty() => {
                         return Err(self.length_error(p.id, 3, what));
                     }
-                    Ok(p) if p.id != from => {
+                    Ok(p) if from.is_some_and(|f| f != p.id) => {
                         return Err(DriverError::Corrupt {
                             id,
                             detail: format!("a reply from id {} to {what}", p.id),

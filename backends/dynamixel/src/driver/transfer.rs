@@ -90,12 +90,52 @@ impl DynamixelBus {
     ) -> Result<Vec<u8>, DriverError> {
         self.link.send(p)?;
         let deadline = self.link.reply_deadline(STATUS_OVERHEAD + reply_params);
-        let reply = self.link.receive(p.id, p.id, deadline, what)?;
+        let reply = self.link.receive(Some(p.id), p.id, deadline, what)?;
         let error = reply.params[0];
+        self.last_alert = error & status_error::ALERT != 0;
         if error & 0x7F != 0 {
             return Err(status_error_of(p.id, error, address, value, what));
         }
         Ok(reply.params[1..].to_vec())
+    }
+
+    /// Whether the last status packet of a ping, read, write or reboot had the hardware
+    /// alert bit set (read Hardware Error Status, address 70).
+    pub fn last_alert(&self) -> bool {
+        self.last_alert
+    }
+
+    /// Broadcast ping: (id, model, firmware) of every servo that answers before the
+    /// deadline: 253 replies' wire time plus the padding, as ROBOTIS's SDK waits.
+    pub fn scan(&mut self) -> Result<Vec<(u8, u16, u8)>, DriverError> {
+        let p = Packet {
+            id: BROADCAST_ID,
+            instruction: ins::PING,
+            params: vec![],
+        };
+        self.link.send(&p)?;
+        let until =
+            std::time::Instant::now() + self.link.reply_deadline(253 * (STATUS_OVERHEAD + 3));
+        let mut found = Vec::new();
+        loop {
+            let left = until.saturating_duration_since(std::time::Instant::now());
+            match self
+                .link
+                .receive(None, BROADCAST_ID, left, "broadcast ping")
+            {
+                Ok(r) => match r.params[..] {
+                    [_, lo, hi, fw] => found.push((r.id, u16::from_le_bytes([lo, hi]), fw)),
+                    _ => {
+                        return Err(DriverError::Corrupt {
+                            id: r.id,
+                            detail: format!("{} ping bytes", r.params.len()),
+                        });
+                    }
+                },
+                Err(DriverError::Timeout { .. }) => return Ok(found),
+                Err(e) => return Err(e),
+            }
+        }
     }
 
     /// Ping `id`: its model number and firmware version.
@@ -171,7 +211,7 @@ impl DynamixelBus {
         let deadline = self.link.reply_deadline(STATUS_OVERHEAD + usize::from(len));
         ids.iter()
             .map(|&id| {
-                let r = self.link.receive(id, id, deadline, "sync read")?;
+                let r = self.link.receive(Some(id), id, deadline, "sync read")?;
                 self.check_data(id, r.params[0], &r.params[1..], address, len)
             })
             .collect()
@@ -227,7 +267,9 @@ impl DynamixelBus {
         let lens: Vec<usize> = plan.iter().map(|e| usize::from(e.2)).collect();
         let bytes = 8 + lens.iter().map(|n| n + 4).sum::<usize>();
         let deadline = self.link.reply_deadline(bytes);
-        let reply = self.link.receive(BROADCAST_ID, first, deadline, what)?;
+        let reply = self
+            .link
+            .receive(Some(BROADCAST_ID), first, deadline, what)?;
         let segments = FastSegment::split(&reply, &lens).ok_or_else(|| DriverError::Corrupt {
             id: first,
             detail: format!("{what}: segments or their CRCs do not match {lens:?}"),
