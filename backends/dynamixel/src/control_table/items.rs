@@ -1,6 +1,12 @@
-//! Every item of the XM430-W350 control table (Protocol 2.0, firmware 45), as the ROBOTIS
-//! e-Manual lists it: address, size, access, factory default and the range a write must
-//! respect. Source: `../shared/reference/dynamixel.md` §2 and the e-Manual's XM430-W350 page.
+//! Every item of the XM430-W350 control table (Protocol 2.0), as the ROBOTIS e-Manual's
+//! XM430-W350 page lists it: address, size, access, factory default and the range a write
+//! must respect. Source: `../shared/reference/dynamixel.md` §2 and the e-Manual page's
+//! control table (ROBOTIS-GIT/emanual `docs/en/dxl/x/xm430-w350.md`). Where that table is
+//! off for this model the servo's own limits are used: ID 0–252 (0xFD is not an id), Min/Max
+//! Voltage Limit 95–160 (its defaults; the page prints another model's 110–300), and Drive
+//! Mode bits 0, 2 and 3 (the page's Drive Mode section describes the time-based profile,
+//! bit 2). Items of other X models (External Port Mode, Startup Configuration, Backup Ready)
+//! are not on this page and are undefined here.
 
 /// Who may write an item.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -85,7 +91,7 @@ use Factory::{From, Id, Live, Value};
 use Range::{Fixed, Limit};
 
 /// The items outside the indirect blocks, in address order.
-pub const ITEMS: [Item; 56] = [
+pub const ITEMS: [Item; 51] = [
     item(0, 2, "Model Number", R, Value(1020), Range::None),
     item(2, 4, "Model Information", R, Value(0), Range::None),
     item(6, 1, "Firmware Version", R, Value(45), Range::None),
@@ -113,10 +119,6 @@ pub const ITEMS: [Item; 56] = [
     item(44, 4, "Velocity Limit", RW, Value(200), Fixed(0, 1023)),
     item(48, 4, "Max Position Limit", RW, Value(4095), Fixed(0, 4095)),
     item(52, 4, "Min Position Limit", RW, Value(0), Fixed(0, 4095)),
-    item(56, 1, "External Port Mode 1", RW, Value(3), Fixed(0, 3)),
-    item(57, 1, "External Port Mode 2", RW, Value(3), Fixed(0, 3)),
-    item(58, 1, "External Port Mode 3", RW, Value(3), Fixed(0, 3)),
-    item(60, 1, "Startup Configuration", RW, Value(0), Fixed(0, 3)),
     item(63, 1, "Shutdown", RW, Value(52), Fixed(0, 255)),
     item(64, 1, "Torque Enable", RW, Value(0), Fixed(0, 1)),
     item(65, 1, "LED", RW, Value(0), Fixed(0, 1)),
@@ -155,7 +157,6 @@ pub const ITEMS: [Item; 56] = [
     signed(item(140, 4, "Position Trajectory", R, Live, Range::None)),
     item(144, 2, "Present Input Voltage", R, Live, Range::None),
     item(146, 1, "Present Temperature", R, Live, Range::None),
-    item(147, 1, "Backup Ready", R, Value(0), Range::None),
 ];
 
 /// Indirect Address 1–28 (168–223) point at Indirect Data 1–28 (224–251); 29–56 (578–633)

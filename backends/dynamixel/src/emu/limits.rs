@@ -168,6 +168,11 @@ mod tests {
         assert_eq!(check_write(&t, 118, &[0, 0]), Err(err::DATA_LENGTH));
         assert_eq!(check_write(&t, 66, &[1]), Err(err::ACCESS));
         assert_eq!(
+            check_write(&t, 60, &[1]),
+            Err(err::ACCESS),
+            "not an XM430-W350 item"
+        );
+        assert_eq!(
             check_write(&t, addr::PRESENT_INPUT_VOLTAGE, &[1, 0]),
             Err(err::ACCESS)
         );
