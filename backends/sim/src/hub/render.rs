@@ -4,7 +4,9 @@
 //! trigger's time on the caller's thread, so the frames show what they showed before) and
 //! hands them here; the JPEGs are made while the loop works on the sets before. The jobs are
 //! rendered in order, one at a time, so the noise variants cycle as before and a run on the
-//! virtual clock gives the same frames.
+//! virtual clock gives the same frames. The renderer's parallel work runs on a rayon pool of
+//! its own, one thread: on the global pool its JPEGs would queue ahead of the tactile
+//! pipelines' work, and a set's last frame would wait for the next set's pictures.
 
 use std::sync::mpsc::{Receiver, Sender, channel};
 use std::thread::JoinHandle;
@@ -32,12 +34,17 @@ impl RenderThread {
     /// Render `frames`' captures on a thread of its own.
     pub fn spawn(mut frames: SceneFrames) -> std::io::Result<Self> {
         let (jobs, rx) = channel::<(Job, Sender<Rendered>)>();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .thread_name(|_| "sim-render-pool".into())
+            .build()
+            .map_err(std::io::Error::other)?;
         let thread = std::thread::Builder::new()
             .name("sim-render".into())
             .spawn(move || {
                 for ((maps, nth), reply) in rx {
                     // The hub may have gone: nobody to tell.
-                    let _ = reply.send(frames.render(maps, nth));
+                    let _ = reply.send(pool.install(|| frames.render(maps, nth)));
                 }
             })?;
         Ok(Self {
