@@ -370,11 +370,11 @@ impl EmulatedServo {
 }
 
 /// Moving Status: bit 0 in position, bit 1 profile ongoing, bits 4–5 the profile type
-/// (0 none, 1 rectangular, 3 trapezoidal).
+/// (0 step: Profile Velocity 0; 1 rectangular: Profile Acceleration 0; 3 trapezoidal).
 fn moving_status(d: &Drive, profiling: bool) -> u8 {
     let in_position = d.position_mode() && !profiling;
     let profile = match (d.profile_velocity, d.profile_acceleration) {
-        (0, 0) => 0,
+        (0, _) => 0,
         (_, 0) => 1,
         _ => 3,
     };

@@ -27,8 +27,6 @@ pub struct Drive {
     pub profile_velocity: u32,
     /// Profile Acceleration (214.577 rev/min² units, or ms when time-based).
     pub profile_acceleration: u32,
-    /// Velocity Limit, 0.229 rpm units.
-    pub velocity_limit: u32,
     /// Supply voltage, V.
     pub supply_v: f64,
 }
@@ -57,7 +55,6 @@ impl Drive {
             pwm_limit: le(t, addr::PWM_LIMIT, 2) as u16,
             profile_velocity: le(t, addr::PROFILE_VELOCITY, 4) as u32,
             profile_acceleration: le(t, addr::PROFILE_ACCELERATION, 4) as u32,
-            velocity_limit: le(t, addr::VELOCITY_LIMIT, 4) as u32,
             supply_v,
         }
     }

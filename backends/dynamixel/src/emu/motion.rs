@@ -1,5 +1,7 @@
 //! The emulated XM430-W350's motion without load, as the e-Manual gives it: the profile
-//! generator of position modes (velocity-based, or time-based with Drive Mode bit 2), and
+//! generator of position modes (velocity-based, or time-based with Drive Mode bit 2: step
+//! with Profile Velocity 0, rectangular with Profile Acceleration 0, else trapezoidal or
+//! triangular), and
 //! velocity, PWM and current modes, bounded by the no-load speed at the supply voltage
 //! (46 rpm at 12 V, proportional to the voltage) scaled by Goal PWM / 885.
 //!
@@ -99,12 +101,12 @@ impl Motion {
     /// The profile's speed and acceleration bounds for the move towards the goal.
     fn position_profile(&mut self, d: &Drive, cap: f64) -> (f64, f64) {
         if !d.time_based() {
-            let speed = if d.profile_velocity > 0 {
-                pulses_s(f64::from(d.profile_velocity.min(d.velocity_limit)) * RPM_PER_UNIT)
-                    .min(cap)
-            } else {
-                cap
-            };
+            // Profile Velocity 0 is the e-Manual's step instruction: no profile at all, so
+            // Profile Acceleration is not used either.
+            if d.profile_velocity == 0 {
+                return (cap, f64::INFINITY);
+            }
+            let speed = pulses_s(f64::from(d.profile_velocity) * RPM_PER_UNIT).min(cap);
             return (speed, d.velocity_profile_accel());
         }
         match self.plan {
@@ -168,7 +170,6 @@ mod tests {
             goal_position: goal,
             supply_v: 12.0,
             pwm_limit: 885,
-            velocity_limit: 200,
             ..Drive::default()
         }
     }
@@ -209,6 +210,17 @@ mod tests {
         let expected = 1.0 / v + v / a;
         let t = time_to_reach(&mut m, &d, 0.01);
         assert!((t - expected).abs() < 0.02, "{t} s, expected {expected}");
+    }
+
+    #[test]
+    fn profile_velocity_0_is_a_step_whatever_the_acceleration() {
+        let mut m = Motion::at(2048.0);
+        let d = Drive {
+            profile_acceleration: 1,
+            ..drive(3072)
+        };
+        let t = time_to_reach(&mut m, &d, 0.01);
+        assert!((t - 0.25 / (46.0 / 60.0)).abs() < 0.02, "{t}");
     }
 
     #[test]
