@@ -20,6 +20,7 @@ pub mod output;
 pub mod plot;
 pub mod progress;
 pub mod replay;
+pub mod ros;
 pub mod scene_report;
 pub mod scripts;
 pub mod sensor_models;

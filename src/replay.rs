@@ -363,6 +363,11 @@ impl ReplayedGate {
         }
     }
 
+    /// The gate's statistics so far.
+    pub fn stats(&self) -> &gelgrip_controller::gate::GateStats {
+        self.acq.gate().stats()
+    }
+
     /// The gate's decisions so far and the hub events replayed.
     pub fn seen(&self) -> Seen {
         self.seen.lock().map(|d| d.clone()).unwrap_or_default()

@@ -231,7 +231,9 @@ impl Session {
         // The dashboard's grasp needs every sensor's pipeline; on a hardware hub without
         // model files the dashboard still serves the cameras, sync and servos.
         let unmodelled = crate::tactile::sensors_without_model(&config)?;
-        let grasp_api = (!options.headless || options.grasp_api) && unmodelled.is_empty();
+        // A run that publishes to ROS 2 drives through the grasp API too (readings, servos).
+        let ros_on = crate::ros::config::RosConfig::from_section(&config.ros)?.enabled;
+        let grasp_api = (!options.headless || options.grasp_api || ros_on) && unmodelled.is_empty();
         if !options.headless && options.task.is_none() && !unmodelled.is_empty() {
             tracing::warn!(
                 sensors = unmodelled.join(", "),

@@ -178,6 +178,7 @@ pub fn load_config_from_memory(
 fn check_loaded(config: AppConfig) -> anyhow::Result<AppConfig> {
     gelgrip_plugins::config::PipelineConfig::from_section(&config.pipeline, &config.layout)?;
     gelgrip_record::writer::RecorderOptions::from_section(&config.record)?;
+    crate::ros::config::RosConfig::from_section(&config.ros)?;
     servo_faults(&config)?;
     check_servo_count(&config)?;
     Ok(config)

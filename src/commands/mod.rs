@@ -20,6 +20,7 @@ pub mod emulate;
 pub mod emulate_hub;
 pub mod plot;
 pub mod record_export;
+pub mod record_export_mcap;
 pub mod record_info;
 pub mod replay;
 pub mod run;

@@ -1,5 +1,5 @@
-//! `gelgrip record export DIR [--frames OUT] [--csv FILE] [--npy OUT]`: a recording as files
-//! other tools read.
+//! `gelgrip record export DIR [--frames OUT] [--csv FILE] [--npy OUT] [--mcap OUT.mcap]`: a
+//! recording as files other tools read.
 //!
 //! - `--frames OUT`: every frame the hub delivered, decoded, as `OUT/<sensor>/<seq>.png`
 //!   (8-bit RGB, the sequence zero-padded to 8 digits), with `OUT/frames.csv` indexing them
@@ -9,6 +9,8 @@
 //!   each servo's position and current, and the goal written for the set (empty if none).
 //! - `--npy OUT`: the depth map of every sensor for every set the gate emits, through the
 //!   recorded config's pipeline, as `OUT/<sensor>/<seq>.npy` (float32, rows × columns, mm).
+//! - `--mcap OUT.mcap`: the ROS 2 messages `run --ros` publishes, as MCAP
+//!   ([`super::record_export_mcap`]).
 
 use clap::Args;
 use std::collections::HashMap;
@@ -222,9 +224,10 @@ async fn export_npy(recording: &Recording, out: &Path) -> anyhow::Result<u64> {
 
 /// Run the command; returns the exit code.
 pub async fn run(args: RecordExportArgs) -> anyhow::Result<u8> {
-    if args.frames.is_none() && args.csv.is_none() && args.npy.is_none() {
+    if args.frames.is_none() && args.csv.is_none() && args.npy.is_none() && args.mcap.is_none() {
         return Err(gelgrip::UsageError(
-            "nothing to export: give --frames OUT, --csv FILE and/or --npy OUT".into(),
+            "nothing to export: give --frames OUT, --csv FILE, --npy OUT and/or --mcap OUT.mcap"
+                .into(),
         )
         .into());
     }
@@ -240,6 +243,10 @@ pub async fn run(args: RecordExportArgs) -> anyhow::Result<u8> {
     if let Some(out) = &args.npy {
         let n = export_npy(&recording, out).await?;
         eprintln!("{n} depth maps as .npy in {}", out.display());
+    }
+    if let Some(out) = &args.mcap {
+        let n = super::record_export_mcap::export_mcap(&recording, out).await?;
+        eprintln!("{n} ROS 2 messages as MCAP in {}", out.display());
     }
     Ok(0)
 }
@@ -258,4 +265,7 @@ pub struct RecordExportArgs {
     /// Each sensor's depth map for every emitted set, `OUT/<sensor>/<seq>.npy` (mm).
     #[arg(long, value_name = "OUT")]
     pub npy: Option<PathBuf>,
+    /// The ROS 2 messages of `run --ros` (docs/ros.md), as an MCAP file.
+    #[arg(long, value_name = "OUT.mcap")]
+    pub mcap: Option<PathBuf>,
 }

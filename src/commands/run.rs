@@ -4,6 +4,7 @@
 
 use crate::cli::{ClockArg, parse_current_ma, parse_duration, parse_within};
 use clap::Args;
+use gelgrip::observers::ros::RosPublisher;
 use gelgrip::session::{RunOptions, Session};
 use gelgrip_controller::actuator::XM430_W350;
 use gelgrip_controller::clock::ClockKind;
@@ -101,7 +102,14 @@ impl From<&RunArgs> for RunOptions {
 
 /// Run the command; returns the exit code.
 pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
-    let session = Session::open(&RunOptions::from(&args)).await?;
+    let mut options = RunOptions::from(&args);
+    // Publishing to ROS 2 drives through the grasp API (readings and servos to publish).
+    options.grasp_api |= args.ros || args.ros_namespace.is_some();
+    let mut session = Session::open(&options).await?;
+    let ros = RosPublisher::for_run(session.config(), args.ros, args.ros_namespace.as_deref())?;
+    if let Some(publisher) = ros {
+        session.runtime.observe(Box::new(publisher));
+    }
     let report = session.run(signal_events()).await;
     if args.json {
         println!("{}", serde_json::to_string(&report)?);
@@ -168,6 +176,13 @@ pub struct RunArgs {
     /// task states, the config) into this directory (docs/recording.md).
     #[arg(long, value_name = "DIR")]
     pub record: Option<PathBuf>,
+    /// Publish to ROS 2 over Zenoh (the `[ros]` section, enabled; docs/ros.md).
+    #[arg(long)]
+    pub ros: bool,
+    /// The ROS namespace of this gripper's node and topics (overrides `ros.namespace`;
+    /// implies `--ros`).
+    #[arg(long, value_name = "NS", value_parser = parse_ros_namespace)]
+    pub ros_namespace: Option<String>,
 }
 
 /// `s` as a number in (0, `max`] `unit`, or a message naming the range and `why`.
@@ -207,6 +222,11 @@ fn parse_task_timeout_s(s: &str) -> Result<f64, String> {
         MAX_TIMEOUT_S,
         "the longest a grasp may take",
     )
+}
+
+fn parse_ros_namespace(s: &str) -> Result<String, String> {
+    gelgrip_ros::names::check_namespace(s).map_err(|e| e.to_string())?;
+    Ok(s.to_string())
 }
 
 fn parse_hold_s(s: &str) -> Result<f64, String> {

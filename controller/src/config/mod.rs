@@ -135,6 +135,9 @@ pub struct AppConfig {
     /// `[record]`: how `--record` writes (segment size, flush and fsync policy), validated
     /// by the recorder.
     pub record: BackendSection,
+    /// `[ros]`: publishing to ROS 2 over Zenoh (`gelgrip run --ros`), validated by the
+    /// program's ROS module.
+    pub ros: BackendSection,
 }
 
 #[derive(Deserialize)]
@@ -154,6 +157,8 @@ struct RawConfig {
     pipeline: toml::Table,
     #[serde(default)]
     record: toml::Table,
+    #[serde(default)]
+    ros: toml::Table,
 }
 
 #[derive(Deserialize)]
@@ -303,6 +308,13 @@ impl AppConfig {
             base_dir: base_dir.to_path_buf(),
             files: files.clone(),
         };
+        let ros = BackendSection {
+            check: check.clone(),
+            prefix: "ros".into(),
+            table: raw.ros,
+            base_dir: base_dir.to_path_buf(),
+            files: files.clone(),
+        };
         let hub = validate_hub(&check, raw.hub, base_dir, files, registry)?;
         registry.validate(&hub.transport, &hub.section, &layout)?;
         Ok(Self {
@@ -314,6 +326,7 @@ impl AppConfig {
             http: validate_http(&check, raw.http)?,
             pipeline,
             record,
+            ros,
         })
     }
 }
