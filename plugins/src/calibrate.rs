@@ -6,6 +6,7 @@ use thiserror::Error;
 
 pub mod label;
 pub mod sheet;
+pub mod window;
 
 use crate::dataset::{DatasetError, PressDataset, PressTruth};
 use crate::gradient::{GradientModel, background_key, frame_key};
@@ -24,6 +25,9 @@ pub enum CalibrateError {
     /// The MLP.
     #[error(transparent)]
     Mlp(#[from] MlpError),
+    /// The runtime pipeline (windowed depth).
+    #[error(transparent)]
+    Pipeline(#[from] crate::pipeline::PipelineError),
 }
 
 /// Share of `presses.csv` rows (the last ones) held out for the test MAE.

@@ -79,6 +79,21 @@ pub enum PipelineError {
     /// Asked to process before a reference frame was captured.
     #[error("no reference frame yet: capture one with nothing touching the sensor")]
     NoReference,
+    /// A decoded frame of the wrong size.
+    #[error("decoded frame of {bytes} bytes, expected {expected} (RGB8 at the processed size)")]
+    FrameSize {
+        /// Bytes given.
+        bytes: usize,
+        /// Bytes expected.
+        expected: usize,
+    },
+}
+
+/// A frame as the camera sends it (JPEG) or already decoded (RGB8 at the processed size).
+#[derive(Clone, Copy)]
+enum Frame<'a> {
+    Jpeg(&'a [u8]),
+    Rgb(&'a [u8]),
 }
 
 /// Contact-only MLP inference evaluates a pixel whose difference from the reference exceeds
@@ -203,8 +218,19 @@ impl SensorPipeline {
         self.noise
     }
 
-    fn load(&mut self, jpeg: &[u8]) -> Result<(), PipelineError> {
-        self.jpeg.decode(jpeg, &mut self.rgb)?;
+    fn load(&mut self, frame: Frame<'_>) -> Result<(), PipelineError> {
+        match frame {
+            Frame::Jpeg(jpeg) => self.jpeg.decode(jpeg, &mut self.rgb)?,
+            Frame::Rgb(rgb) => {
+                if rgb.len() != self.rgb.len() {
+                    return Err(PipelineError::FrameSize {
+                        bytes: rgb.len(),
+                        expected: self.rgb.len(),
+                    });
+                }
+                self.rgb.copy_from_slice(rgb);
+            }
+        }
         if let Some(remap) = &self.remap {
             remap.apply(&self.rgb, &mut self.rgb_undistorted);
             std::mem::swap(&mut self.rgb, &mut self.rgb_undistorted);
@@ -222,9 +248,21 @@ impl SensorPipeline {
     /// Capture the reference from no-contact frames (their mean), then measure the noise
     /// thresholds on the same frames.
     pub fn calibrate(&mut self, no_contact: &[&[u8]]) -> Result<(), PipelineError> {
+        let frames: Vec<Frame<'_>> = no_contact.iter().map(|j| Frame::Jpeg(j)).collect();
+        self.calibrate_frames(&frames)
+    }
+
+    /// [`SensorPipeline::calibrate`] from decoded frames (RGB8, `width × height` of
+    /// [`SensorPipeline::size`]), as `calibrate eval` feeds a press dataset's images.
+    pub fn calibrate_rgb(&mut self, no_contact: &[&[u8]]) -> Result<(), PipelineError> {
+        let frames: Vec<Frame<'_>> = no_contact.iter().map(|f| Frame::Rgb(f)).collect();
+        self.calibrate_frames(&frames)
+    }
+
+    fn calibrate_frames(&mut self, no_contact: &[Frame<'_>]) -> Result<(), PipelineError> {
         let mut sum = vec![0.0f32; self.rgb.len()];
-        for jpeg in no_contact {
-            self.load(jpeg)?;
+        for frame in no_contact {
+            self.load(*frame)?;
             sum.iter_mut()
                 .zip(&self.rgb)
                 .for_each(|(s, v)| *s += f32::from(*v));
@@ -237,8 +275,8 @@ impl SensorPipeline {
         let (mut activity, mut depth) = (Vec::new(), Vec::new());
         let window = self.central_window();
         let mm = self.mm_per_px as f32;
-        for jpeg in no_contact {
-            self.load(jpeg)?;
+        for frame in no_contact {
+            self.load(*frame)?;
             if let Some(reference) = &self.reference {
                 pixel_activity.extend(
                     self.rgb
@@ -500,9 +538,27 @@ impl SensorPipeline {
 
     /// Process one frame.
     pub fn process(&mut self, jpeg: &[u8], needs: Needs) -> Result<ContactSummary, PipelineError> {
+        self.process_frame(Frame::Jpeg(jpeg), needs)
+    }
+
+    /// [`SensorPipeline::process`] for a decoded frame (RGB8, `width × height` of
+    /// [`SensorPipeline::size`]): the same window, gradients, depth and contact.
+    pub fn process_rgb(
+        &mut self,
+        rgb: &[u8],
+        needs: Needs,
+    ) -> Result<ContactSummary, PipelineError> {
+        self.process_frame(Frame::Rgb(rgb), needs)
+    }
+
+    fn process_frame(
+        &mut self,
+        frame: Frame<'_>,
+        needs: Needs,
+    ) -> Result<ContactSummary, PipelineError> {
         let noise = self.noise.ok_or(PipelineError::NoReference)?;
         self.last_has_depth = false;
-        self.load(jpeg)?;
+        self.load(frame)?;
         self.block_activity();
         let window = self.active_window(noise.block_threshold);
         if window.is_none() && self.choice.stages.reference_alpha > 0.0 {

@@ -7,6 +7,7 @@ use clap::{Args, ValueEnum};
 use serde::Serialize;
 use std::path::PathBuf;
 
+use gelgrip_plugins::calibrate::window::window_depth;
 use gelgrip_plugins::calibrate::{self, EvalReport};
 use gelgrip_plugins::dataset::PressDataset;
 use gelgrip_plugins::gradient::{GradientModel, MlpMode};
@@ -303,6 +304,9 @@ struct EvalJson {
     gx_mae: f64,
     gy_mae: f64,
     depth_mae_mm: Option<f64>,
+    window_depth_mae_mm: Option<f64>,
+    mean_peak_depth_mm: Option<f64>,
+    window_missed_presses: Option<usize>,
     presses: usize,
     pixels: usize,
     solver: &'static str,
@@ -313,10 +317,16 @@ fn eval(args: EvalArgs) -> anyhow::Result<u8> {
     let ds = PressDataset::load(&args.data)?;
     let solver = Solver::parse(&args.solver);
     let r: EvalReport = calibrate::evaluate(&model, &ds, 0..ds.presses.len(), solver)?;
+    let window = solver
+        .map(|s| window_depth(&model, &ds, 0..ds.presses.len(), s))
+        .transpose()?;
     let out = EvalJson {
         gx_mae: r.gx_mae,
         gy_mae: r.gy_mae,
         depth_mae_mm: r.depth_mae_mm,
+        window_depth_mae_mm: window.map(|w| w.depth_mae_mm),
+        mean_peak_depth_mm: window.map(|w| w.mean_peak_depth_mm),
+        window_missed_presses: window.map(|w| w.missed_presses),
         presses: r.presses,
         pixels: r.pixels,
         solver: solver.map_or("none", Solver::as_str),
@@ -324,9 +334,13 @@ fn eval(args: EvalArgs) -> anyhow::Result<u8> {
     if args.json {
         println!("{}", serde_json::to_string(&out)?);
     } else {
-        let depth = out
-            .depth_mae_mm
-            .map_or("n/a (solver none)".into(), |d| format!("{d:.4} mm"));
+        let depth = match (out.depth_mae_mm, window) {
+            (Some(d), Some(w)) => format!(
+                "{d:.4} mm full frame, {:.4} mm in the contact window (mean peak depth {:.4} mm, {} presses without a window)",
+                w.depth_mae_mm, w.mean_peak_depth_mm, w.missed_presses
+            ),
+            _ => "n/a (solver none)".into(),
+        };
         println!(
             "{} on {}: gx_mae {:.4}, gy_mae {:.4}, depth_mae {} ({} presses, {} px, solver {})",
             args.model.display(),
@@ -490,7 +504,7 @@ pub struct EvalArgs {
     /// Press dataset directory.
     #[arg(long)]
     pub data: PathBuf,
-    /// Depth solver for depth_mae_mm (`none` skips depth).
+    /// Depth solver for depth_mae_mm and window_depth_mae_mm (`none` skips depth).
     #[arg(long, default_value = "dst", value_parser = ["dst", "dct", "none"])]
     pub solver: String,
     /// Print one JSON object.
