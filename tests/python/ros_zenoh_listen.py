@@ -4,9 +4,9 @@ format, for tests/ros_zenoh.rs (no ROS install: eclipse-zenoh and rosbags from P
     python ros_zenoh_listen.py PORT SECONDS MSG_DIR
 
 Opens a Zenoh session in router mode listening on tcp/127.0.0.1:PORT (multicast scouting
-off), prints `ready` once listening, then for SECONDS subscribes to every key and polls the
-ROS graph's liveliness tokens (`@ros2_lv/**`, the largest set seen is kept). At the end it
-prints one JSON object:
+off), prints `ready` once listening, then subscribes to every key and polls the ROS graph's
+liveliness tokens (`@ros2_lv/**`, the largest set seen is kept) until its stdin closes or
+SECONDS pass. At the end it prints one JSON object:
 
   {"tokens": [...],
    "keys": {KEY: {"count": N, "stamps_ns": [...], "arrivals_s": [...],
@@ -96,9 +96,18 @@ session = zenoh.open(config)
 sub = session.declare_subscriber("**", on_sample)
 print("ready", flush=True)
 
+stdin_closed = threading.Event()
+
+
+def watch_stdin():
+    sys.stdin.read()
+    stdin_closed.set()
+
+
+threading.Thread(target=watch_stdin, daemon=True).start()
 tokens = set()
 deadline = start + seconds
-while time.monotonic() < deadline:
+while time.monotonic() < deadline and not stdin_closed.is_set():
     found = set()
     for reply in session.liveliness().get("@ros2_lv/**", timeout=1.0):
         if reply.ok is not None:
