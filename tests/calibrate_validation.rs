@@ -4,23 +4,24 @@
 
 mod common;
 
+use std::path::Path;
+
 use common::{gelgrip, json, ok, s, scratch};
+
+/// `calibrate collect` of `presses` nominal simulated presses on f1.tip into `data`.
+fn collect(data: &Path, presses: &str) {
+    let args = ["calibrate", "collect", "--sensor", "f1.tip", "--presses"];
+    ok(&gelgrip(
+        &[&args[..], &[presses, "--out", s(data)]].concat(),
+    ));
+}
 
 #[test]
 fn eval_reports_the_runtime_windowed_depth_beside_the_full_frame() {
     let dir = scratch("cal_window");
     let data = dir.join("presses");
     let model = dir.join("lut.safetensors");
-    ok(&gelgrip(&[
-        "calibrate",
-        "collect",
-        "--sensor",
-        "f1.tip",
-        "--presses",
-        "12",
-        "--out",
-        s(&data),
-    ]));
+    collect(&data, "12");
     ok(&gelgrip(&[
         "calibrate",
         "train",
@@ -69,4 +70,71 @@ fn eval_reports_the_runtime_windowed_depth_beside_the_full_frame() {
     }
     let none = eval_with("none");
     assert!(none["window_depth_mae_mm"].is_null(), "{none}");
+}
+
+#[test]
+fn mlp_training_validates_on_training_rows_and_stops_early() {
+    let dir = scratch("cal_validation");
+    let data = dir.join("presses");
+    let model = dir.join("mlp.safetensors");
+    collect(&data, "8");
+    let train = |extra: &[&str]| {
+        let mut args = vec![
+            "calibrate",
+            "train",
+            "--data",
+            s(&data),
+            "--model",
+            "mlp",
+            "--out",
+            s(&model),
+        ];
+        args.extend_from_slice(extra);
+        gelgrip(&args)
+    };
+    let text = ok(&train(&["--epochs", "3"]));
+    assert!(text.contains("validation curve: best epoch"), "{text}");
+    assert!(text.contains("valid MAE"), "{text}");
+    let out = json(&train(&["--epochs", "4", "--patience", "1", "--json"]));
+    let v = &out["validation"];
+    // 8 presses: the last (10%, at least one) tests; one of the other 7 validates.
+    assert_eq!(out["test_presses"].as_u64(), Some(1), "{out}");
+    assert_eq!(v["presses"].as_u64(), Some(1), "{out}");
+    assert_eq!(out["train_presses"].as_u64(), Some(6), "{out}");
+    let best = v["best_epoch"].as_u64().expect("best_epoch");
+    let stopped = v["stopped_at_epoch"].as_u64().expect("stopped_at_epoch");
+    assert!(best >= 1 && best <= stopped && stopped <= 4, "{out}");
+    assert!(stopped == 4 || stopped == best + 1, "{out}");
+    for k in ["train_loss", "validation_loss", "gx_mae", "gy_mae"] {
+        let x = v[k].as_f64().unwrap_or(f64::NAN);
+        assert!(x.is_finite() && x > 0.0, "{k}: {out}");
+    }
+}
+
+#[test]
+fn a_dataset_too_small_for_a_validation_press_is_an_error() {
+    let dir = scratch("cal_validation_small");
+    let data = dir.join("presses");
+    collect(&data, "2");
+    let model = dir.join("mlp.safetensors");
+    let out = gelgrip(&[
+        "calibrate",
+        "train",
+        "--data",
+        s(&data),
+        "--model",
+        "mlp",
+        "--epochs",
+        "1",
+        "--out",
+        s(&model),
+    ]);
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("2 presses leave no validation press")
+            && stderr.contains("needs at least 3"),
+        "{stderr}"
+    );
+    assert!(!model.exists());
 }

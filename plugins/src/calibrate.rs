@@ -11,7 +11,7 @@ pub mod window;
 use crate::dataset::{DatasetError, PressDataset, PressTruth};
 use crate::gradient::{GradientModel, background_key, frame_key};
 use crate::lut::{Input, LutModel, LutTrainer};
-use crate::mlp::train::{EpochReport, Samples, TrainOptions};
+use crate::mlp::train::{EpochReport, Samples, TrainOptions, ValidationSummary};
 use crate::mlp::transfer::PressPixels;
 use crate::mlp::{MlpError, MlpModel};
 use crate::poisson::{PoissonPlan, Solver};
@@ -28,6 +28,19 @@ pub enum CalibrateError {
     /// The runtime pipeline (windowed depth).
     #[error(transparent)]
     Pipeline(#[from] crate::pipeline::PipelineError),
+    /// Too few presses to leave one for validation.
+    #[error(
+        "{path}: {presses} presses leave no validation press: the MLP's validation split \
+         needs at least {needed} (one to train on, one to validate, the last 10% to test)"
+    )]
+    TooFewPresses {
+        /// The dataset.
+        path: String,
+        /// Presses it has.
+        presses: usize,
+        /// Presses needed.
+        needed: usize,
+    },
 }
 
 /// Share of `presses.csv` rows (the last ones) held out for the test MAE.
@@ -38,6 +51,54 @@ pub const TEST_SHARE: f64 = 0.1;
 pub fn split_index(rows: usize) -> usize {
     let test = ((rows as f64 * TEST_SHARE).round() as usize).max(usize::from(rows >= 2));
     rows - test
+}
+
+/// Share of the training rows (the last ones, just before the test rows) held out to
+/// validate the MLP on: its early stopping and the choice of its defaults.
+pub const VALIDATION_SHARE: f64 = 0.1;
+
+/// A dataset's rows: training, validation (from the training rows of [`split_index`]) and
+/// the untouched test rows (the last 10%, CONTRACTS.md).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Split {
+    /// Rows trained on.
+    pub train: std::ops::Range<usize>,
+    /// Rows validated on.
+    pub validation: std::ops::Range<usize>,
+    /// Rows tested on.
+    pub test: std::ops::Range<usize>,
+}
+
+/// The validation split of `rows` rows: the last [`VALIDATION_SHARE`] of the training rows
+/// (at least one) validate; `None` when that would leave no row to train or to test on.
+pub fn validation_split(rows: usize) -> Option<Split> {
+    let test_from = split_index(rows);
+    if test_from == rows {
+        return None;
+    }
+    let validation = ((test_from as f64 * VALIDATION_SHARE).round() as usize).max(1);
+    let train_to = test_from.checked_sub(validation).filter(|t| *t >= 1)?;
+    Some(Split {
+        train: 0..train_to,
+        validation: train_to..test_from,
+        test: test_from..rows,
+    })
+}
+
+/// [`validation_split`] of a dataset's presses, or [`CalibrateError::TooFewPresses`].
+pub fn validation_split_of(ds: &PressDataset) -> Result<Split, CalibrateError> {
+    validation_split(ds.presses.len()).ok_or_else(|| CalibrateError::TooFewPresses {
+        path: ds.dir.display().to_string(),
+        presses: ds.presses.len(),
+        needed: min_presses_for_validation(),
+    })
+}
+
+/// The fewest rows [`validation_split`] accepts.
+pub fn min_presses_for_validation() -> usize {
+    (1..64)
+        .find(|n| validation_split(*n).is_some())
+        .unwrap_or(64)
 }
 
 /// The labelled pixels of a press, as every trainer and the transfer use them: each inside
@@ -260,6 +321,15 @@ pub fn mlp_samples(
     datasets: &[&PressDataset],
     input: Input,
 ) -> Result<(Samples, (usize, usize)), CalibrateError> {
+    mlp_samples_of(datasets, input, |ds| 0..split_index(ds.presses.len()))
+}
+
+/// [`mlp_samples`] from the rows `rows(ds)` of each dataset.
+pub fn mlp_samples_of(
+    datasets: &[&PressDataset],
+    input: Input,
+    rows: impl Fn(&PressDataset) -> std::ops::Range<usize>,
+) -> Result<(Samples, (usize, usize)), CalibrateError> {
     let size = same_size(datasets)?;
     let (w, h) = size;
     let shape = MlpModel {
@@ -274,7 +344,7 @@ pub fn mlp_samples(
     let mut samples = Samples::default();
     for ds in datasets {
         let r = ds.ball_radius_px();
-        for press in &ds.presses[..split_index(ds.presses.len())] {
+        for press in ds.presses.get(rows(ds)).unwrap_or(&[]) {
             let img = ds.press_image(press)?;
             let truth = PressTruth::new(press, r, w, h);
             for (p, gx, gy) in labelled_pixels(&truth, w, h) {
@@ -321,6 +391,44 @@ pub fn train_mlp_on(
     Ok(crate::mlp::train::train(
         &samples, input, size, opts, progress,
     )?)
+}
+
+/// An MLP trained with a validation split of every dataset ([`validation_split`]): early
+/// stopping on the validation presses' loss, the best epoch's weights.
+#[derive(Debug, Clone)]
+pub struct ValidatedMlp {
+    /// The model (the best epoch's weights).
+    pub model: MlpModel,
+    /// The validation curve's summary.
+    pub summary: ValidationSummary,
+    /// The split of each dataset, in order.
+    pub splits: Vec<Split>,
+}
+
+/// Train an MLP on the training rows of `datasets` less their validation rows, stopping
+/// on the validation rows' loss; a dataset too small for a validation press is an error
+/// ([`CalibrateError::TooFewPresses`]).
+pub fn train_mlp_validated(
+    datasets: &[&PressDataset],
+    input: Input,
+    opts: &TrainOptions,
+    progress: impl FnMut(&EpochReport),
+) -> Result<ValidatedMlp, CalibrateError> {
+    let splits = datasets
+        .iter()
+        .map(|ds| validation_split_of(ds))
+        .collect::<Result<Vec<_>, _>>()?;
+    let of = |ds: &PressDataset| validation_split(ds.presses.len());
+    let (samples, size) = mlp_samples_of(datasets, input, |ds| of(ds).map_or(0..0, |s| s.train))?;
+    let (validation, _) =
+        mlp_samples_of(datasets, input, |ds| of(ds).map_or(0..0, |s| s.validation))?;
+    let (model, summary) =
+        crate::mlp::train::train_validated(&samples, &validation, input, size, opts, progress)?;
+    Ok(ValidatedMlp {
+        model,
+        summary,
+        splits,
+    })
 }
 
 /// Press `index` of `ds` as transfer input: its inside pixels, and background pixels (one
@@ -437,6 +545,37 @@ mod tests {
         assert_eq!(best_blur(&[(0, f64::NAN), (3, 0.1)]), 3);
         assert_eq!(best_blur(&[]), 0);
         assert_eq!(best_blur(&[(0, 0.0), (2, 0.0)]), 0);
+    }
+
+    #[test]
+    fn validation_comes_from_the_training_rows() {
+        use super::{Split, min_presses_for_validation, validation_split};
+        assert_eq!(
+            validation_split(50),
+            Some(Split {
+                train: 0..40,
+                validation: 40..45,
+                test: 45..50
+            })
+        );
+        assert_eq!(
+            validation_split(3),
+            Some(Split {
+                train: 0..1,
+                validation: 1..2,
+                test: 2..3
+            })
+        );
+        assert_eq!(validation_split(2), None);
+        assert_eq!(validation_split(1), None);
+        assert_eq!(validation_split(0), None);
+        assert_eq!(min_presses_for_validation(), 3);
+        for n in 3..200 {
+            let s = validation_split(n).expect("split");
+            assert_eq!(s.test.start, split_index(n), "{n}");
+            assert!(!s.train.is_empty() && !s.validation.is_empty(), "{n}");
+            assert_eq!(s.train.end, s.validation.start, "{n}");
+        }
     }
 
     #[test]

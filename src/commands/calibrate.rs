@@ -94,6 +94,21 @@ struct TrainJson {
     test_gx_mae: f64,
     test_gy_mae: f64,
     train_s: f64,
+    /// MLP: the validation split and curve.
+    validation: Option<ValidationJson>,
+}
+
+#[derive(Serialize)]
+struct ValidationJson {
+    presses: usize,
+    gx_mae: f64,
+    gy_mae: f64,
+    best_epoch: usize,
+    train_loss: f64,
+    validation_loss: f64,
+    stopped_at_epoch: usize,
+    epochs: usize,
+    patience: usize,
 }
 
 fn train(args: TrainArgs) -> anyhow::Result<u8> {
@@ -104,6 +119,9 @@ fn train(args: TrainArgs) -> anyhow::Result<u8> {
     };
     let ds = PressDataset::load(&args.data)?;
     let split = calibrate::split_index(ds.presses.len());
+    // MLP: rows trained on, and the validation rows with the curve's summary.
+    let mut train_rows = 0..split;
+    let mut validated = None;
     let started = std::time::Instant::now();
     let (model, name, hidden, parameters, blur_px) = match args.model {
         ModelKind::Lut => {
@@ -149,21 +167,32 @@ fn train(args: TrainArgs) -> anyhow::Result<u8> {
                 learning_rate: args.learning_rate,
                 epochs: args.epochs as usize,
                 seed: args.seed,
+                patience: args.patience as usize,
                 ..TrainOptions::default()
             };
+            let rows = calibrate::validation_split_of(&ds)?;
             eprintln!(
-                "training mlp 5-{h}-{h}-{h}-2 (tanh, dropout {}, {} input) on {} presses, testing on {}, {} epochs",
+                "training mlp 5-{h}-{h}-{h}-2 (tanh, dropout {}, {} input) on {} presses, validating on {}, testing on {}, up to {} epochs (patience {})",
                 args.dropout,
                 input.as_str(),
-                split,
-                ds.presses.len() - split,
+                rows.train.len(),
+                rows.validation.len(),
+                rows.test.len(),
                 args.epochs,
+                args.patience,
                 h = args.hidden
             );
             let bar = progress::epochs(args.epochs as u64);
-            let mlp =
-                calibrate::train_mlp_on(&[&ds], input, &opts, progress::epoch_reporter(&bar))?;
+            let v = calibrate::train_mlp_validated(
+                &[&ds],
+                input,
+                &opts,
+                progress::epoch_reporter(&bar),
+            )?;
             bar.finish();
+            train_rows = rows.train.clone();
+            validated = Some((rows.validation, v.summary));
+            let mlp = v.model;
             mlp.save(&args.out)?;
             let (h, n) = (mlp.hidden, mlp.parameters());
             (
@@ -176,8 +205,25 @@ fn train(args: TrainArgs) -> anyhow::Result<u8> {
         }
     };
     let train_s = started.elapsed().as_secs_f64();
-    let train = calibrate::evaluate(&model, &ds, 0..split, None)?;
+    let train = calibrate::evaluate(&model, &ds, train_rows, None)?;
     let test = calibrate::evaluate(&model, &ds, split..ds.presses.len(), None)?;
+    let validation = match validated {
+        Some((rows, v)) => {
+            let r = calibrate::evaluate(&model, &ds, rows, None)?;
+            Some(ValidationJson {
+                presses: r.presses,
+                gx_mae: r.gx_mae,
+                gy_mae: r.gy_mae,
+                best_epoch: v.best_epoch,
+                train_loss: v.train_loss,
+                validation_loss: v.validation_loss,
+                stopped_at_epoch: v.stopped_at,
+                epochs: v.epochs,
+                patience: args.patience as usize,
+            })
+        }
+        None => None,
+    };
     let out = TrainJson {
         model: name,
         input: input.as_str(),
@@ -192,6 +238,7 @@ fn train(args: TrainArgs) -> anyhow::Result<u8> {
         test_gx_mae: test.gx_mae,
         test_gy_mae: test.gy_mae,
         train_s,
+        validation,
     };
     if args.json {
         println!("{}", serde_json::to_string(&out)?);
@@ -202,7 +249,9 @@ fn train(args: TrainArgs) -> anyhow::Result<u8> {
             "{}: mlp 5-{h}-{h}-{h}-2 ({n} parameters), {} input, {} epochs in {train_s:.1} s",
             args.out.display(),
             input.as_str(),
-            args.epochs
+            out.validation
+                .as_ref()
+                .map_or(args.epochs as usize, |v| v.stopped_at_epoch)
         ),
         _ => println!(
             "{}: lut, {} input, {} bins",
@@ -215,10 +264,30 @@ fn train(args: TrainArgs) -> anyhow::Result<u8> {
         "  train MAE gx {:.4} gy {:.4} ({} presses)",
         train.gx_mae, train.gy_mae, train.presses
     );
+    if let Some(v) = &out.validation {
+        println!(
+            "  valid MAE gx {:.4} gy {:.4} ({} presses)",
+            v.gx_mae, v.gy_mae, v.presses
+        );
+    }
     println!(
         "  test  MAE gx {:.4} gy {:.4} ({} presses)",
         test.gx_mae, test.gy_mae, test.presses
     );
+    if let Some(v) = &out.validation {
+        let stop = if v.stopped_at_epoch < v.epochs {
+            format!(
+                "stopped early at epoch {} ({} without improvement)",
+                v.stopped_at_epoch, v.patience
+            )
+        } else {
+            format!("ran all {} epochs", v.epochs)
+        };
+        println!(
+            "  validation curve: best epoch {} of {} run (train L1 {:.4}, validation L1 {:.4}, weights kept), {stop}",
+            v.best_epoch, v.stopped_at_epoch, v.train_loss, v.validation_loss
+        );
+    }
     Ok(0)
 }
 
@@ -426,6 +495,10 @@ pub struct TrainArgs {
     /// MLP: initial learning rate (Adam; cosine decay to 5 % of it).
     #[arg(long, default_value_t = 2e-3, value_parser = parse_learning_rate)]
     pub learning_rate: f64,
+    /// MLP: early stopping after this many epochs without a lower validation loss (0:
+    /// never); the best epoch's weights are kept either way.
+    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(0..=100_000))]
+    pub patience: u32,
     /// MLP: seed of initialisation, shuffling and dropout.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,

@@ -13,9 +13,9 @@ fn truth(k: [f32; 3]) -> [f32; 2] {
     [0.8 * (k[0] / 60.0).tanh(), -0.5 * (k[1] / 60.0).tanh()]
 }
 
-fn model(rng_seed: u64, epochs: usize) -> MlpModel {
-    let mut rng = Pcg64Mcg::seed_from_u64(rng_seed);
-    let shape = MlpModel {
+/// An untrained 64×48 difference-input model, for its features.
+fn shape() -> MlpModel {
+    MlpModel {
         input: Input::Diff,
         width: 64,
         height: 48,
@@ -23,7 +23,12 @@ fn model(rng_seed: u64, epochs: usize) -> MlpModel {
         layers: Vec::new(),
         offset_rgb: [0.0; 3],
         gain_rgb: [1.0; 3],
-    };
+    }
+}
+
+fn model(rng_seed: u64, epochs: usize) -> MlpModel {
+    let mut rng = Pcg64Mcg::seed_from_u64(rng_seed);
+    let shape = shape();
     let mut samples = Samples::default();
     for _ in 0..3000 {
         let k = [0; 3].map(|_| rng.random_range(-100.0f32..100.0));
@@ -172,4 +177,79 @@ fn transfer_recovers_a_colour_offset() {
     assert!((t.offset_rgb[1] + 9.0).abs() < 4.0, "{:?}", t.offset_rgb);
     assert_eq!(t.gain_rgb, [1.0; 3]);
     assert!(transfer(&m, &PressPixels::default(), Fit::Offset).is_err());
+}
+
+/// Validation samples whose targets are the truth negated: the better the network fits
+/// the training samples, the worse its validation loss, so the first epochs are best.
+#[test]
+fn early_stopping_keeps_the_best_epochs_weights() {
+    use super::train::train_validated;
+    let mut rng = Pcg64Mcg::seed_from_u64(7);
+    let shape = shape();
+    let (mut samples, mut validation) = (Samples::default(), Samples::default());
+    for i in 0..2000 {
+        let k = [0; 3].map(|_| rng.random_range(-100.0f32..100.0));
+        let g = truth(k);
+        let f = shape.features(k, rng.random_range(0..64), rng.random_range(0..48));
+        samples.push(f, g[0], g[1]);
+        if i % 4 == 0 {
+            validation.push(f, -g[0], -g[1]);
+        }
+    }
+    let opts = TrainOptions {
+        hidden: 8,
+        epochs: 30,
+        batch: 256,
+        learning_rate: 1e-2,
+        patience: 3,
+        ..TrainOptions::default()
+    };
+    let mut seen = Vec::new();
+    let (m, v) = train_validated(&samples, &validation, Input::Diff, (64, 48), &opts, |e| {
+        seen.push(e.validation_loss)
+    })
+    .expect("trains");
+    assert!(v.stopped_at < opts.epochs, "{v:?}");
+    assert_eq!(v.stopped_at, v.best_epoch + opts.patience, "{v:?}");
+    assert_eq!(v.curve.len(), v.stopped_at);
+    assert_eq!(seen.len(), v.stopped_at);
+    assert!(seen.iter().all(|l| l.is_some_and(f64::is_finite)));
+    let lowest = v.curve.iter().map(|c| c.1).fold(f64::INFINITY, f64::min);
+    assert_eq!(v.validation_loss, lowest);
+    // The returned weights are the best epoch's: their validation loss is the summary's.
+    let out = m
+        .net()
+        .expect("net")
+        .forward(&validation.features)
+        .expect("runs");
+    let l1 = out
+        .iter()
+        .zip(&validation.targets)
+        .map(|(p, t)| f64::from((p - t).abs()))
+        .sum::<f64>()
+        / out.len() as f64;
+    assert!((l1 - v.validation_loss).abs() < 1e-4, "{l1} vs {v:?}");
+    let last = v.curve.last().expect("curve").1;
+    assert!(last > v.validation_loss + 1e-4, "{last} vs {v:?}");
+
+    // Patience 0 runs every epoch; no validation pixels is an error.
+    let all = TrainOptions {
+        patience: 0,
+        epochs: 4,
+        ..opts
+    };
+    let (_, v) = train_validated(&samples, &validation, Input::Diff, (64, 48), &all, |_| {})
+        .expect("trains");
+    assert_eq!(v.stopped_at, 4);
+    assert!(
+        train_validated(
+            &samples,
+            &Samples::default(),
+            Input::Diff,
+            (64, 48),
+            &all,
+            |_| {}
+        )
+        .is_err()
+    );
 }

@@ -1,6 +1,10 @@
 //! Training an [`MlpModel`] with candle-nn: Adam (AdamW without decay), L1 loss, dropout
 //! after each hidden layer, a cosine learning-rate decay over the epochs, and seeded
 //! initialisation, shuffling and dropout masks, so a run is reproducible.
+//!
+//! With validation samples ([`train_validated`]) the L1 loss on them (dropout off) is
+//! measured after every epoch; training stops when it has not improved for
+//! [`TrainOptions::patience`] epochs, and the returned weights are the best epoch's.
 
 use candle_core::{DType, Device, Tensor, Var};
 use candle_nn::{AdamW, Optimizer, ParamsAdamW};
@@ -54,7 +58,13 @@ pub struct TrainOptions {
     pub epochs: usize,
     /// Seed of initialisation, shuffling and dropout.
     pub seed: u64,
+    /// Early stopping: stop after this many epochs without a lower validation loss (0:
+    /// never). Used only with validation samples.
+    pub patience: usize,
 }
+
+/// Epochs without a lower validation loss before training stops, unless told otherwise.
+pub const DEFAULT_PATIENCE: usize = 10;
 
 impl Default for TrainOptions {
     fn default() -> Self {
@@ -65,6 +75,7 @@ impl Default for TrainOptions {
             batch: 1024,
             epochs: 60,
             seed: 1,
+            patience: DEFAULT_PATIENCE,
         }
     }
 }
@@ -78,6 +89,25 @@ pub struct EpochReport {
     pub epochs: usize,
     /// Mean L1 loss over the epoch's batches.
     pub loss: f64,
+    /// L1 loss on the validation samples after the epoch (dropout off), when there are any.
+    pub validation_loss: Option<f64>,
+}
+
+/// The validation curve of a run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ValidationSummary {
+    /// The epoch (1-based) of the lowest validation loss: the returned weights are its.
+    pub best_epoch: usize,
+    /// Mean training L1 loss over that epoch's batches (dropout on).
+    pub train_loss: f64,
+    /// Validation L1 loss after that epoch.
+    pub validation_loss: f64,
+    /// The last epoch run (less than `epochs` when stopped early).
+    pub stopped_at: usize,
+    /// Epochs planned.
+    pub epochs: usize,
+    /// Per epoch run: (training loss, validation loss).
+    pub curve: Vec<(f64, f64)>,
 }
 
 /// The model being trained: candle variables for each layer.
@@ -139,15 +169,92 @@ fn forward(
 pub fn train(
     samples: &Samples,
     input: Input,
+    size: (usize, usize),
+    opts: &TrainOptions,
+    progress: impl FnMut(&EpochReport),
+) -> Result<MlpModel, MlpError> {
+    run(samples, None, input, size, opts, progress).map(|(m, _)| m)
+}
+
+/// [`train`] with a validation set: the validation loss after every epoch, early stopping
+/// after [`TrainOptions::patience`] epochs without improvement, and the best epoch's
+/// weights returned with the curve's summary.
+pub fn train_validated(
+    samples: &Samples,
+    validation: &Samples,
+    input: Input,
+    size: (usize, usize),
+    opts: &TrainOptions,
+    progress: impl FnMut(&EpochReport),
+) -> Result<(MlpModel, ValidationSummary), MlpError> {
+    if validation.is_empty() {
+        return Err(MlpError::NoData(
+            "no labelled validation pixels to stop training on".into(),
+        ));
+    }
+    let (model, summary) = run(samples, Some(validation), input, size, opts, progress)?;
+    let summary = summary.ok_or_else(|| {
+        MlpError::NoData("no finite validation loss in any epoch; lower --learning-rate".into())
+    })?;
+    Ok((model, summary))
+}
+
+/// Mean L1 loss of the network (dropout off) on `samples`, in chunks.
+fn validation_loss(p: &Params, samples: &Samples, rng: &mut Pcg64Mcg) -> Result<f64, MlpError> {
+    const CHUNK: usize = 8192;
+    let n = samples.len();
+    let mut sum = 0.0f64;
+    let mut start = 0;
+    while start < n {
+        let end = (start + CHUNK).min(n);
+        let x = Tensor::from_slice(
+            &samples.features[start * INPUTS..end * INPUTS],
+            (end - start, INPUTS),
+            &Device::Cpu,
+        )?;
+        let y = Tensor::from_slice(
+            &samples.targets[start * 2..end * 2],
+            (end - start, 2),
+            &Device::Cpu,
+        )?;
+        let pred = forward(p, &x, 0.0, rng)?;
+        sum += f64::from((pred - y)?.abs()?.sum_all()?.to_scalar::<f32>()?);
+        start = end;
+    }
+    Ok(sum / (2 * n.max(1)) as f64)
+}
+
+/// The layers' current weights.
+fn snapshot(p: &Params, hidden: usize) -> Result<Vec<Layer>, MlpError> {
+    let sizes = [INPUTS, hidden, hidden, hidden, 2];
+    Ok(p.layers
+        .iter()
+        .enumerate()
+        .map(|(i, (w, b))| {
+            Ok(Layer {
+                inputs: sizes[i],
+                outputs: sizes[i + 1],
+                weight: w.as_tensor().flatten_all()?.to_vec1::<f32>()?,
+                bias: b.as_tensor().flatten_all()?.to_vec1::<f32>()?,
+            })
+        })
+        .collect::<Result<Vec<_>, candle_core::Error>>()?)
+}
+
+fn run(
+    samples: &Samples,
+    validation: Option<&Samples>,
+    input: Input,
     (width, height): (usize, usize),
     opts: &TrainOptions,
     mut progress: impl FnMut(&EpochReport),
-) -> Result<MlpModel, MlpError> {
+) -> Result<(MlpModel, Option<ValidationSummary>), MlpError> {
     if samples.is_empty() {
         return Err(MlpError::NoData("no labelled pixels to train on".into()));
     }
+    let hidden = opts.hidden.max(1);
     let mut rng = Pcg64Mcg::seed_from_u64(opts.seed);
-    let params = init(opts.hidden.max(1), &mut rng)?;
+    let params = init(hidden, &mut rng)?;
     let vars: Vec<Var> = params
         .layers
         .iter()
@@ -165,6 +272,8 @@ pub fn train(
     let batch = opts.batch.clamp(1, n);
     let epochs = opts.epochs.max(1);
     let mut order: Vec<usize> = (0..n).collect();
+    let mut curve: Vec<(f64, f64)> = Vec::new();
+    let mut best: Option<(Vec<Layer>, ValidationSummary)> = None;
     let (mut xb, mut yb) = (
         Vec::with_capacity(batch * INPUTS),
         Vec::with_capacity(batch * 2),
@@ -191,32 +300,46 @@ pub fn train(
             loss_sum += f64::from(loss.to_scalar::<f32>()?);
             steps += 1;
         }
+        let loss = loss_sum / steps.max(1) as f64;
+        let validation_loss = match validation {
+            Some(v) => Some(validation_loss(&params, v, &mut rng)?),
+            None => None,
+        };
         progress(&EpochReport {
             epoch: epoch + 1,
             epochs,
-            loss: loss_sum / steps.max(1) as f64,
+            loss,
+            validation_loss,
         });
+        if let Some(v) = validation_loss {
+            curve.push((loss, v));
+            if v.is_finite() && best.as_ref().is_none_or(|(_, s)| v < s.validation_loss) {
+                let summary = ValidationSummary {
+                    best_epoch: epoch + 1,
+                    train_loss: loss,
+                    validation_loss: v,
+                    stopped_at: epoch + 1,
+                    epochs,
+                    curve: Vec::new(),
+                };
+                best = Some((snapshot(&params, hidden)?, summary));
+            }
+            let since = best
+                .as_ref()
+                .map_or(epoch + 1, |(_, s)| epoch + 1 - s.best_epoch);
+            if opts.patience > 0 && since >= opts.patience {
+                break;
+            }
+        }
     }
-    let sizes = [
-        INPUTS,
-        opts.hidden.max(1),
-        opts.hidden.max(1),
-        opts.hidden.max(1),
-        2,
-    ];
-    let layers = params
-        .layers
-        .iter()
-        .enumerate()
-        .map(|(i, (w, b))| {
-            Ok(Layer {
-                inputs: sizes[i],
-                outputs: sizes[i + 1],
-                weight: w.as_tensor().flatten_all()?.to_vec1::<f32>()?,
-                bias: b.as_tensor().flatten_all()?.to_vec1::<f32>()?,
-            })
-        })
-        .collect::<Result<Vec<_>, candle_core::Error>>()?;
+    let (layers, summary) = match best {
+        Some((layers, mut summary)) => {
+            summary.stopped_at = curve.len();
+            summary.curve = curve;
+            (layers, Some(summary))
+        }
+        None => (snapshot(&params, hidden)?, None),
+    };
     if layers
         .iter()
         .any(|l| l.weight.iter().chain(&l.bias).any(|v| !v.is_finite()))
@@ -225,13 +348,14 @@ pub fn train(
             "training diverged (non-finite weights); lower --learning-rate".into(),
         ));
     }
-    Ok(MlpModel {
+    let model = MlpModel {
         input,
         width,
         height,
-        hidden: opts.hidden.max(1),
+        hidden,
         layers,
         offset_rgb: [0.0; 3],
         gain_rgb: [1.0; 3],
-    })
+    };
+    Ok((model, summary))
 }
