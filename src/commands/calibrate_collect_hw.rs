@@ -6,7 +6,9 @@
 //! 1. with the sensor untouched, Enter: [`BACKGROUND_FRAMES`] frames are averaged into
 //!    `background.png`;
 //! 2. for each press, the user presses the ball; the command waits for a contact, waits
-//!    until [`SETTLE_FRAMES`] frames in a row show the same circle, averages the next
+//!    until [`SETTLE_FRAMES`] looks in a row (each at the mean of the last
+//!    [`SETTLE_FRAMES`] frames) show the same circle, says why a contact it sees is not
+//!    taken (too shallow, cut by the pad's edge, …), averages the next
 //!    [`AVERAGE_FRAMES`] and labels that ([`calibrate_label::label_one`]); Enter keeps the
 //!    press, `r` and Enter redoes it. A kept press is written (`press_NNN.png`, and
 //!    `presses.csv` rewritten) at once. The next press must first be lifted off, or moved.
@@ -25,7 +27,7 @@ use tokio::sync::mpsc;
 use gelgrip_controller::acquire::Acquisition;
 use gelgrip_controller::clock::Clock;
 use gelgrip_controller::config::AppConfig;
-use gelgrip_plugins::calibrate::label::{ContactCircle, detect};
+use gelgrip_plugins::calibrate::label::{ContactCircle, Rejection, detect};
 use gelgrip_plugins::dataset::{DatasetInfo, Press, PressDataset, write_presses_csv};
 use gelgrip_plugins::image::RgbImage;
 
@@ -250,13 +252,30 @@ impl Session {
         mut last: Option<ContactCircle>,
     ) -> Result<RgbImage, Stop> {
         let mut run: Vec<ContactCircle> = Vec::new();
+        let mut said = "";
+        let mut recent: std::collections::VecDeque<RgbImage> = Default::default();
         loop {
-            let img = self.frame().await?;
-            let Ok(c) = detect(&img, background) else {
-                last = None;
-                run.clear();
-                continue;
+            // Each look is at the mean of the last frames: a single frame's noise hides a
+            // shallow press that the averaged press shows.
+            recent.push_back(self.frame().await?);
+            if recent.len() > SETTLE_FRAMES {
+                recent.pop_front();
+            }
+            let img = average(recent.make_contiguous())?;
+            let c = match detect(&img, background) {
+                Ok(c) => c,
+                Err(why) => {
+                    // Say once why a contact that is there is not taken.
+                    if !matches!(why, Rejection::NoContact { .. }) && said != why.kind() {
+                        eprintln!("  waiting: {why}");
+                        said = why.kind();
+                    }
+                    last = None;
+                    run.clear();
+                    continue;
+                }
             };
+            said = "";
             if last.is_some_and(|l| same(&l, &c)) {
                 continue;
             }
