@@ -188,7 +188,12 @@ pub fn height_maps(
     let mut w = world.lock().ok()?;
     w.advance_to(now_us);
     let w = &*w;
-    Some((0..sensors).into_par_iter().map(|s| w.height_map(s)).collect())
+    Some(
+        (0..sensors)
+            .into_par_iter()
+            .map(|s| w.height_map(s))
+            .collect(),
+    )
 }
 
 #[cfg(test)]

@@ -13,12 +13,18 @@
 //! is processed.
 //!
 //! The work itself is [`SensorPipeline::process`], the same call on the same state as the
-//! non-streaming path, so the results are bit-for-bit the same. A pipeline whose reference
+//! non-streaming path, so the results are bit-for-bit the same.
+//!
+//! Locks and rayon: a pipeline may run rayon work of its own (an MLP's kernels), and a rayon
+//! worker waiting on it runs other tasks meanwhile. So no rayon task ever waits for a slot's
+//! lock: a frame's task takes the lock only if it is free (else whoever holds it, or the
+//! next set, sees to the frame), and a set's frames are processed in parallel only after the
+//! caller's thread has taken every slot's lock. A pipeline whose reference
 //! drifts (`reference = "drift"`) refreshes that reference as it processes a quiet frame:
 //! such a sensor is not processed ahead, since a refused set must not move its reference;
 //! it is processed when its set is emitted, as before.
 
-use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError, TryLockError};
 
 use bytes::Bytes;
 
@@ -103,6 +109,25 @@ fn lock(slot: &Mutex<Slot>) -> MutexGuard<'_, Slot> {
     slot.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
+/// The slot's lock if it is free now (never waits: for rayon tasks).
+fn try_lock(slot: &Mutex<Slot>) -> Option<MutexGuard<'_, Slot>> {
+    match slot.try_lock() {
+        Ok(g) => Some(g),
+        Err(TryLockError::Poisoned(p)) => Some(p.into_inner()),
+        Err(TryLockError::WouldBlock) => None,
+    }
+}
+
+/// Work on `slot`'s queued frame on the rayon pool, if its lock is free then.
+fn spawn_queued(slot: &Arc<Mutex<Slot>>, needs: Needs) {
+    let slot = Arc::clone(slot);
+    rayon::spawn(move || {
+        if let Some(mut s) = try_lock(&slot) {
+            s.run_queued(needs);
+        }
+    });
+}
+
 /// Every sensor's pipeline, worked on as frames arrive.
 #[derive(Debug)]
 pub struct StreamingSensors {
@@ -146,7 +171,8 @@ impl StreamingSensors {
     }
 
     /// Sensor `sensor`'s frame `key` has arrived: work on it now, on the rayon pool. Does
-    /// nothing for an unknown sensor, or one whose reference drifts.
+    /// nothing for an unknown sensor, or one whose reference drifts. Call it from outside
+    /// the rayon pool (it may wait for the sensor's frame before to be done).
     pub fn arrive(&self, sensor: usize, key: FrameKey) {
         if !self.ahead.get(sensor).copied().unwrap_or(false) {
             return;
@@ -155,14 +181,13 @@ impl StreamingSensors {
             return;
         };
         lock(slot).queued = Some(key);
-        let slot = Arc::clone(slot);
-        let needs = self.needs;
-        rayon::spawn(move || lock(&slot).run_queued(needs));
+        spawn_queued(slot, self.needs);
     }
 
     /// Process the set the gate emitted: `frames[i]` is sensor `i`'s frame (`None`: left
     /// out of the set, and `out[i]` stays as it was). Results worked on ahead for these very
-    /// frames are taken; the others are processed now, the sensors in parallel.
+    /// frames are taken; the others are processed now, the sensors in parallel. Call it from
+    /// outside the rayon pool: it waits for the frames under way.
     pub fn process(
         &mut self,
         frames: &[Option<FrameKey>],
@@ -170,20 +195,43 @@ impl StreamingSensors {
     ) {
         use rayon::prelude::*;
         let needs = self.needs;
-        self.slots
-            .par_iter()
-            .zip(frames.par_iter())
-            .zip(out.par_iter_mut())
-            .for_each(|((slot, frame), result)| {
-                if let Some(key) = frame {
-                    *result = lock(slot).result_for(key, needs);
-                }
-            });
+        {
+            // Every lock first, on this thread; then no rayon task waits for one.
+            let mut guards: Vec<MutexGuard<'_, Slot>> =
+                self.slots.iter().map(|s| lock(s)).collect();
+            let mut slots: Vec<&mut Slot> = guards.iter_mut().map(|g| &mut **g).collect();
+            slots
+                .par_iter_mut()
+                .zip(frames.par_iter())
+                .zip(out.par_iter_mut())
+                .for_each(|((slot, frame), result)| {
+                    if let Some(key) = frame {
+                        *result = slot.result_for(key, needs);
+                    }
+                });
+        }
+        // A frame that arrived for a later set while the locks were held is worked on now.
+        for slot in &self.slots {
+            self.release(slot, lock(slot));
+        }
     }
 
     /// Run `f` on sensor `sensor`'s pipeline (waiting for its work in flight).
     pub fn with_pipe<R>(&self, sensor: usize, f: impl FnOnce(&SensorPipeline) -> R) -> Option<R> {
-        self.slots.get(sensor).map(|s| f(&lock(s).pipe))
+        let slot = self.slots.get(sensor)?;
+        let guard = lock(slot);
+        let out = f(&guard.pipe);
+        self.release(slot, guard);
+        Some(out)
+    }
+
+    /// Let go of `slot`'s lock; a frame whose task found it taken meanwhile is worked on.
+    fn release(&self, slot: &Arc<Mutex<Slot>>, guard: MutexGuard<'_, Slot>) {
+        let queued = guard.queued.is_some();
+        drop(guard);
+        if queued {
+            spawn_queued(slot, self.needs);
+        }
     }
 
     /// Run `f` on sensor `sensor`'s pipeline, mutably (to reference it). Any frame worked on
@@ -208,8 +256,11 @@ impl StreamingSensors {
         sensor: usize,
         f: impl FnOnce(&SensorPipeline) -> R,
     ) -> Option<R> {
-        let slot = lock(self.slots.get(sensor)?);
-        (slot.last.is_some() && slot.last == slot.committed).then(|| f(&slot.pipe))
+        let slot = self.slots.get(sensor)?;
+        let guard = lock(slot);
+        let out = (guard.last.is_some() && guard.last == guard.committed).then(|| f(&guard.pipe));
+        self.release(slot, guard);
+        out
     }
 }
 

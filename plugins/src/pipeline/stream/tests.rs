@@ -85,10 +85,12 @@ fn fresh() -> Vec<Result<ContactSummary, PipelineError>> {
         .collect()
 }
 
-/// Wait until every frame handed to the pool has been worked on.
+/// Wait until every frame handed to the pool has been worked on (a frame's task that
+/// found the lock taken by this very check is handed out again).
 fn settle(s: &StreamingSensors) {
     for slot in &s.slots {
         while lock(slot).queued.is_some() {
+            spawn_queued(slot, s.needs);
             std::thread::yield_now();
         }
     }
