@@ -6,6 +6,8 @@
 //! against `run --json`, the joint_states rate, JPEG images and `32FC1` depth, joint_states
 //! while the gate refuses most sets, two namespaces on one router, and an MCAP export read
 //! back by the PyPI `mcap` reader with every message decoding (tests/python/mcap_read.py).
+//! Two tests need no Python and run in plain `cargo test`: no router (the run goes on and
+//! says so once) and bad `[ros]` settings (exit 2 naming the field).
 //!
 //! The interpreter comes from `GELGRIP_PYTHON`; `scripts/test` makes `target/pyenv` with the
 //! packages and runs these tests.
@@ -461,4 +463,40 @@ fn an_mcap_export_reads_back_with_every_message_decoding() {
         topics["/gelgrip/tactile/contacts"]["schema"],
         "gelgrip_msgs/msg/TactileContacts"
     );
+}
+
+#[test]
+fn with_no_router_the_run_goes_on_and_says_so_once() {
+    let dir = common::scratch("ros-no-router");
+    let cfg = config(&dir, "ros.toml", free_port(), "/gelgrip", "");
+    let out = run(&cfg, "4", &[])
+        .wait_with_output()
+        .expect("the run ends");
+    let report = common::json(&out);
+    assert!(report["sets"].as_u64().expect("sets") > 60, "{report}");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(stderr.matches("ROS 2: no router at").count(), 1, "{stderr}");
+}
+
+#[test]
+fn bad_ros_settings_exit_2_naming_the_field() {
+    let dir = common::scratch("ros-bad");
+    for (extra, field) in [
+        ("mode = \"server\"", "ros.mode"),
+        ("domain_id = 300", "ros.domain_id"),
+        ("depth = \"full\"", "ros.depth"),
+        ("image_rate_hz = -1", "ros.image_rate_hz"),
+    ] {
+        let path = dir.join("bad.toml");
+        let text = format!(
+            "version = 1\nlayout = \"{ROOT}/configs/layouts/three-finger.toml\"\n[ros]\n{extra}\n"
+        );
+        std::fs::write(&path, text).expect("writing the config");
+        let out = common::gelgrip(&["check-config", common::s(&path)]);
+        assert_eq!(out.status.code(), Some(2), "{extra}");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(stderr.contains(field), "{extra}: {stderr}");
+    }
+    let bad_ns = common::gelgrip(&["run", "--ros-namespace", "no/slash", "--duration", "1"]);
+    assert_eq!(bad_ns.status.code(), Some(2));
 }
