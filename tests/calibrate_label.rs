@@ -537,3 +537,27 @@ fn an_interrupted_collect_keeps_what_it_kept() {
         }
     }
 }
+
+#[test]
+fn the_press_emulator_answers_bad_lines_with_errors() {
+    let dir = scratch("press-emu");
+    let mut hub = PressHub::start(&dir);
+    for (line, says) in [
+        ("f9.tip 100 100 0.5", "no sensor `f9.tip`"),
+        ("f1.tip 1e6 100 0.5", "off the"),
+        ("f1.tip 100 100 5", "deep"),
+        ("f1.tip here there 0.5", "SENSOR X_PX Y_PX DEPTH_MM"),
+    ] {
+        let answer = hub.ask(line);
+        let error = answer["error"].as_str().unwrap_or_default();
+        assert!(error.contains(says), "{line}: {answer}");
+    }
+    let good = hub.ask("palm 160 120 0.5 10");
+    assert_eq!(good["ball_mm"].as_f64(), Some(10.0), "{good}");
+    let r = good["contact_radius_px"].as_f64().expect("radius");
+    assert!(
+        (r - (25.0f64 - 4.5 * 4.5).sqrt() / 0.0625).abs() < 1e-6,
+        "{good}"
+    );
+    assert_eq!(hub.ask("palm lift")["lifted"], true);
+}
