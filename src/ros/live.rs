@@ -209,6 +209,12 @@ impl Drop for LiveLink {
     }
 }
 
+/// The liveliness tokens (kept alive while publishing) and each topic's publisher and GID.
+type Declared = (
+    Vec<zenoh::liveliness::LivelinessToken>,
+    Vec<(zenoh::pubsub::Publisher<'static>, [u8; 16])>,
+);
+
 struct Worker {
     session: zenoh::Session,
     node: NodeIdentity,
@@ -302,16 +308,8 @@ impl Worker {
         }
     }
 
-    #[allow(clippy::type_complexity)]
-    fn declare(
-        &self,
-    ) -> Result<
-        (
-            Vec<zenoh::liveliness::LivelinessToken>,
-            Vec<(zenoh::pubsub::Publisher<'static>, [u8; 16])>,
-        ),
-        String,
-    > {
+    /// Declare the node's token, then each topic's token and publisher.
+    fn declare(&self) -> Result<Declared, String> {
         let mut tokens = Vec::with_capacity(self.topics.len() + 1);
         let token = |key: String| {
             self.session
