@@ -374,6 +374,21 @@ impl ReplayedGate {
     }
 }
 
+/// What the exports read `recording` with: its config, its tactile pipelines and its gate
+/// replayed as fast as it goes, with the limits it was recorded under.
+pub fn replay_at_max(recording: &Recording) -> anyhow::Result<(AppConfig, Tactile, ReplayedGate)> {
+    let (config, max_spread_us, max_age_us) = recorded_config(recording)?;
+    let tactile = Tactile::open(&config)?;
+    let replayed = ReplayedGate::open(
+        recording,
+        &config,
+        ReplaySpeed::Max,
+        max_spread_us,
+        max_age_us,
+    )?;
+    Ok((config, tactile, replayed))
+}
+
 /// The recorded config (rebuilt from the files the recording carries) and the gate limits
 /// the run used.
 pub fn recorded_config(recording: &Recording) -> anyhow::Result<(AppConfig, u32, u64)> {

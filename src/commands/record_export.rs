@@ -24,9 +24,7 @@ use gelgrip_plugins::image::RgbImage;
 use gelgrip_record::format::{Meta, Record};
 use gelgrip_record::reader::Recording;
 
-use gelgrip::replay::ReplaySpeed;
-use gelgrip::replay::{ReplayedGate, recorded_config};
-use gelgrip::tactile::Tactile;
+use gelgrip::replay::replay_at_max;
 
 /// Each sensor's fields in a state record, as CSV columns.
 const SENSOR_FIELDS: [&str; 5] = [
@@ -198,15 +196,7 @@ fn export_csv(recording: &Recording, file: &Path) -> anyhow::Result<u64> {
 async fn export_npy(recording: &Recording, out: &Path) -> anyhow::Result<u64> {
     let ids = sensor_ids(recording)?;
     create_dirs(out, &ids)?;
-    let (config, max_spread_us, max_age_us) = recorded_config(recording)?;
-    let mut tactile = Tactile::open(&config)?;
-    let mut replayed = ReplayedGate::open(
-        recording,
-        &config,
-        ReplaySpeed::Max,
-        max_spread_us,
-        max_age_us,
-    )?;
+    let (_, mut tactile, mut replayed) = replay_at_max(recording)?;
     let mut written = 0u64;
     while let Some(set) = replayed.next_set().await? {
         tactile.process(&set);

@@ -11,11 +11,10 @@ use std::io::BufWriter;
 use std::path::Path;
 
 use anyhow::Context;
-use gelgrip::replay::{ReplaySpeed, ReplayedGate, recorded_config};
+use gelgrip::replay::replay_at_max;
 use gelgrip::ros::config::RosConfig;
 use gelgrip::ros::feed::{DiagnosticsInput, Feed, ServoSample, drop_counts};
 use gelgrip::ros::mcap_out::McapOut;
-use gelgrip::tactile::Tactile;
 use gelgrip_controller::actuator::hardware_error_names;
 use gelgrip_controller::runtime::ports::DepthWindow;
 use gelgrip_record::format::{Meta, Record};
@@ -67,7 +66,7 @@ pub async fn export_mcap(recording: &Recording, out: &Path) -> anyhow::Result<u6
         } => (sensors, started_unix_ms, transport),
         _ => anyhow::bail!("the recording has no header"),
     };
-    let (config, max_spread_us, max_age_us) = recorded_config(recording)?;
+    let (config, mut tactile, mut replayed) = replay_at_max(recording)?;
     let ros = RosConfig::from_section(&config.ros)?;
     let joints: Vec<String> = config.layout.fingers.iter().map(|f| f.id.clone()).collect();
     let mut feed = Feed::new(&ros, &ids, &joints)?;
@@ -77,14 +76,6 @@ pub async fn export_mcap(recording: &Recording, out: &Path) -> anyhow::Result<u6
     let stamp = |host_us: u64| Time::from_unix_us(origin_us.saturating_add(host_us));
     let mut reads = servo_reads(recording)?.into_iter().peekable();
     let mut faults: Vec<Vec<String>> = Vec::new();
-    let mut tactile = Tactile::open(&config)?;
-    let mut replayed = ReplayedGate::open(
-        recording,
-        &config,
-        ReplaySpeed::Max,
-        max_spread_us,
-        max_age_us,
-    )?;
     let mut samples = Vec::new();
     while let Some(set) = replayed.next_set().await? {
         let capture = set.earliest_capture_host_us;
