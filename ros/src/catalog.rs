@@ -3,21 +3,21 @@
 //! `diagnostic_msgs`, and this repository's `gelgrip_msgs` (`ros/gelgrip_msgs/msg/`, whose
 //! files a test compares with these definitions).
 
-use crate::types::{Constant, Field, FieldType as T, MsgType};
+use crate::types::{Constant, Field, FieldType as T, MsgType, Shape};
 
-const fn one(name: &'static str, ty: T) -> Field {
+pub(crate) const fn one(name: &'static str, ty: T) -> Field {
     Field {
         name,
         ty,
-        sequence: false,
+        shape: Shape::One,
     }
 }
 
-const fn seq(name: &'static str, ty: T) -> Field {
+pub(crate) const fn seq(name: &'static str, ty: T) -> Field {
     Field {
         name,
         ty,
-        sequence: true,
+        shape: Shape::Sequence,
     }
 }
 

@@ -6,10 +6,13 @@
 //! the MCAP export (`gelgrip record export --mcap`) both encode through this crate, so what a
 //! recording holds is byte for byte what the network carried.
 
+pub mod actions;
 pub mod catalog;
 pub mod cdr;
+pub mod cdr_read;
 pub mod msgs;
 pub mod names;
+pub mod services;
 pub mod types;
 
 pub use msgs::Message;

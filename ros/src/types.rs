@@ -19,12 +19,16 @@ pub enum FieldType {
     Bool,
     /// `byte`.
     Byte,
-    /// `uint8`.
+    /// `int8`.
+    Int8,
+    /// `uint8` (and `char`, which rosidl maps to `uint8`).
     Uint8,
     /// `int32`.
     Int32,
     /// `uint32`.
     Uint32,
+    /// `int64`.
+    Int64,
     /// `float64`.
     Float64,
     /// `string` (unbounded).
@@ -38,9 +42,11 @@ impl FieldType {
     fn type_id(self) -> u8 {
         match self {
             Self::Msg(_) => 1,
+            Self::Int8 => 2,
             Self::Uint8 => 3,
             Self::Int32 => 6,
             Self::Uint32 => 7,
+            Self::Int64 => 8,
             Self::Float64 => 11,
             Self::Bool => 15,
             Self::Byte => 16,
@@ -53,13 +59,50 @@ impl FieldType {
         match self {
             Self::Bool => "bool".into(),
             Self::Byte => "byte".into(),
+            Self::Int8 => "int8".into(),
             Self::Uint8 => "uint8".into(),
             Self::Int32 => "int32".into(),
             Self::Uint32 => "uint32".into(),
+            Self::Int64 => "int64".into(),
             Self::Float64 => "float64".into(),
             Self::String => "string".into(),
             Self::Msg(t) if t.package() == package => t.short_name().into(),
             Self::Msg(t) => format!("{}/{}", t.package(), t.short_name()),
+        }
+    }
+}
+
+/// How many elements of its type a field holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Shape {
+    /// One (`T`).
+    One,
+    /// An unbounded sequence (`T[]`).
+    Sequence,
+    /// A sequence of at most this many (`T[<=N]`).
+    BoundedSequence(u32),
+    /// A fixed array (`T[N]`).
+    Array(u32),
+}
+
+impl Shape {
+    /// What REP-2016 adds to the element's `type_id`, and the capacity it records.
+    fn type_id_offset_and_capacity(self) -> (u32, u32) {
+        match self {
+            Self::One => (0, 0),
+            Self::Array(n) => (48, n),
+            Self::BoundedSequence(n) => (96, n),
+            Self::Sequence => (144, 0),
+        }
+    }
+
+    /// The brackets a `.msg` file writes after the type.
+    fn brackets(self) -> String {
+        match self {
+            Self::One => String::new(),
+            Self::Sequence => "[]".into(),
+            Self::BoundedSequence(n) => format!("[<={n}]"),
+            Self::Array(n) => format!("[{n}]"),
         }
     }
 }
@@ -71,8 +114,8 @@ pub struct Field {
     pub name: &'static str,
     /// Its element type.
     pub ty: FieldType,
-    /// An unbounded sequence of `ty` (`T[]`) rather than one.
-    pub sequence: bool,
+    /// One, a sequence or an array of `ty`.
+    pub shape: Shape,
 }
 
 /// A constant (`byte OK=0`).
@@ -108,9 +151,21 @@ impl MsgType {
         self.name.rsplit('/').next().unwrap_or(self.name)
     }
 
-    /// The DDS type name rmw_zenoh puts in keys and tokens: `pkg::msg::dds_::Name_`.
+    /// The interface kind in the name: `msg`, `srv` or `action`.
+    pub fn kind(&self) -> &'static str {
+        self.name.split('/').nth(1).unwrap_or("msg")
+    }
+
+    /// The DDS type name rmw_zenoh puts in keys and tokens: `pkg::msg::dds_::Name_`
+    /// (`pkg::srv::dds_::Name_` for a service, `pkg::action::dds_::Name_SendGoal_` for an
+    /// action's service or message).
     pub fn dds_name(&self) -> String {
-        format!("{}::msg::dds_::{}_", self.package(), self.short_name())
+        format!(
+            "{}::{}::dds_::{}_",
+            self.package(),
+            self.kind(),
+            self.short_name()
+        )
     }
 
     /// The REP-2016 type hash, `RIHS01_` and 64 hex digits.
@@ -168,7 +223,8 @@ impl MsgType {
             if i > 0 {
                 s.push_str(", ");
             }
-            let id = u32::from(f.ty.type_id()) + if f.sequence { 144 } else { 0 };
+            let (offset, capacity) = f.shape.type_id_offset_and_capacity();
+            let id = u32::from(f.ty.type_id()) + offset;
             let nested = match f.ty {
                 FieldType::Msg(t) => t.name,
                 _ => "",
@@ -177,8 +233,8 @@ impl MsgType {
             json_string(s, f.name);
             let _ = write!(
                 s,
-                ", \"type\": {{\"type_id\": {id}, \"capacity\": 0, \"string_capacity\": 0, \
-                 \"nested_type_name\": "
+                ", \"type\": {{\"type_id\": {id}, \"capacity\": {capacity}, \
+                 \"string_capacity\": 0, \"nested_type_name\": "
             );
             json_string(s, nested);
             s.push_str("}}");
@@ -199,7 +255,7 @@ impl MsgType {
             );
         }
         for f in self.fields {
-            let brackets = if f.sequence { "[]" } else { "" };
+            let brackets = f.shape.brackets();
             let _ = writeln!(
                 s,
                 "{}{brackets} {}",

@@ -146,22 +146,22 @@ fn cases() -> Vec<Value> {
     ]
 }
 
-#[test]
-#[ignore = "needs the PyPI rosbags: run scripts/test"]
-fn rosbags_agrees_on_hashes_and_cdr_bytes() {
+/// Run the oracle `script` (in tests/) with `arg` on `cases`; asserts that it agrees on
+/// every case, and returns what it printed.
+fn run_oracle(script: &str, arg: &str, cases: &[Value]) -> String {
     let python = std::env::var("GELGRIP_PYTHON").unwrap_or_else(|_| {
         panic!("GELGRIP_PYTHON is not set: run scripts/test, or point it at a python with rosbags")
     });
     let dir = env!("CARGO_MANIFEST_DIR");
     let mut child = Command::new(&python)
-        .arg(format!("{dir}/tests/rosbags_oracle.py"))
-        .arg(format!("{dir}/gelgrip_msgs/msg"))
+        .arg(format!("{dir}/tests/{script}"))
+        .arg(format!("{dir}/{arg}"))
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
         .unwrap_or_else(|e| panic!("cannot run {python}: {e}"));
-    let input = serde_json::to_vec(&cases()).expect("cases serialise");
+    let input = serde_json::to_vec(cases).expect("cases serialise");
     child
         .stdin
         .take()
@@ -169,8 +169,148 @@ fn rosbags_agrees_on_hashes_and_cdr_bytes() {
         .write_all(&input)
         .expect("writing the cases");
     let out = child.wait_with_output().expect("the oracle ends");
-    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
     eprintln!("{stdout}{}", String::from_utf8_lossy(&out.stderr));
     assert!(out.status.success(), "rosbags disagrees:\n{stdout}");
-    assert_eq!(stdout.lines().filter(|l| l.ends_with(": ok")).count(), 6);
+    assert_eq!(
+        stdout.lines().filter(|l| l.ends_with(": ok")).count(),
+        cases.len()
+    );
+    stdout
+}
+
+#[test]
+#[ignore = "needs the PyPI rosbags: run scripts/test"]
+fn rosbags_agrees_on_hashes_and_cdr_bytes() {
+    run_oracle("rosbags_oracle.py", "gelgrip_msgs/msg", &cases());
+}
+
+/// The command side's cases: every service and topic type of the action and the Trigger
+/// services by hash, and the CDR of each request a client sends (built here as a client
+/// would), each response, the feedback and the status, decoded by rosbags.
+fn command_cases() -> Vec<Value> {
+    use gelgrip_ros::actions::{
+        self, CancelCode, CancelGoalResponse, FeedbackMessage, GetResultResponse, GoalInfo,
+        GoalStatusArray, GoalStatusCode, GripperState, SendGoalResponse,
+    };
+    use gelgrip_ros::cdr::CdrWriter;
+    use gelgrip_ros::services::{self, TriggerResponse};
+    let hex = |b: &[u8]| b.iter().map(|b| format!("{b:02x}")).collect::<String>();
+    let hash_only = |t: &gelgrip_ros::MsgType| json!({"type": t.name, "hash": t.rihs01()});
+    let with_cdr = |t: &gelgrip_ros::MsgType, cdr: &[u8], values: Value| json!({"type": t.name, "hash": t.rihs01(), "cdr": hex(cdr), "values": values});
+    let id: [u8; 16] = std::array::from_fn(|i| u8::try_from(i * 7 + 1).unwrap_or(0));
+    let stamp = Time {
+        sec: 1_764_010_000,
+        nanosec: 250_000_000,
+    };
+    let stamp_json = json!({"sec": stamp.sec, "nanosec": stamp.nanosec});
+    let state = GripperState {
+        position_rad: 0.375,
+        effort_n: 4.5,
+        stalled: true,
+        reached_goal: false,
+    };
+    let state_json =
+        json!({"position": 0.375, "effort": 4.5, "stalled": true, "reached_goal": false});
+    let mut send_goal = CdrWriter::default();
+    id.iter().for_each(|&b| send_goal.u8(b));
+    send_goal.f64(0.0);
+    send_goal.f64(5.0);
+    let mut cancel = CdrWriter::default();
+    id.iter().for_each(|&b| cancel.u8(b));
+    cancel.i32(stamp.sec);
+    cancel.u32(stamp.nanosec);
+    let mut get_result = CdrWriter::default();
+    id.iter().for_each(|&b| get_result.u8(b));
+    let mut trigger = CdrWriter::default();
+    trigger.u8(0);
+    let info = GoalInfo { goal_id: id, stamp };
+    let info_json = json!({"goal_id": {"uuid": id}, "stamp": stamp_json});
+    vec![
+        hash_only(&services::TRIGGER),
+        hash_only(&actions::CANCEL_GOAL),
+        hash_only(&actions::SEND_GOAL),
+        hash_only(&actions::GET_RESULT),
+        with_cdr(
+            &actions::SEND_GOAL_REQUEST,
+            &send_goal.into_bytes(),
+            json!({"goal_id": {"uuid": id},
+                   "goal": {"command": {"position": 0.0, "max_effort": 5.0}}}),
+        ),
+        with_cdr(
+            &actions::SEND_GOAL_RESPONSE,
+            &SendGoalResponse {
+                accepted: true,
+                stamp,
+            }
+            .to_cdr(),
+            json!({"accepted": true, "stamp": stamp_json}),
+        ),
+        with_cdr(
+            &actions::GET_RESULT_REQUEST,
+            &get_result.into_bytes(),
+            json!({"goal_id": {"uuid": id}}),
+        ),
+        with_cdr(
+            &actions::GET_RESULT_RESPONSE,
+            &GetResultResponse {
+                status: GoalStatusCode::Aborted,
+                result: state,
+            }
+            .to_cdr(),
+            json!({"status": 6, "result": state_json}),
+        ),
+        with_cdr(
+            &actions::CANCEL_GOAL_REQUEST,
+            &cancel.into_bytes(),
+            json!({"goal_info": info_json}),
+        ),
+        with_cdr(
+            &actions::CANCEL_GOAL_RESPONSE,
+            &CancelGoalResponse {
+                return_code: CancelCode::None,
+                goals_canceling: vec![info, GoalInfo::default()],
+            }
+            .to_cdr(),
+            json!({"return_code": 0, "goals_canceling": [info_json,
+                   {"goal_id": {"uuid": ([0u8; 16])}, "stamp": {"sec": 0, "nanosec": 0}}]}),
+        ),
+        with_cdr(
+            &actions::FEEDBACK_MESSAGE,
+            &FeedbackMessage {
+                goal_id: id,
+                feedback: state,
+            }
+            .to_cdr(),
+            json!({"goal_id": {"uuid": id}, "feedback": state_json}),
+        ),
+        with_cdr(
+            &actions::GOAL_STATUS_ARRAY,
+            &GoalStatusArray {
+                status_list: vec![(info, GoalStatusCode::Executing)],
+            }
+            .to_cdr(),
+            json!({"status_list": [{"goal_info": info_json, "status": 2}]}),
+        ),
+        with_cdr(
+            &services::TRIGGER_REQUEST,
+            &trigger.into_bytes(),
+            json!({"structure_needs_at_least_one_member": 0}),
+        ),
+        with_cdr(
+            &services::TRIGGER_RESPONSE,
+            &TriggerResponse {
+                success: false,
+                message: "estop: holding".into(),
+            }
+            .to_cdr(),
+            json!({"success": false, "message": "estop: holding"}),
+        ),
+    ]
+}
+
+#[test]
+#[ignore = "needs the PyPI rosbags: run scripts/test"]
+fn rosbags_agrees_on_the_command_types() {
+    run_oracle("rosbags_actions.py", "tests/upstream", &command_cases());
 }
