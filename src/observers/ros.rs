@@ -1,8 +1,10 @@
-//! The ROS 2 publisher as an observer of the run: each report's servo read becomes
-//! `joint_states`; each gated set its images (at `image_rate_hz`), depth images (at
-//! `depth_rate_hz`), wrenches and contacts; once a second the diagnostics. Stamps are the
-//! set's capture time (the servo read's time for joints) on the system clock: host µs plus
-//! the offset between the system clock and the run's clock, taken at the first report.
+//! The ROS 2 publisher as an observer of the run: each servo read the reports carry
+//! becomes `joint_states` (the runtime reads the servos after every gated set's goals, and
+//! between sets after each refused set and each quiet period); each gated set its images
+//! (at `image_rate_hz`), depth images (at `depth_rate_hz`), wrenches and contacts; once a
+//! second the diagnostics. Stamps are the set's capture time (the servo read's time for
+//! joints) on the system clock: host µs plus the offset between the system clock and the
+//! run's clock, taken at the first report.
 //!
 //! It never waits: samples go to the [`LiveLink`]'s bounded queue (best-effort topics drop
 //! when the publisher thread is behind).
@@ -26,6 +28,8 @@ pub struct RosPublisher {
     joints: Vec<String>,
     /// System-clock µs minus run-clock µs (set at the first report).
     unix_offset_us: Option<i128>,
+    /// The servo read count of the last `joint_states` published.
+    published_reads: Option<u64>,
     out: Vec<Sample>,
 }
 
@@ -60,6 +64,7 @@ impl RosPublisher {
             transport,
             joints,
             unix_offset_us: None,
+            published_reads: None,
             out: Vec::new(),
         })
     }
@@ -93,7 +98,10 @@ impl RosPublisher {
 
     fn publish(&mut self, report: &SetReport<'_>) {
         let now = report.now_us;
-        if let Some(g) = &report.gripper {
+        if let Some(g) = &report.gripper
+            && self.published_reads != Some(g.servo_reads)
+        {
+            self.published_reads = Some(g.servo_reads);
             let servos: Vec<ServoSample> = g
                 .servos
                 .iter()

@@ -1,7 +1,7 @@
 """A Zenoh router on loopback that listens to everything gelgrip publishes over rmw_zenoh's
 format, for tests/ros_zenoh.rs (no ROS install: eclipse-zenoh and rosbags from PyPI).
 
-    python ros_zenoh_listen.py PORT SECONDS MSG_DIR
+    python ros_zenoh_listen.py PORT SECONDS MSG_DIR [HISTORY]
 
 Opens a Zenoh session in router mode listening on tcp/127.0.0.1:PORT (multicast scouting
 off), prints `ready` once listening, then subscribes to every key and polls the ROS graph's
@@ -13,6 +13,9 @@ SECONDS pass. At the end it prints one JSON object:
                   "type": "pkg/msg/Name", "rosbags_hash": "RIHS01_...",
                   "attachments_ok": bool, "sequences_increase": bool,
                   "last": <the last message decoded by rosbags, as JSON>}}}
+
+HISTORY, a comma-separated list of topics without the namespace (`joint_states,tactile/contacts`),
+adds to those keys `"history"`: every message received, decoded, in order of arrival.
 
 Each payload is decoded with rosbags' typestore (ROS 2 Jazzy, plus gelgrip_msgs registered
 from MSG_DIR's .msg files); `uint8[]` data is given as hex.
@@ -30,6 +33,7 @@ import zenoh
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 port, seconds, msg_dir = int(sys.argv[1]), float(sys.argv[2]), pathlib.Path(sys.argv[3])
+history_topics = [t for t in (sys.argv[4] if len(sys.argv) > 4 else "").split(",") if t]
 
 store = get_typestore(Stores.ROS2_JAZZY)
 types = {}
@@ -62,6 +66,12 @@ keys = {}
 start = time.monotonic()
 
 
+def keeps_history(key):
+    """Whether KEY (`<domain>/<namespace...>/<topic...>/<type>/<hash>`) is a HISTORY topic."""
+    topic = "/".join(key.split("/")[1:-2])
+    return any(topic.endswith("/" + t) for t in history_topics)
+
+
 def on_sample(sample):
     key = str(sample.key_expr)
     if key.startswith("@"):
@@ -73,8 +83,11 @@ def on_sample(sample):
         k = keys.setdefault(
             key,
             {"count": 0, "stamps_ns": [], "arrivals_s": [], "attachments_ok": True,
-             "sequences_increase": True, "last_seq": 0, "payload": b"", "errors": []},
+             "sequences_increase": True, "last_seq": 0, "payload": b"", "errors": [],
+             "payloads": [] if keeps_history(key) else None},
         )
+        if k["payloads"] is not None:
+            k["payloads"].append(payload)
         k["count"] += 1
         k["arrivals_s"].append(now)
         k["payload"] = payload
@@ -128,6 +141,8 @@ with lock:
             entry["type"] = ty
             entry["rosbags_hash"] = store.hash_rihs01(ty)
             entry["last"] = plain(store.deserialize_cdr(k["payload"], ty))
+            if k["payloads"] is not None:
+                entry["history"] = [plain(store.deserialize_cdr(p, ty)) for p in k["payloads"]]
         except Exception as e:  # noqa: BLE001 - reported to the Rust test
             entry["error"] = repr(e)
         out["keys"][key] = entry

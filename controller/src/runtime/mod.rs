@@ -7,6 +7,9 @@
 //! servos through the [`Plant`](plant::Plant); then the safety checks run (queued stops and
 //! e-stops, the watchdog, the fixed servo programme's faults), and every
 //! [`Observer`](ports::Observer) gets the pass's typed [`SetReport`](report::SetReport).
+//! While no set passes (the gate refuses them, or the hub is silent), the servos are still
+//! read, never written, after each refused set and each quiet period, and the read is
+//! reported, so the observers keep seeing the joints.
 //!
 //! [`Runtime::step`] serves callers that own the timing; [`Runtime::run`] serves the CLI,
 //! whose signals arrive as [`RuntimeEvent`]s. [`Runtime::finish`] brings the hardware to
@@ -116,6 +119,9 @@ const REFERENCE_TIMEOUT_S: u64 = 10;
 const LATE_HINT_SETS: u64 = 20;
 /// Without sets, observers still get a report this often, µs.
 const QUIET_PERIOD_US: u64 = 100_000;
+/// Between sets, the servos are read at most this often, µs (a refused set right after a
+/// passing one, whose goals were just followed by a read, needs no other).
+const MIN_READ_GAP_US: u64 = 10_000;
 
 /// What a run ended with, once the hardware is safe.
 #[derive(Debug, Clone)]
@@ -151,7 +157,20 @@ pub struct Runtime {
     run_start_us: Option<u64>,
     deadline_us: Option<u64>,
     last_report_us: Option<u64>,
+    reads: ReadTrack,
     progress: Progress,
+}
+
+/// What the runtime has seen of the servo reads and the gate's refusals, to read the servos
+/// between sets.
+#[derive(Debug, Default)]
+struct ReadTrack {
+    /// The plant's read count last seen.
+    count: u64,
+    /// Host time it was seen to change, µs.
+    at_us: Option<u64>,
+    /// The gate's refused sets last seen.
+    refused: u64,
 }
 
 impl std::fmt::Debug for Runtime {
@@ -180,6 +199,7 @@ impl Runtime {
             run_start_us: None,
             deadline_us: None,
             last_report_us: None,
+            reads: ReadTrack::default(),
             progress: Progress {
                 last_log_us: start_us,
                 last_sets: 0,
@@ -427,7 +447,13 @@ impl Runtime {
         let quiet = self
             .last_report_us
             .is_none_or(|last| now.saturating_sub(last) >= QUIET_PERIOD_US);
-        if quiet && let Err(e) = self.report(None, now) {
+        let read = match self.read_between_sets(now, quiet) {
+            Ok(read) => read,
+            Err(e) => return Some(self.fault(e)),
+        };
+        if (quiet || read)
+            && let Err(e) = self.report(None, now)
+        {
             return Some(self.fault(e));
         }
         if self.deadline_us.is_some_and(|d| now >= d) {
@@ -435,6 +461,38 @@ impl Runtime {
         }
         self.log_progress(now);
         None
+    }
+
+    /// Read the servos between sets when the gate has refused a set since the last pass, or
+    /// on a quiet pass (no report for a while), so that the observers keep seeing the joints
+    /// while no set passes. Only a read: nothing is written, so a refused set never moves
+    /// the fingers (they hold their last goals; the watchdog holds them after a silence).
+    /// It runs after the pass, never on a passing set's path, and not within
+    /// [`MIN_READ_GAP_US`] of another read. Returns whether it read; without observers it
+    /// never does (no one would see it).
+    fn read_between_sets(&mut self, now_us: u64, quiet: bool) -> Result<bool, RuntimeError> {
+        let refused_total = self.acq.gate().stats().sets_rejected.total();
+        let refused = refused_total > self.reads.refused;
+        self.reads.refused = refused_total;
+        let Some(driver) = self.driver.as_mut() else {
+            return Ok(false);
+        };
+        let count = driver.plant().servo_reads();
+        if count != self.reads.count {
+            self.reads.count = count;
+            self.reads.at_us = Some(now_us);
+        }
+        let recent = self
+            .reads
+            .at_us
+            .is_some_and(|at| now_us.saturating_sub(at) < MIN_READ_GAP_US);
+        if !(refused || quiet) || recent || self.observers.is_empty() {
+            return Ok(false);
+        }
+        driver.plant_mut().read_between_sets()?;
+        self.reads.count = driver.plant().servo_reads();
+        self.reads.at_us = Some(now_us);
+        Ok(true)
     }
 
     /// Give every observer this pass's report.
@@ -466,6 +524,7 @@ impl Runtime {
                     })
                     .collect(),
                 servos: plant.states(),
+                servo_reads: plant.servo_reads(),
                 goals: plant.last_goals(),
                 task: d.status(),
                 latencies: plant.latencies(),

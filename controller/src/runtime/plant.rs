@@ -96,6 +96,8 @@ pub struct Plant {
     own_pending_ms: Option<f64>,
     last: Option<FusedSet>,
     step: Option<TaskStep>,
+    /// Servo reads that succeeded so far (after a set's goals, or between sets).
+    servo_reads: u64,
     /// Recovered servo faults.
     pub recovered: Vec<Fault>,
 }
@@ -136,6 +138,7 @@ impl Plant {
             own_pending_ms: None,
             last: None,
             step: None,
+            servo_reads: 0,
             recovered: Vec::new(),
         })
     }
@@ -277,7 +280,22 @@ impl Plant {
         let bus = &mut self.bus;
         if let Ok(states) = off_executor(|| bus.read_state()) {
             self.states = states;
+            self.servo_reads += 1;
         }
+    }
+
+    /// Read the servos between sets (the gate refused a set, or none came for a while), so
+    /// that the observers keep seeing the joints. Nothing is written: the fingers keep the
+    /// goals they were last given (a refused set never moves them).
+    pub fn read_between_sets(&mut self) -> Result<(), RuntimeError> {
+        self.states = self.read()?;
+        Ok(())
+    }
+
+    /// Servo reads that succeeded so far: a report whose count differs from the previous
+    /// one's carries a new read.
+    pub fn servo_reads(&self) -> u64 {
+        self.servo_reads
     }
 
     fn read(&mut self) -> Result<Vec<ServoState>, ServoError> {
@@ -288,6 +306,7 @@ impl Plant {
         })?;
         self.recovered
             .extend(recovered.iter().map(Fault::recovered));
+        self.servo_reads += 1;
         Ok(states)
     }
 

@@ -58,6 +58,10 @@ pub struct GripperReport<'a> {
     pub fingers: Vec<FingerState>,
     /// The servos' last states.
     pub servos: &'a [ServoState],
+    /// Servo reads so far: when it differs from the previous report's, `servos` is a new
+    /// read (one after every gated set's goals; between sets, one per refused set and one
+    /// per quiet period, with nothing written).
+    pub servo_reads: u64,
     /// The goals last written and the set they answered (`None`: a stop or e-stop).
     pub goals: Option<&'a (Option<u32>, Vec<FingerGoal>)>,
     /// The task, if any.
