@@ -4,16 +4,21 @@
 //! The contact's rim is where the gel's slope is steepest and then stops: the difference
 //! from the background (its magnitude over the three channels) steps down there. Optics blur
 //! that step, and the LEDs make its height depend on the direction the slope faces, so the
-//! rim is found ray by ray, each relative to its own height:
-//! 1. the difference image, each channel less its median (a global brightness change),
+//! rim is found ray by ray, each relative to its own height and the contact's:
+//! 1. the difference image, each channel divided by the background's local level (the LEDs'
+//!    falloff across the pad) and less its median (a global brightness change),
 //!    box-blurred, and its magnitude; the noise level is the magnitude's median and spread
 //!    (MAD) over the frame;
 //! 2. the pixels above the noise form blobs (4-connected): none is "no contact", a second
 //!    one of comparable size "two blobs", clipped channels over the blob (or over half the
 //!    frame) "saturated";
 //! 3. from the blob's centroid, [`RAYS`] rays: along each, the outer point where the
-//!    magnitude falls to half its peak (a blurred step is at half height at the step),
-//!    interpolated between samples;
+//!    magnitude falls half way from the untouched gel to a reference height (a step blurred
+//!    by the optics is at half height at the step), interpolated between samples. The
+//!    reference is the geometric mean of the ray's own peak (the LEDs show slopes facing
+//!    some ways more strongly than others) and the contact's (on a real sensor the weakly
+//!    shown directions are also the broad ones, and read against their own peak they pull
+//!    the centre toward them: 7 px on the GelSight Mini);
 //! 4. a least-squares circle through those rim points (outliers dropped, then refitted),
 //!    and the rays cast again from its centre, [`ITERATIONS`] times.
 //!
@@ -33,6 +38,15 @@ pub const RAYS: usize = 72;
 pub const ITERATIONS: usize = 3;
 /// Box-blur radius of the difference image, px.
 pub const BLUR_PX: usize = 2;
+/// Box-blur radius of the background's level that the difference is divided by, px: the
+/// LEDs' falloff is smooth over tens of pixels, the camera's noise is not.
+pub const BACKGROUND_SMOOTH_PX: usize = 8;
+/// Where on its way down from the reference height to the untouched gel a ray's rim is
+/// placed: half way, where a step blurred by the optics sits. A real GelSight Mini shows
+/// no step (its colour change fades over tens of pixels) and there the level sets the
+/// radius: 0.4 would match the mean size of its authors' hand-drawn circles, but moves the
+/// simulator's rims 0.7 px outward (docs/calibration.md).
+pub const RIM_FRACTION: f64 = 0.5;
 /// Noise spreads (MAD × 1.4826) above the median magnitude that count as signal.
 pub const SIGNAL_SIGMAS: f64 = 8.0;
 /// The least magnitude that counts as signal, grey levels (a noise-free synthetic frame has
@@ -195,7 +209,7 @@ pub fn detect(press: &RgbImage, background: &RgbImage) -> Result<ContactCircle, 
     let mut found = (0, 0.0);
     for _ in 0..ITERATIONS {
         let reach = (2.5 * r).max(8.0);
-        let rim = field.rim_points((cx, cy), reach, RAYS, threshold);
+        let rim = field.rim_points((cx, cy), reach, RAYS, threshold, main.peak);
         let Some(circle) = fit::robust_circle(&rim) else {
             return Err(Rejection::NotRound {
                 rays_found: rim.len(),

@@ -1,10 +1,11 @@
 //! The difference field a contact is found in: the magnitude of (press − background), each
-//! channel less its median and box-blurred, with its noise level, its blobs above the noise
-//! and its rim along rays.
+//! channel divided by the background's local level (the LEDs' falloff flattened), less its
+//! median and box-blurred, with its noise level, its blobs above the noise and its rim along
+//! rays.
 
 use crate::image::RgbImage;
 
-use super::{MIN_BLOB_PX, MIN_SIGNAL, SIGNAL_SIGMAS};
+use super::{BACKGROUND_SMOOTH_PX, MIN_BLOB_PX, MIN_SIGNAL, RIM_FRACTION, SIGNAL_SIGMAS};
 
 /// Step along a ray, px.
 const RAY_STEP_PX: f64 = 0.5;
@@ -34,14 +35,28 @@ pub struct Blob {
 
 impl DiffField {
     /// The field of `press` against `background` (same size), blurred with radius `blur_px`.
+    ///
+    /// A slope changes a pixel's brightness in proportion to the light falling there, and the
+    /// LEDs light the pad unevenly (a real sensor's background falls off by half or more
+    /// toward the corners). So each channel's difference is divided by the background's own
+    /// level there (box-blurred over [`BACKGROUND_SMOOTH_PX`], at least 1) and scaled back by
+    /// the channel's median level: grey levels as at a pixel of median brightness. An evenly
+    /// lit background leaves the difference as it is.
     pub fn new(press: &RgbImage, background: &RgbImage, blur_px: usize) -> Self {
         let (w, h) = (press.width, press.height);
         let n = w * h;
         let mut channels: Vec<Vec<f32>> = (0..3)
             .map(|c| {
+                let mut level: Vec<f32> = (0..n)
+                    .map(|p| f32::from(background.data[3 * p + c]))
+                    .collect();
+                let reference = median(level.iter().step_by(7).copied().collect()).max(1.0) as f32;
+                box_blur(&mut level, w, h, BACKGROUND_SMOOTH_PX);
                 (0..n)
                     .map(|p| {
-                        f32::from(press.data[3 * p + c]) - f32::from(background.data[3 * p + c])
+                        let d = f32::from(press.data[3 * p + c])
+                            - f32::from(background.data[3 * p + c]);
+                        d * reference / level[p].max(1.0)
                     })
                     .collect()
             })
@@ -192,14 +207,21 @@ impl DiffField {
     }
 
     /// Rim points on `rays` rays from `centre` out to `reach` px: on each, the outer point
-    /// where the magnitude falls to half way from the baseline to the ray's peak, when the
-    /// peak is above `threshold` and the fall lies inside the image.
+    /// where the magnitude falls to [`RIM_FRACTION`] of the way from the baseline to the
+    /// ray's reference height, when the ray's peak is above `threshold` and the fall lies
+    /// inside the image. The reference is the geometric mean of the ray's own peak and the
+    /// contact's `peak` (both above the baseline): the ray's own, because the LEDs show
+    /// slopes facing some ways more strongly than others; the contact's, because on a real
+    /// sensor the weakly shown directions are also the broad ones (the gel's deformation
+    /// outside the contact), and a ray read only against its own peak runs far out along
+    /// them.
     pub fn rim_points(
         &self,
         (cx, cy): (f64, f64),
         reach: f64,
         rays: usize,
         threshold: f64,
+        peak: f64,
     ) -> Vec<(f64, f64)> {
         let steps = (reach / RAY_STEP_PX).ceil() as usize;
         let mut out = Vec::with_capacity(rays);
@@ -214,7 +236,7 @@ impl DiffField {
                     None => break,
                 }
             }
-            let Some(rho) = self.half_fall(&profile, threshold) else {
+            let Some(rho) = self.rim_fall(&profile, threshold, peak) else {
                 continue;
             };
             out.push((cx + rho * c, cy + rho * s));
@@ -222,9 +244,9 @@ impl DiffField {
         out
     }
 
-    /// Where `profile` (sampled every [`RAY_STEP_PX`]) falls below half its peak, after the
-    /// peak, px from its start.
-    fn half_fall(&self, profile: &[f64], threshold: f64) -> Option<f64> {
+    /// Where `profile` (sampled every [`RAY_STEP_PX`]) falls below the rim level (see
+    /// [`Self::rim_points`]), after its peak, px from its start.
+    fn rim_fall(&self, profile: &[f64], threshold: f64, contact_peak: f64) -> Option<f64> {
         let (peak_i, peak) =
             profile
                 .iter()
@@ -237,10 +259,15 @@ impl DiffField {
         if peak <= threshold {
             return None;
         }
-        let half = self.baseline + 0.5 * (peak - self.baseline);
-        let i = (peak_i..profile.len()).find(|&i| profile[i] < half)?;
+        let reference = ((peak - self.baseline) * (contact_peak - self.baseline).max(0.0)).sqrt();
+        // A ray under a quarter of the contact's peak does not reach its own rim level.
+        let level = self.baseline + RIM_FRACTION * reference;
+        if peak <= level {
+            return None;
+        }
+        let i = (peak_i..profile.len()).find(|&i| profile[i] < level)?;
         let (a, b) = (profile[i - 1], profile[i]);
-        let t = if a > b { (a - half) / (a - b) } else { 0.0 };
+        let t = if a > b { (a - level) / (a - b) } else { 0.0 };
         Some((i as f64 - 1.0 + t) * RAY_STEP_PX)
     }
 }
