@@ -161,18 +161,25 @@ impl Tactile {
         true
     }
 
-    /// Sensor `i`'s last reconstructed depth window (mm, row-major), its width and height,
-    /// and the depth above which a pixel counts as contact, mm.
+    /// Sensor `i`'s last reconstructed depth window (mm, row-major), where it lies in the
+    /// processed frame, and the depth above which a pixel counts as contact, mm.
     /// `None` while the pipeline's buffers hold a frame worked on ahead of its set.
-    pub fn depth_window(&self, i: usize) -> Option<(Vec<f32>, usize, usize, f32)> {
+    pub fn depth_window(&self, i: usize) -> Option<DepthWindow> {
         self.pipes
             .with_committed_pipe(i, |pipe| {
-                let (depth, (_, _, w, h)) = pipe.last_depth_mm();
+                let (depth, (x0, y0, w, h)) = pipe.last_depth_mm();
                 if w == 0 || h == 0 {
                     return None;
                 }
                 let threshold = pipe.noise().map_or(0.05, |n| n.depth_threshold_mm);
-                Some((depth.to_vec(), w, h, threshold))
+                Some(DepthWindow {
+                    depth_mm: depth.to_vec(),
+                    width: w,
+                    height: h,
+                    origin_px: (x0, y0),
+                    frame_px: pipe.size(),
+                    contact_mm: threshold,
+                })
             })
             .flatten()
     }
@@ -253,13 +260,7 @@ impl Sensing for Tactile {
     }
 
     fn depth_window(&self, index: usize) -> Option<DepthWindow> {
-        let (depth_mm, width, height, contact_mm) = Tactile::depth_window(self, index)?;
-        Some(DepthWindow {
-            depth_mm,
-            width,
-            height,
-            contact_mm,
-        })
+        Tactile::depth_window(self, index)
     }
 }
 

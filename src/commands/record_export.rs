@@ -201,9 +201,9 @@ async fn export_npy(recording: &Recording, out: &Path) -> anyhow::Result<u64> {
     while let Some(set) = replayed.next_set().await? {
         tactile.process(&set);
         for (i, id) in ids.iter().enumerate() {
-            if let Some((depth, w, h, _)) = tactile.depth_window(i) {
+            if let Some(w) = tactile.depth_window(i) {
                 let path = out.join(id).join(format!("{:08}.npy", set.trigger_seq));
-                gelgrip_plugins::npy::write_f32(&path, &[h, w], &depth)
+                gelgrip_plugins::npy::write_f32(&path, &[w.height, w.width], &w.depth_mm)
                     .with_context(|| format!("writing {}", path.display()))?;
                 written += 1;
             }

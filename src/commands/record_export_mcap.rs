@@ -16,7 +16,6 @@ use gelgrip::ros::config::RosConfig;
 use gelgrip::ros::feed::{DiagnosticsInput, Feed, ServoSample, drop_counts};
 use gelgrip::ros::mcap_out::McapOut;
 use gelgrip_controller::actuator::hardware_error_names;
-use gelgrip_controller::runtime::ports::DepthWindow;
 use gelgrip_record::format::{Meta, Record};
 use gelgrip_record::reader::Recording;
 use gelgrip_ros::msgs::Time;
@@ -94,18 +93,8 @@ pub async fn export_mcap(recording: &Recording, out: &Path) -> anyhow::Result<u6
         feed.readings(t, &readings, &mut samples);
         for i in 0..ids.len() {
             if feed.depth_due(i, capture)
-                && let Some((depth_mm, width, height, contact_mm)) = tactile.depth_window(i)
-                && let Some(s) = feed.depth(
-                    t,
-                    capture,
-                    i,
-                    &DepthWindow {
-                        depth_mm,
-                        width,
-                        height,
-                        contact_mm,
-                    },
-                )
+                && let Some(w) = tactile.depth_window(i)
+                && let Some(s) = feed.depth(t, capture, i, &w)
             {
                 samples.push(s);
             }

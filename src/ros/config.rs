@@ -8,7 +8,7 @@
 //! domain_id = 0
 //! namespace = "/gelgrip"              # one per gripper
 //! image_rate_hz = 10
-//! depth = "window"                    # window | off (full: not yet)
+//! depth = "window"                    # window | full | off
 //! depth_rate_hz = 10
 //! ```
 
@@ -39,6 +39,8 @@ impl ZenohMode {
 pub enum DepthMode {
     /// The contact window the pipeline reconstructs.
     Window,
+    /// The whole frame: the window placed in a frame-sized image, zero outside it.
+    Full,
     /// None.
     Off,
 }
@@ -149,16 +151,8 @@ impl RosConfig {
         let depth_rate_hz = check.range(&p("depth_rate_hz"), raw.depth_rate_hz, 0.0, 1000.0)?;
         let depth = match raw.depth.as_str() {
             "window" => DepthMode::Window,
+            "full" => DepthMode::Full,
             "off" => DepthMode::Off,
-            // The full frame needs the window's origin in the frame, which the runtime's
-            // sensing port does not carry yet (docs/ros.md).
-            "full" => {
-                return Err(check.invalid(
-                    &p("depth"),
-                    "full",
-                    "window or off (full is not available yet: docs/ros.md)",
-                ));
-            }
             other => return Err(check.invalid(&p("depth"), other, "window, full or off")),
         };
         Ok(Self {

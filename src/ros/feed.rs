@@ -80,6 +80,8 @@ pub struct Feed {
     joints: Vec<String>,
     image_period_us: Option<u64>,
     depth_period_us: Option<u64>,
+    /// Whether depth images are the whole frame (else the window).
+    depth_full: bool,
     next_image_us: Vec<Option<u64>>,
     next_depth_us: Vec<Option<u64>>,
     next_diagnostics_us: Option<u64>,
@@ -151,7 +153,7 @@ impl Feed {
             sensors.push(s);
         }
         let depth_rate = match config.depth {
-            DepthMode::Window => config.depth_rate_hz,
+            DepthMode::Window | DepthMode::Full => config.depth_rate_hz,
             DepthMode::Off => 0.0,
         };
         Ok(Self {
@@ -162,6 +164,7 @@ impl Feed {
             joints: joints.to_vec(),
             image_period_us: period_us(config.image_rate_hz),
             depth_period_us: period_us(depth_rate),
+            depth_full: config.depth == DepthMode::Full,
             next_diagnostics_us: None,
         })
     }
@@ -240,7 +243,9 @@ impl Feed {
         }
     }
 
-    /// Sensor `i`'s depth image from its window (call when [`Feed::depth_due`]).
+    /// Sensor `i`'s depth image from its window (call when [`Feed::depth_due`]): the window
+    /// itself, or with `depth = "full"` the whole frame, zero outside the window. `None`
+    /// for a window that does not fit its frame.
     pub fn depth(
         &mut self,
         stamp: Time,
@@ -250,11 +255,16 @@ impl Feed {
     ) -> Option<Sample> {
         let next = self.next_depth_us.get_mut(i)?;
         *next = next_due(*next, self.depth_period_us, capture_host_us);
-        let depth_m: Vec<f32> = w.depth_mm.iter().map(|d| d * 1e-3).collect();
+        let (width, height, depth_m) = if self.depth_full {
+            full_frame_m(w)?
+        } else {
+            let depth_m: Vec<f32> = w.depth_mm.iter().map(|d| d * 1e-3).collect();
+            (w.width, w.height, depth_m)
+        };
         let msg = DepthImage {
             header: self.header(stamp, i),
-            height: u32::try_from(w.height).ok()?,
-            width: u32::try_from(w.width).ok()?,
+            height: u32::try_from(height).ok()?,
+            width: u32::try_from(width).ok()?,
             depth_m: &depth_m,
         };
         Some(Sample {
@@ -386,6 +396,29 @@ pub fn drop_counts(counts: &gelgrip_controller::gate::ReasonCounts) -> Vec<(Stri
         .unwrap_or_default()
 }
 
+/// The window `w` placed in its whole frame, in metres, zero outside it: `(width, height,
+/// depth)`. `None` when the window's depth does not fill it or it does not fit the frame.
+fn full_frame_m(w: &DepthWindow) -> Option<(usize, usize, Vec<f32>)> {
+    let (fw, fh) = w.frame_px;
+    let (x0, y0) = w.origin_px;
+    if w.depth_mm.len() != w.width.checked_mul(w.height)?
+        || x0.checked_add(w.width)? > fw
+        || y0.checked_add(w.height)? > fh
+    {
+        return None;
+    }
+    let mut depth_m = vec![0.0f32; fw.checked_mul(fh)?];
+    if w.width > 0 {
+        for (row, src) in w.depth_mm.chunks_exact(w.width).enumerate() {
+            let start = (y0 + row) * fw + x0;
+            for (d, s) in depth_m[start..start + w.width].iter_mut().zip(src) {
+                *d = s * 1e-3;
+            }
+        }
+    }
+    Some((fw, fh, depth_m))
+}
+
 /// One sensor's contact summary in SI units (zeros, not in contact, without a reading).
 fn contact(name: &str, r: Option<SensorReading>) -> TactileContact {
     let Some(r) = r else {
@@ -454,6 +487,39 @@ mod tests {
         out.clear();
         none.images(Time::default(), 0, &[(0, &jpeg)], &mut out);
         assert!(out.is_empty());
+    }
+
+    #[test]
+    fn a_full_frame_depth_image_holds_the_window_at_its_origin() {
+        let w = DepthWindow {
+            depth_mm: vec![1.0, 2.0, 3.0, 4.0, 5.0, 6.0],
+            width: 3,
+            height: 2,
+            origin_px: (1, 2),
+            frame_px: (5, 4),
+            contact_mm: 0.05,
+        };
+        let (fw, fh, d) = full_frame_m(&w).expect("it fits");
+        assert_eq!((fw, fh, d.len()), (5, 4, 20));
+        let at = |x: usize, y: usize| d[y * fw + x];
+        assert!((at(1, 2) - 1e-3).abs() < 1e-9 && (at(3, 3) - 6e-3).abs() < 1e-9);
+        let inside = (2..4).flat_map(|y| (1..4).map(move |x| (x, y)));
+        let sum_inside: f32 = inside.map(|(x, y)| at(x, y)).sum();
+        assert!(
+            (d.iter().sum::<f32>() - sum_inside).abs() < 1e-9,
+            "zero outside"
+        );
+        // A window past the frame's edge, or short of its pixels, is not placed.
+        let past = DepthWindow {
+            origin_px: (3, 2),
+            ..w.clone()
+        };
+        assert!(full_frame_m(&past).is_none());
+        let short = DepthWindow {
+            depth_mm: vec![1.0],
+            ..w
+        };
+        assert!(full_frame_m(&short).is_none());
     }
 
     #[test]

@@ -9,7 +9,7 @@ use crate::runtime::control::{LoopRequest, Refusal};
 use crate::runtime::driver::Driver;
 use crate::runtime::report::SetReport;
 
-/// One sensor's last reconstructed depth window.
+/// One sensor's last reconstructed depth window, and where it lies in the frame.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DepthWindow {
     /// Depth, mm, row-major.
@@ -18,6 +18,11 @@ pub struct DepthWindow {
     pub width: usize,
     /// Height, px.
     pub height: usize,
+    /// The window's top-left corner in the frame `(x, y)`, px.
+    pub origin_px: (usize, usize),
+    /// The frame the pipeline processes `(width, height)`, px (the JPEG's size, divided by
+    /// the pipeline's decode scale); the window lies inside it.
+    pub frame_px: (usize, usize),
     /// The depth above which a pixel counts as contact, mm.
     pub contact_mm: f32,
 }
