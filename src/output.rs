@@ -11,6 +11,8 @@ use gelgrip_controller::runtime::outcome::EndReason;
 pub struct ServoReport {
     /// Position, degrees.
     pub position_deg: f64,
+    /// Velocity (Present Velocity), rpm.
+    pub velocity_rpm: f64,
     /// Current, mA.
     pub current_ma: f64,
     /// Temperature, °C.
@@ -25,6 +27,7 @@ impl From<&gelgrip_controller::actuator::ServoState> for ServoReport {
     fn from(s: &gelgrip_controller::actuator::ServoState) -> Self {
         Self {
             position_deg: s.position_deg,
+            velocity_rpm: s.velocity_rpm,
             current_ma: s.current_ma,
             temperature_c: s.temperature_c,
             hardware_error: s.hardware_error,

@@ -722,6 +722,9 @@ fn an_mcap_export_reads_back_with_every_message_decoding() {
         topics["/gelgrip/joint_states"]["schema"],
         "sensor_msgs/msg/JointState"
     );
+    // The recorded servo reads carry their velocity: every joint_states message has one
+    // per joint.
+    assert_eq!(joints["full_velocity"], joints["count"], "{joints}");
     assert_eq!(
         topics["/gelgrip/tactile/contacts"]["schema"],
         "gelgrip_msgs/msg/TactileContacts"

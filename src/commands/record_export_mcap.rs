@@ -33,7 +33,9 @@ fn servo_reads(recording: &Recording) -> anyhow::Result<Vec<ServoRead>> {
                 .iter()
                 .map(|s| ServoSample {
                     position_deg: s["position_deg"].as_f64().unwrap_or(0.0),
-                    velocity_rpm: None,
+                    // Absent from recordings made before it was recorded: then the
+                    // message's velocity is empty.
+                    velocity_rpm: s["velocity_rpm"].as_f64(),
                     current_ma: s["current_ma"].as_f64().unwrap_or(0.0),
                 })
                 .collect();

@@ -1,8 +1,9 @@
 """Reads an MCAP file with the PyPI `mcap` reader and `mcap-ros2-support`'s decoder, for
 tests/ros_zenoh.rs: every message must decode. Prints one JSON object:
 {"profile": ..., "topics": {TOPIC: {"schema": NAME, "encoding": ..., "count": N,
- "decoded": N, "first_log_ns": T, "last_log_ns": T, "log_equals_stamp": bool}},
- "errors": [...]}."""
+ "decoded": N, "first_log_ns": T, "last_log_ns": T, "log_equals_stamp": bool,
+ "full_velocity": N}}, "errors": [...]}, where `full_velocity` counts the messages with a
+`velocity` field as long as their `position` (JointState)."""
 
 import json
 import sys
@@ -20,7 +21,7 @@ with open(sys.argv[1], "rb") as f:
             channel.topic,
             {"schema": schema.name, "encoding": channel.message_encoding, "count": 0,
              "decoded": 0, "first_log_ns": message.log_time, "last_log_ns": 0,
-             "log_equals_stamp": True},
+             "log_equals_stamp": True, "full_velocity": 0},
         )
         t["count"] += 1
         t["last_log_ns"] = message.log_time
@@ -28,6 +29,9 @@ with open(sys.argv[1], "rb") as f:
             errors.append(f"{channel.topic}: undecoded")
             continue
         t["decoded"] += 1
+        velocity = getattr(decoded, "velocity", None)
+        if velocity is not None and len(velocity) == len(decoded.position) > 0:
+            t["full_velocity"] += 1
         stamp = decoded.header.stamp
         if stamp.sec * 1_000_000_000 + stamp.nanosec != message.log_time:
             t["log_equals_stamp"] = False
