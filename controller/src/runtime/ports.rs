@@ -62,8 +62,9 @@ pub type ObserverError = Box<dyn std::error::Error + Send + Sync>;
 
 /// Something that watches the loop through its per-set report: the dashboard feed, the
 /// task CSV, the recorder's state snapshots, a network publisher. It is called on the
-/// loop's thread after every set (and, with `set: None`, when the loop is quiet), so it
-/// must not block: an observer that cannot keep up drops reports and says so in its doc.
+/// loop's thread after every set (and, with `set: None`, after each servo read between
+/// sets and when the loop is quiet), so it must not block: an observer that cannot keep up
+/// drops reports and says so in its doc.
 pub trait Observer: Send {
     /// One report.
     fn observe(&mut self, report: &SetReport<'_>) -> Result<(), ObserverError>;

@@ -25,8 +25,9 @@ pub struct FingerState {
     pub target_force_n: f64,
 }
 
-/// One pass through the loop: after a gated set (`set` is `Some`), or a quiet moment
-/// (`set` is `None`: the hub is silent or the gate refuses sets).
+/// One pass through the loop: after a gated set (`set` is `Some`), or between sets (`set`
+/// is `None`): after a servo read when the gate refused a set, or a quiet moment (the hub
+/// is silent).
 pub struct SetReport<'a> {
     /// Host time, µs.
     pub now_us: u64,
