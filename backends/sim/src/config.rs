@@ -6,6 +6,8 @@ use gelgrip_controller::config::{BackendSection, ConfigError};
 use gelgrip_controller::layout::HandLayout;
 use gelgrip_controller::runtime::control::{MAX_CLOCK_DRIFT_PPM, MAX_JITTER_US};
 
+use crate::optics::Optics;
+use crate::optics::realistic::MINI;
 use crate::scene_spec::SceneSpec;
 
 /// Faults injected into one sensor.
@@ -45,8 +47,14 @@ pub struct SimConfig {
     pub t_usb_us: u32,
     /// Bound on each board's trigger-to-capture jitter, µs.
     pub capture_jitter_us: u32,
-    /// Standard deviation of the camera noise, in 8-bit grey levels.
+    /// Standard deviation of the camera noise, in 8-bit grey levels (the nominal optics';
+    /// with realistic optics, the value given or the fitted per-channel noise's mean).
     pub noise_sigma: f64,
+    /// The camera noise per channel, grey levels: `noise_sigma` in each, or, with realistic
+    /// optics and no `noise_sigma` given, the fitted sensor's.
+    pub noise_rgb: [f64; 3],
+    /// Image formation (`optics = "nominal"` unless the config asks for `"realistic"`).
+    pub optics: Optics,
     /// Distinct noisy frames rendered per sensor (a static scene needs no more).
     pub noise_pool: usize,
     /// Hub clock value at host time 0, µs (to place the u32 wrap anywhere).
@@ -72,7 +80,8 @@ struct RawSim {
     t_buf_us: f64,
     t_usb_us: f64,
     capture_jitter_us: f64,
-    noise_sigma: f64,
+    noise_sigma: Option<f64>,
+    optics: String,
     noise_pool: i64,
     hub_clock_start_us: u32,
     ball_diameter_mm: f64,
@@ -91,7 +100,8 @@ impl Default for RawSim {
             t_buf_us: 1000.0,
             t_usb_us: 500.0,
             capture_jitter_us: 2.0,
-            noise_sigma: DEFAULT_NOISE_SIGMA,
+            noise_sigma: None,
+            optics: "nominal".into(),
             noise_pool: 8,
             hub_clock_start_us: 0,
             ball_diameter_mm: 6.0,
@@ -146,6 +156,21 @@ impl SimConfig {
                 )?)
             }
         };
+        let optics = match raw.optics.as_str() {
+            "nominal" => Optics::Nominal,
+            "realistic" => Optics::Realistic(Box::new(MINI)),
+            other => {
+                return Err(check.invalid(&p("optics"), other, "\"nominal\" or \"realistic\""));
+            }
+        };
+        let (noise_sigma, noise_rgb) = match (raw.noise_sigma, &optics) {
+            (Some(s), _) => {
+                let s = check.range(&p("noise_sigma"), s, 0.0, 64.0)?;
+                (s, [s; 3])
+            }
+            (None, Optics::Nominal) => (DEFAULT_NOISE_SIGMA, [DEFAULT_NOISE_SIGMA; 3]),
+            (None, Optics::Realistic(r)) => (r.noise_rgb.iter().sum::<f64>() / 3.0, r.noise_rgb),
+        };
         let mut faults = vec![SensorFaults::default(); layout.sensors.len()];
         for (i, f) in raw.faults.iter().enumerate() {
             let field = |k: &str| format!("{}.faults[{i}].{k}", section.prefix);
@@ -197,7 +222,9 @@ impl SimConfig {
                 0.0,
                 1e4,
             )? as u32,
-            noise_sigma: check.range(&p("noise_sigma"), raw.noise_sigma, 0.0, 64.0)?,
+            noise_sigma,
+            noise_rgb,
+            optics,
             noise_pool: check.range(&p("noise_pool"), raw.noise_pool as f64, 1.0, 256.0)? as usize,
             hub_clock_start_us: raw.hub_clock_start_us,
             ball_diameter_mm: check.range(

@@ -9,6 +9,12 @@
 //! so a flat gel shows the base colour, slopes facing an LED brighten its channel and slopes
 //! facing away darken it. `V(r) = 1 − v·r²` is the lens vignetting (r = 1 at the corner).
 //! Values are clamped to 0–255, so saturated and black pixels occur naturally at extremes.
+//!
+//! That is the nominal optics. A config may ask for [`realistic`] optics instead
+//! (`[hub.sim] optics = "realistic"`), fitted to a real GelSight Mini by [`fit`].
+
+pub mod fit;
+pub mod realistic;
 
 use rand::Rng;
 use rand_distr::{Distribution, Normal};
@@ -35,6 +41,27 @@ fn light_directions() -> [[f64; 3]; 3] {
     })
 }
 
+/// Which image formation a simulated camera uses.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub enum Optics {
+    /// Lambertian shading, radial vignetting, one noise σ (this module's model).
+    #[default]
+    Nominal,
+    /// [`realistic`]: specular lobe, shadowing, LED falloff, crosstalk, gamma, per-channel
+    /// noise.
+    Realistic(Box<realistic::RealisticParams>),
+}
+
+impl Optics {
+    /// The config's name of these optics.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Nominal => "nominal",
+            Self::Realistic(_) => "realistic",
+        }
+    }
+}
+
 /// The noise-free shading of one camera: its unit variation and lights, per pixel.
 #[derive(Debug, Clone)]
 pub struct Shader {
@@ -42,17 +69,35 @@ pub struct Shader {
     half_diag2: f64,
     mm_per_px: f64,
     unit: UnitVariation,
+    realistic: Option<Box<realistic::RealisticShader>>,
 }
 
 impl Shader {
     /// The shader of a camera with pixels of `mm_per_px` and `unit`'s variation.
     pub fn new(width_px: usize, height_px: usize, mm_per_px: f64, unit: &UnitVariation) -> Self {
+        Self::with_optics(width_px, height_px, mm_per_px, unit, &Optics::Nominal)
+    }
+
+    /// [`Shader::new`] with `optics`.
+    pub fn with_optics(
+        width_px: usize,
+        height_px: usize,
+        mm_per_px: f64,
+        unit: &UnitVariation,
+        optics: &Optics,
+    ) -> Self {
         let (w, h) = (width_px, height_px);
         Self {
             lights: light_directions(),
             half_diag2: ((w * w + h * h) as f64 / 4.0).max(1.0),
             mm_per_px,
             unit: *unit,
+            realistic: match optics {
+                Optics::Nominal => None,
+                Optics::Realistic(p) => {
+                    Some(Box::new(realistic::RealisticShader::new(p, w, h, unit)))
+                }
+            },
         }
     }
 
@@ -65,6 +110,9 @@ impl Shader {
         let (y0, y1) = (y.saturating_sub(1), (y + 1).min(h - 1));
         let gx = (depth(x1, y) - depth(x0, y)) / (((x1 - x0).max(1)) as f64 * self.mm_per_px);
         let gy = (depth(x, y1) - depth(x, y0)) / (((y1 - y0).max(1)) as f64 * self.mm_per_px);
+        if let Some(r) = &self.realistic {
+            return r.shade(x, y, gx, gy);
+        }
         let norm = (gx * gx + gy * gy + 1.0).sqrt();
         let n = [gx / norm, gy / norm, 1.0 / norm];
         let dx = x as f64 - w as f64 / 2.0;
@@ -89,16 +137,29 @@ pub fn render(
     noise_sigma: f64,
     rng: &mut impl Rng,
 ) -> Vec<u8> {
+    let shader = Shader::new(map.width_px, map.height_px, mm_per_px, unit);
+    render_shaded(map, &shader, [noise_sigma; 3], rng)
+}
+
+/// Render `map` with `shader` and Gaussian noise of `noise_rgb` grey levels per channel.
+pub fn render_shaded(
+    map: &HeightMap,
+    shader: &Shader,
+    noise_rgb: [f64; 3],
+    rng: &mut impl Rng,
+) -> Vec<u8> {
     let (w, h) = (map.width_px, map.height_px);
-    let shader = Shader::new(w, h, mm_per_px, unit);
-    let noise = Normal::new(0.0, noise_sigma.max(0.0)).ok();
+    let uniform = noise_rgb[0] == noise_rgb[1] && noise_rgb[1] == noise_rgb[2];
+    let noise = noise_rgb.map(|s| Normal::new(0.0, s.max(0.0)).ok());
     let mut out = Vec::with_capacity(w * h * 3);
     for y in 0..h {
         for x in 0..w {
-            for mut v in shader.pixel(map, x, y) {
-                if let Some(n) = &noise {
+            for (c, mut v) in shader.pixel(map, x, y).into_iter().enumerate() {
+                // One distribution for all channels when they share σ (the nominal draws).
+                if let Some(n) = &noise[if uniform { 0 } else { c }] {
                     v += n.sample(rng);
                 }
+                // NaN casts to 0.
                 out.push(v.round().clamp(0.0, 255.0) as u8);
             }
         }
@@ -111,11 +172,7 @@ mod tests {
     use super::*;
     use crate::unit::rng_for;
 
-    const UNIT: UnitVariation = UnitVariation {
-        led_gain: [1.0; 3],
-        offset: [0.0; 3],
-        vignetting: 0.0,
-    };
+    const UNIT: UnitVariation = UnitVariation::NEUTRAL;
 
     #[test]
     fn flat_gel_shows_the_base_colour() {

@@ -11,7 +11,7 @@ use jpeg_encoder::{ColorType, Encoder};
 use gelgrip_controller::layout::HandLayout;
 
 use crate::config::SimConfig;
-use crate::optics::{Shader, render};
+use crate::optics::{Optics, Shader, render_shaded};
 use crate::scene::HeightMap;
 use crate::unit::{UnitVariation, rng_for};
 
@@ -49,7 +49,8 @@ pub struct SensorCamera {
     pub mm_per_px: f64,
     unit: UnitVariation,
     seed: u64,
-    noise_sigma: f64,
+    noise_rgb: [f64; 3],
+    optics: Optics,
     quality: u8,
 }
 
@@ -64,7 +65,8 @@ impl SensorCamera {
             mm_per_px: s.mm_per_px,
             unit: UnitVariation::draw(cfg.seed, index),
             seed: cfg.seed,
-            noise_sigma: cfg.noise_sigma,
+            noise_rgb: cfg.noise_rgb,
+            optics: cfg.optics.clone(),
             quality: cfg.jpeg_quality,
         })
     }
@@ -90,7 +92,23 @@ impl SensorCamera {
     /// Render `map` as RGB with the noise of frame number `frame`.
     pub fn rgb(&self, map: &HeightMap, frame: u64) -> Vec<u8> {
         let mut rng = rng_for(self.seed, ((self.index as u64) << 40) ^ frame);
-        render(map, self.mm_per_px, &self.unit, self.noise_sigma, &mut rng)
+        render_shaded(map, &self.shader(), self.noise_rgb, &mut rng)
+    }
+
+    /// The camera's noise-free shading.
+    pub fn shader(&self) -> Shader {
+        Shader::with_optics(
+            self.width,
+            self.height,
+            self.mm_per_px,
+            &self.unit,
+            &self.optics,
+        )
+    }
+
+    /// The camera's optics.
+    pub fn optics(&self) -> &Optics {
+        &self.optics
     }
 
     /// Render `map` and encode it as the sensor's JPEG.
@@ -121,19 +139,33 @@ impl SceneCamera {
     /// The fast path of `camera`.
     pub fn new(camera: SensorCamera) -> Self {
         let (w, h) = (camera.width, camera.height);
-        let shader = Shader::new(w, h, camera.mm_per_px, &camera.unit);
+        let shader = camera.shader();
         let flat = HeightMap::flat(w, h);
         let base = (0..h)
             .flat_map(|y| (0..w).map(move |x| (x, y)))
             .flat_map(|(x, y)| shader.pixel(&flat, x, y).map(|v| v as f32))
             .collect();
         let mut rng = rng_for(camera.seed, ((camera.index as u64) << 40) ^ 0x5CE7E);
-        let noise = rand_distr::Normal::new(0.0, camera.noise_sigma.max(0.0) as f32)
-            .map(|n| {
-                use rand_distr::Distribution;
-                (0..2 * w * h * 3).map(|_| n.sample(&mut rng)).collect()
-            })
-            .unwrap_or_else(|_| vec![0.0; 2 * w * h * 3]);
+        let [r, g, b] = camera.noise_rgb;
+        let noise = if r == g && g == b {
+            rand_distr::Normal::new(0.0, r.max(0.0) as f32)
+                .map(|n| {
+                    use rand_distr::Distribution;
+                    (0..2 * w * h * 3).map(|_| n.sample(&mut rng)).collect()
+                })
+                .unwrap_or_else(|_| vec![0.0; 2 * w * h * 3])
+        } else {
+            // Per-channel σ: a unit plane scaled by each channel's (the plane is read at a
+            // multiple of 3 offset, so channels stay aligned).
+            use rand_distr::Distribution;
+            let unit = rand_distr::StandardNormal;
+            (0..2 * w * h * 3)
+                .map(|i| {
+                    let z: f32 = unit.sample(&mut rng);
+                    z * camera.noise_rgb[i % 3].max(0.0) as f32
+                })
+                .collect()
+        };
         Self {
             camera,
             shader,
@@ -159,6 +191,13 @@ impl SceneCamera {
         }
         let n = w * h * 3;
         let offset = (frame.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 20) as usize % n.max(1);
+        // Per-channel noise keeps its channels aligned (uniform noise reads anywhere).
+        let [r, g, b] = self.camera.noise_rgb;
+        let offset = if r == g && g == b {
+            offset
+        } else {
+            offset - offset % 3
+        };
         let noise = &self.noise[offset..offset + n];
         let rgb: Vec<u8> = img
             .iter()

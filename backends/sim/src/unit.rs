@@ -27,6 +27,13 @@ pub fn rng_for(seed: u64, stream: u64) -> Pcg64Mcg {
 }
 
 impl UnitVariation {
+    /// A unit without peculiarities: gain 1, no offset, no vignetting.
+    pub const NEUTRAL: Self = Self {
+        led_gain: [1.0; 3],
+        offset: [0.0; 3],
+        vignetting: 0.0,
+    };
+
     /// The variation of sensor `index` under `seed`.
     pub fn draw(seed: u64, index: usize) -> Self {
         let mut rng = rng_for(seed, 0x1000 + index as u64);

@@ -77,3 +77,25 @@ fn an_unknown_fault_key_is_named() {
     assert!(err.contains("clock_drift_ppm"), "lists the keys: {err}");
     assert!(err.contains("faults"), "{err}");
 }
+
+#[test]
+fn optics_are_nominal_unless_asked_for_and_realistic_brings_its_noise() {
+    let nominal = parse("").expect("defaults");
+    assert_eq!(nominal.optics, Optics::Nominal);
+    assert_eq!(nominal.noise_sigma, DEFAULT_NOISE_SIGMA);
+    assert_eq!(nominal.noise_rgb, [DEFAULT_NOISE_SIGMA; 3]);
+    let realistic = parse("optics = \"realistic\"").expect("valid");
+    assert_eq!(realistic.optics, Optics::Realistic(Box::new(MINI)));
+    assert_eq!(realistic.noise_rgb, MINI.noise_rgb);
+    let quiet = parse("optics = \"realistic\"\nnoise_sigma = 0.5").expect("valid");
+    assert_eq!(quiet.noise_rgb, [0.5; 3]);
+    let err = parse("optics = \"ideal\"")
+        .expect_err("unknown optics")
+        .to_string();
+    assert!(
+        err.contains("hub.sim.optics") && err.contains("realistic"),
+        "{err}"
+    );
+    let err = parse("optics = \"realistic\"\nnoise_sigma = 100").expect_err("range");
+    assert!(err.to_string().contains("hub.sim.noise_sigma"), "{err}");
+}

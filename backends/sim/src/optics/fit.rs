@@ -1,0 +1,479 @@
+//! Fitting [`RealisticParams`] to a real sensor's frames, and the statistics the fit and
+//! docs/calibration.md compare: the background's channel means and falloff across the pad
+//! (4×3 tile means), and inside the presses the colour response (mean difference from the
+//! background per channel in 8 sectors × 2 rings around each contact centre, its first
+//! harmonic: amplitude and the azimuth it peaks at), and the pixel noise away from them.
+//!
+//! The fit: the background polynomial by least squares on the real background
+//! ([`fit_background`]); the reflectance, shadowing, crosstalk, gamma and the presses'
+//! curvature (a ball radius in px: the real data has no ball size) by coordinate descent on
+//! the sector means of noise-free renders at the real contacts ([`fit_presses`]); the noise
+//! is the real frames' ([`PressStats::noise_rgb`]).
+
+use super::realistic::{BACKGROUND_TERMS, RealisticParams, RealisticShader, background_basis};
+use crate::unit::UnitVariation;
+
+/// The ball radius that gives the real Mini presses' contacts their curvature, as fitted
+/// with [`crate::optics::realistic::MINI`] (the data has no ball size), px at 640×480.
+pub const MINI_BALL_RADIUS_PX: f64 = 58.0;
+
+/// An interleaved 8-bit RGB image.
+#[derive(Debug, Clone, Copy)]
+pub struct Image<'a> {
+    /// Columns.
+    pub width_px: usize,
+    /// Rows.
+    pub height_px: usize,
+    /// `width_px × height_px × 3` bytes.
+    pub rgb: &'a [u8],
+}
+
+impl Image<'_> {
+    fn at(&self, x: usize, y: usize, c: usize) -> f64 {
+        f64::from(self.rgb[(y * self.width_px + x) * 3 + c])
+    }
+}
+
+/// A labelled contact: centre and radius, px.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Contact {
+    /// Centre, px.
+    pub center_x_px: f64,
+    /// Centre, px.
+    pub center_y_px: f64,
+    /// Contact radius, px.
+    pub radius_px: f64,
+}
+
+/// Tiles across and down of [`BackgroundStats::tiles_rgb`].
+pub const TILES: (usize, usize) = (4, 3);
+
+/// A background's statistics.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BackgroundStats {
+    /// Mean per channel, grey levels.
+    pub mean_rgb: [f64; 3],
+    /// Mean per channel of each of the [`TILES`] tiles, row by row.
+    pub tiles_rgb: Vec<[f64; 3]>,
+}
+
+impl BackgroundStats {
+    /// Per channel: the darkest tile's mean over the brightest's (1: no falloff).
+    pub fn falloff_rgb(&self) -> [f64; 3] {
+        [0, 1, 2].map(|c| {
+            let v = self.tiles_rgb.iter().map(|t| t[c]);
+            let lo = v.clone().fold(f64::INFINITY, f64::min);
+            let hi = v.fold(0.0, f64::max);
+            if hi > 0.0 { lo / hi } else { 1.0 }
+        })
+    }
+}
+
+/// [`BackgroundStats`] of `img`.
+pub fn background_stats(img: Image<'_>) -> BackgroundStats {
+    let (w, h) = (img.width_px, img.height_px);
+    let (tx, ty) = TILES;
+    let mut tiles = vec![([0.0; 3], 0usize); tx * ty];
+    let mut all = [0.0; 3];
+    for y in 0..h {
+        for x in 0..w {
+            let t = (y * ty / h.max(1)) * tx + x * tx / w.max(1);
+            for (c, (tile, sum)) in tiles[t].0.iter_mut().zip(&mut all).enumerate() {
+                let v = img.at(x, y, c);
+                *tile += v;
+                *sum += v;
+            }
+            tiles[t].1 += 1;
+        }
+    }
+    let n = (w * h).max(1) as f64;
+    BackgroundStats {
+        mean_rgb: all.map(|s| s / n),
+        tiles_rgb: tiles
+            .into_iter()
+            .map(|(s, n)| s.map(|v| v / n.max(1) as f64))
+            .collect(),
+    }
+}
+
+/// Sectors around a contact's centre (sector k is centred on azimuth k × 45°).
+pub const SECTORS: usize = 8;
+/// Rings: inside 0.6 of the contact radius, and from there to the rim.
+pub const RINGS: usize = 2;
+/// The inner ring's outer edge, share of the contact radius.
+pub const INNER_RING: f64 = 0.6;
+
+/// The presses' colour response and noise.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PressStats {
+    /// Mean (press − background) per channel, sector `k` of ring `r` at `r × SECTORS + k`.
+    pub sectors_rgb: Vec<[f64; 3]>,
+    /// Mean (press − background) per channel over the contacts.
+    pub mean_rgb: [f64; 3],
+    /// Mean |press − background| per channel over the contacts.
+    pub mean_abs_rgb: [f64; 3],
+    /// RMS (press − background) per channel at least 2 radii + 8 px from the contact
+    /// (every seventh pixel), grey levels.
+    pub noise_rgb: [f64; 3],
+}
+
+impl PressStats {
+    /// Per channel: the first harmonic of the sector means over the azimuth the surface
+    /// normal tips towards (opposite the sector): (amplitude in grey levels, azimuth of the
+    /// peak in degrees, 0–360). The azimuth is where that channel's light comes from.
+    pub fn harmonic(&self) -> [(f64, f64); 3] {
+        [0, 1, 2].map(|c| {
+            let (mut a, mut b) = (0.0, 0.0);
+            for (i, s) in self.sectors_rgb.iter().enumerate() {
+                let tip = ((i % SECTORS) as f64 * 45.0 + 180.0).to_radians();
+                a += s[c] * tip.cos();
+                b += s[c] * tip.sin();
+            }
+            let n = self.sectors_rgb.len().max(1) as f64;
+            (
+                2.0 * a.hypot(b) / n,
+                b.atan2(a).to_degrees().rem_euclid(360.0),
+            )
+        })
+    }
+}
+
+fn sector_of(dx: f64, dy: f64, r: f64, radius: f64) -> usize {
+    let k = (dy.atan2(dx).to_degrees() / 45.0)
+        .round()
+        .rem_euclid(SECTORS as f64) as usize;
+    let ring = usize::from(r >= INNER_RING * radius);
+    ring * SECTORS + k % SECTORS
+}
+
+/// Sums per sector (rgb, count) of `diff` over the pixels inside `contact` (every
+/// `stride`-th row and column).
+fn accumulate(
+    contact: &Contact,
+    (w, h): (usize, usize),
+    stride: usize,
+    sums: &mut [([f64; 3], usize)],
+    mut diff: impl FnMut(usize, usize, f64, f64) -> [f64; 3],
+) {
+    let a = contact.radius_px;
+    let (x0, x1) = (
+        (contact.center_x_px - a).floor().max(0.0) as usize,
+        ((contact.center_x_px + a).ceil().max(0.0) as usize).min(w),
+    );
+    let (y0, y1) = (
+        (contact.center_y_px - a).floor().max(0.0) as usize,
+        ((contact.center_y_px + a).ceil().max(0.0) as usize).min(h),
+    );
+    for y in (y0..y1).step_by(stride.max(1)) {
+        for x in (x0..x1).step_by(stride.max(1)) {
+            let (dx, dy) = (
+                x as f64 - contact.center_x_px,
+                y as f64 - contact.center_y_px,
+            );
+            let r = dx.hypot(dy);
+            if r >= a {
+                continue;
+            }
+            let d = diff(x, y, dx, dy);
+            let s = &mut sums[sector_of(dx, dy, r, a)];
+            s.0.iter_mut().zip(d).for_each(|(s, d)| *s += d);
+            s.1 += 1;
+        }
+    }
+}
+
+/// [`PressStats`] of `presses` against `background`.
+pub fn press_stats(background: Image<'_>, presses: &[(Contact, Image<'_>)]) -> PressStats {
+    let (w, h) = (background.width_px, background.height_px);
+    let mut sums = vec![([0.0; 3], 0usize); SECTORS * RINGS];
+    let (mut abs, mut n_in) = ([0.0; 3], 0usize);
+    let (mut sq, mut n_far) = ([0.0; 3], 0usize);
+    for (contact, img) in presses {
+        accumulate(contact, (w, h), 1, &mut sums, |x, y, _, _| {
+            let d = [0, 1, 2].map(|c| img.at(x, y, c) - background.at(x, y, c));
+            for c in 0..3 {
+                abs[c] += d[c].abs();
+            }
+            n_in += 1;
+            d
+        });
+        let far = 2.0 * contact.radius_px + 8.0;
+        for p in (0..w * h).step_by(7) {
+            let (x, y) = (p % w, p / w);
+            if (x as f64 - contact.center_x_px).hypot(y as f64 - contact.center_y_px) < far {
+                continue;
+            }
+            for (c, sq) in sq.iter_mut().enumerate() {
+                let d = img.at(x, y, c) - background.at(x, y, c);
+                *sq += d * d;
+            }
+            n_far += 1;
+        }
+    }
+    let total: ([f64; 3], usize) = sums.iter().fold(([0.0; 3], 0), |(s, n), (v, k)| {
+        ([s[0] + v[0], s[1] + v[1], s[2] + v[2]], n + k)
+    });
+    PressStats {
+        sectors_rgb: sums
+            .iter()
+            .map(|(s, n)| s.map(|v| v / (*n).max(1) as f64))
+            .collect(),
+        mean_rgb: total.0.map(|v| v / total.1.max(1) as f64),
+        mean_abs_rgb: abs.map(|v| v / n_in.max(1) as f64),
+        noise_rgb: sq.map(|v| (v / n_far.max(1) as f64).sqrt()),
+    }
+}
+
+/// Least-squares coefficients of [`background_basis`] per channel for `img` (every
+/// `stride`-th row and column).
+pub fn fit_background(img: Image<'_>, stride: usize) -> [[f64; BACKGROUND_TERMS]; 3] {
+    let (w, h) = (img.width_px, img.height_px);
+    let mut ata = [[0.0; BACKGROUND_TERMS]; BACKGROUND_TERMS];
+    let mut atb = [[0.0; BACKGROUND_TERMS]; 3];
+    for y in (0..h).step_by(stride.max(1)) {
+        for x in (0..w).step_by(stride.max(1)) {
+            let u = (x as f64 + 0.5) / w as f64 - 0.5;
+            let v = (y as f64 + 0.5) / h as f64 - 0.5;
+            let b = background_basis(u, v);
+            let rgb = [0, 1, 2].map(|c| img.at(x, y, c));
+            for (i, bi) in b.iter().enumerate() {
+                for (a, bj) in ata[i].iter_mut().zip(&b) {
+                    *a += bi * bj;
+                }
+                for (rhs, v) in atb.iter_mut().zip(rgb) {
+                    rhs[i] += bi * v;
+                }
+            }
+        }
+    }
+    atb.map(|rhs| solve(ata, rhs))
+}
+
+/// Solve `a x = b` by Gaussian elimination with partial pivoting (0 for a singular column).
+fn solve(
+    mut a: [[f64; BACKGROUND_TERMS]; BACKGROUND_TERMS],
+    mut b: [f64; BACKGROUND_TERMS],
+) -> [f64; BACKGROUND_TERMS] {
+    let n = BACKGROUND_TERMS;
+    for col in 0..n {
+        let piv = (col..n)
+            .max_by(|i, j| a[*i][col].abs().total_cmp(&a[*j][col].abs()))
+            .unwrap_or(col);
+        a.swap(col, piv);
+        b.swap(col, piv);
+        if a[col][col].abs() < 1e-12 {
+            continue;
+        }
+        let pivot_row = a[col];
+        for row in col + 1..n {
+            let f = a[row][col] / pivot_row[col];
+            for (v, p) in a[row][col..].iter_mut().zip(&pivot_row[col..]) {
+                *v -= f * p;
+            }
+            b[row] -= f * b[col];
+        }
+    }
+    let mut x = [0.0; BACKGROUND_TERMS];
+    for row in (0..n).rev() {
+        let s: f64 = (row + 1..n).map(|k| a[row][k] * x[k]).sum();
+        x[row] = if a[row][row].abs() < 1e-12 {
+            0.0
+        } else {
+            (b[row] - s) / a[row][row]
+        };
+    }
+    x
+}
+
+/// The sector means (as [`PressStats::sectors_rgb`]) of noise-free renders with `params`
+/// of a ball of radius `ball_radius_px` pressed to make each of `contacts`, every
+/// `stride`-th pixel; the gradient is the sphere's, analytically.
+pub fn model_sectors(
+    params: &RealisticParams,
+    size: (usize, usize),
+    contacts: &[Contact],
+    ball_radius_px: f64,
+    stride: usize,
+) -> Vec<[f64; 3]> {
+    let shader = RealisticShader::new(params, size.0, size.1, &UnitVariation::NEUTRAL);
+    let mut sums = vec![([0.0; 3], 0usize); SECTORS * RINGS];
+    for contact in contacts {
+        let r2 = ball_radius_px * ball_radius_px;
+        accumulate(contact, size, stride, &mut sums, |x, y, dx, dy| {
+            let s = (r2 - dx * dx - dy * dy).max(1e-6).sqrt();
+            let lit = shader.shade(x, y, -dx / s, -dy / s);
+            let flat = shader.shade(x, y, 0.0, 0.0);
+            [0, 1, 2].map(|c| lit[c].clamp(0.0, 255.0) - flat[c].clamp(0.0, 255.0))
+        });
+    }
+    sums.iter()
+        .map(|(s, n)| s.map(|v| v / (*n).max(1) as f64))
+        .collect()
+}
+
+/// The fitted press parameters and the geometry found with them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PressFit {
+    /// The parameters (background and noise as given).
+    pub params: RealisticParams,
+    /// Ball radius that makes the contacts' curvature, px.
+    pub ball_radius_px: f64,
+    /// RMS difference of the sector means from the target's, grey levels.
+    pub rms: f64,
+    /// Coordinate-descent rounds run.
+    pub rounds: usize,
+}
+
+/// Fit the reflectance (and its wrap), shadowing, crosstalk, gamma and ball radius of `start` so that
+/// [`model_sectors`] matches `target`'s sector means at `contacts` (coordinate descent,
+/// halving each step when neither direction helps).
+pub fn fit_presses(
+    start: &RealisticParams,
+    ball_radius_px: f64,
+    target: &PressStats,
+    size: (usize, usize),
+    contacts: &[Contact],
+    max_rounds: usize,
+) -> PressFit {
+    let min_radius = contacts.iter().map(|c| c.radius_px).fold(1.0, f64::max) + 1.0;
+    // (step, lower, upper) per parameter; the order of `get`/`set`.
+    let mut steps = [
+        (10.0, -720.0, 720.0),
+        (10.0, -720.0, 720.0),
+        (10.0, -720.0, 720.0),
+        (5.0, 3.0, 80.0),
+        (0.1, 0.01, 5.0),
+        (0.1, 0.01, 5.0),
+        (0.1, 0.01, 5.0),
+        (0.1, 0.0, 3.0),
+        (5.0, 1.0, 100.0),
+        (0.2, 0.1, 10.0),
+        (0.03, 0.0, 0.3),
+        (0.2, 1.0, 3.0),
+        (10.0, min_radius, 400.0),
+        (0.1, 0.0, 1.0),
+    ];
+    let get = |p: &RealisticParams, r: f64| {
+        [
+            p.led_azimuth_deg[0],
+            p.led_azimuth_deg[1],
+            p.led_azimuth_deg[2],
+            p.led_elevation_deg,
+            p.ambient[0],
+            p.ambient[1],
+            p.ambient[2],
+            p.specular,
+            p.shininess,
+            p.shadow_slope,
+            p.crosstalk,
+            p.gamma,
+            r,
+            p.wrap,
+        ]
+    };
+    let set = |v: &[f64; 14]| {
+        let mut p = *start;
+        p.led_azimuth_deg = [v[0], v[1], v[2]];
+        p.led_elevation_deg = v[3];
+        p.ambient = [v[4], v[5], v[6]];
+        p.specular = v[7];
+        p.shininess = v[8];
+        p.shadow_slope = v[9];
+        p.crosstalk = v[10];
+        p.gamma = v[11];
+        p.wrap = v[13];
+        (p, v[12])
+    };
+    let loss = |v: &[f64; 14]| {
+        let (p, r) = set(v);
+        let m = model_sectors(&p, size, contacts, r, 2);
+        let se: f64 = m
+            .iter()
+            .zip(&target.sectors_rgb)
+            .flat_map(|(a, b)| (0..3).map(move |c| (a[c] - b[c]).powi(2)))
+            .sum();
+        (se / (3 * m.len()).max(1) as f64).sqrt()
+    };
+    let mut v = get(start, ball_radius_px.max(min_radius));
+    let mut best = loss(&v);
+    let mut rounds = 0;
+    while rounds < max_rounds && steps.iter().any(|(s, lo, hi)| *s > (hi - lo) * 1e-3) {
+        rounds += 1;
+        for i in 0..v.len() {
+            let (step, lo, hi) = steps[i];
+            let mut moved = false;
+            for dir in [1.0, -1.0] {
+                let mut t = v;
+                t[i] = (v[i] + dir * step).clamp(lo, hi);
+                let l = loss(&t);
+                if l < best {
+                    (v, best, moved) = (t, l, true);
+                    break;
+                }
+            }
+            if !moved {
+                steps[i].0 = step / 2.0;
+            }
+        }
+    }
+    let (mut params, r) = set(&v);
+    params.led_azimuth_deg = params.led_azimuth_deg.map(|a| a.rem_euclid(360.0));
+    PressFit {
+        params,
+        ball_radius_px: r,
+        rms: best,
+        rounds,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::realistic::MINI;
+    use super::*;
+
+    #[test]
+    fn the_background_fit_recovers_a_polynomial() {
+        let (w, h) = (64, 48);
+        let mut want = MINI;
+        want.background[0] = [100.0, 20.0, -10.0, -80.0, 5.0, -60.0, 3.0, 0.0, -2.0, 1.0];
+        let rgb: Vec<u8> = (0..h)
+            .flat_map(|y| (0..w).map(move |x| (x, y)))
+            .flat_map(|(x, y)| {
+                super::super::realistic::background_rgb(&want, x, y, w, h)
+                    .map(|v| v.round().clamp(0.0, 255.0) as u8)
+            })
+            .collect();
+        let img = Image {
+            width_px: w,
+            height_px: h,
+            rgb: &rgb,
+        };
+        let got = fit_background(img, 1);
+        assert!((got[0][0] - 100.0).abs() < 0.5, "{:?}", got[0]);
+        assert!((got[0][3] + 80.0).abs() < 3.0, "{:?}", got[0]);
+        let stats = background_stats(img);
+        assert!(stats.falloff_rgb()[0] < 0.9, "{stats:?}");
+    }
+
+    #[test]
+    fn the_harmonic_points_at_the_light() {
+        // Red brightens where the normal tips towards +y (sector 6, at −90°, is above the
+        // centre; its normal tips to +90°).
+        let mut sectors = vec![[0.0; 3]; SECTORS * RINGS];
+        for (i, s) in sectors.iter_mut().enumerate() {
+            let tip = ((i % SECTORS) as f64 * 45.0 + 180.0).to_radians();
+            s[0] = 10.0 * (tip - 90f64.to_radians()).cos();
+        }
+        let stats = PressStats {
+            sectors_rgb: sectors,
+            mean_rgb: [0.0; 3],
+            mean_abs_rgb: [0.0; 3],
+            noise_rgb: [0.0; 3],
+        };
+        let [(amp, az), _, _] = stats.harmonic();
+        assert!(
+            (amp - 10.0).abs() < 1e-9 && (az - 90.0).abs() < 1e-9,
+            "{amp} {az}"
+        );
+    }
+}

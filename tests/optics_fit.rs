@@ -1,0 +1,375 @@
+//! The simulator's realistic optics against the real GelSight Mini presses
+//! (`../shared/data/gelsight-mini-presses`, or `$GELGRIP_MINI_DATA`): the statistics side
+//! by side (real, realistic sim, nominal sim), as in docs/calibration.md.
+//!
+//! - `side_by_side`: prints the table and checks that the realistic optics are close to the
+//!   real data and closer than the nominal ones (skipped, saying so, without the data);
+//! - `fit` (ignored; `cargo test --release --test optics_fit -- --ignored --nocapture fit`):
+//!   the fit itself, printing the parameters for `optics::realistic::MINI` and
+//!   `optics::fit::MINI_BALL_RADIUS_PX`.
+
+use std::path::PathBuf;
+
+use gelgrip_plugins::image::RgbImage;
+use gelgrip_sim::optics::fit::{
+    BackgroundStats, Contact, Image, MINI_BALL_RADIUS_PX, PressStats, background_stats,
+    fit_background, fit_presses, press_stats,
+};
+use gelgrip_sim::optics::realistic::{MINI, RealisticParams};
+use gelgrip_sim::optics::{Optics, Shader, render_shaded};
+use gelgrip_sim::scene::HeightMap;
+use gelgrip_sim::unit::{UnitVariation, rng_for};
+
+struct Real {
+    background: RgbImage,
+    presses: Vec<(Contact, RgbImage)>,
+}
+
+fn data_dir() -> PathBuf {
+    std::env::var_os("GELGRIP_MINI_DATA").map_or_else(
+        || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/gelsight-mini-presses"),
+        PathBuf::from,
+    )
+}
+
+fn load() -> Option<Real> {
+    let dir = data_dir();
+    let index = std::fs::read_to_string(dir.join("presses.csv")).ok()?;
+    let background = RgbImage::read_png(&dir.join("background.png")).expect("background.png");
+    let presses = index
+        .lines()
+        .skip(1)
+        .filter(|l| !l.trim().is_empty())
+        .map(|l| {
+            let f: Vec<&str> = l.split(',').collect();
+            let n = |i: usize| f[i].trim().parse::<f64>().expect("number");
+            let contact = Contact {
+                center_x_px: n(1),
+                center_y_px: n(2),
+                radius_px: n(3),
+            };
+            let img = RgbImage::read_png(&dir.join(f[0].trim())).expect("press png");
+            (contact, img)
+        })
+        .collect();
+    Some(Real {
+        background,
+        presses,
+    })
+}
+
+fn image(img: &RgbImage) -> Image<'_> {
+    Image {
+        width_px: img.width,
+        height_px: img.height,
+        rgb: &img.data,
+    }
+}
+
+/// Pixel size the simulated presses are rendered at (the shading depends on slopes only).
+const MM_PER_PX: f64 = 0.03;
+
+/// Renders of the real contacts (a ball of `ball_radius_px`) under `optics`: the
+/// noise-free background and the noisy presses.
+fn simulate(
+    optics: &Optics,
+    unit: &UnitVariation,
+    noise_rgb: [f64; 3],
+    size: (usize, usize),
+    contacts: &[Contact],
+    ball_radius_px: f64,
+) -> (RgbImage, Vec<(Contact, RgbImage)>) {
+    let (w, h) = size;
+    let shader = Shader::with_optics(w, h, MM_PER_PX, unit, optics);
+    let as_img = |data| RgbImage {
+        width: w,
+        height: h,
+        data,
+    };
+    let background = as_img(render_shaded(
+        &HeightMap::flat(w, h),
+        &shader,
+        [0.0; 3],
+        &mut rng_for(1, 0),
+    ));
+    let presses = contacts
+        .iter()
+        .enumerate()
+        .map(|(i, c)| {
+            let r = ball_radius_px;
+            let depth_px = r - (r * r - c.radius_px * c.radius_px).max(0.0).sqrt();
+            let map = HeightMap::ball_press(
+                w,
+                h,
+                MM_PER_PX,
+                (c.center_x_px, c.center_y_px),
+                2.0 * r * MM_PER_PX,
+                depth_px * MM_PER_PX,
+            );
+            let rgb = render_shaded(&map, &shader, noise_rgb, &mut rng_for(7, i as u64));
+            (*c, as_img(rgb))
+        })
+        .collect();
+    (background, presses)
+}
+
+struct Column {
+    background: BackgroundStats,
+    presses: PressStats,
+}
+
+fn column(background: &RgbImage, presses: &[(Contact, RgbImage)]) -> Column {
+    let views: Vec<(Contact, Image<'_>)> = presses.iter().map(|(c, i)| (*c, image(i))).collect();
+    Column {
+        background: background_stats(image(background)),
+        presses: press_stats(image(background), &views),
+    }
+}
+
+fn rms(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
+    let se: f64 = a
+        .iter()
+        .zip(b)
+        .flat_map(|(x, y)| (0..3).map(move |c| (x[c] - y[c]).powi(2)))
+        .sum();
+    (se / (3 * a.len()).max(1) as f64).sqrt()
+}
+
+fn table(cols: &[(&str, &Column)]) -> String {
+    let real = cols[0].1;
+    let f3 = |v: [f64; 3], d: usize| format!("{:.d$} / {:.d$} / {:.d$}", v[0], v[1], v[2]);
+    type Cell<'a> = Box<dyn Fn(&Column) -> String + 'a>;
+    let rows: Vec<(&str, Cell<'_>)> = vec![
+        (
+            "background mean R / G / B",
+            Box::new(|c| f3(c.background.mean_rgb, 1)),
+        ),
+        (
+            "background falloff R / G / B (darkest / brightest of 4×3 tiles)",
+            Box::new(|c| f3(c.background.falloff_rgb(), 2)),
+        ),
+        (
+            "background tiles: RMS from real",
+            Box::new(|c| {
+                let d = rms(&c.background.tiles_rgb, &real.background.tiles_rgb);
+                format!("{d:.1}")
+            }),
+        ),
+        (
+            "press: mean difference R / G / B",
+            Box::new(|c| f3(c.presses.mean_rgb, 1)),
+        ),
+        (
+            "press: mean abs. difference R / G / B",
+            Box::new(|c| f3(c.presses.mean_abs_rgb, 1)),
+        ),
+        (
+            "press: response amplitude R / G / B (first harmonic)",
+            Box::new(|c| f3(c.presses.harmonic().map(|h| h.0), 1)),
+        ),
+        (
+            "press: response azimuth R / G / B (°)",
+            Box::new(|c| f3(c.presses.harmonic().map(|h| h.1), 0)),
+        ),
+        (
+            "press: 16 sector means, RMS from real",
+            Box::new(|c| {
+                let d = rms(&c.presses.sectors_rgb, &real.presses.sectors_rgb);
+                format!("{d:.1}")
+            }),
+        ),
+        (
+            "pixel noise R / G / B (RMS away from the contact)",
+            Box::new(|c| f3(c.presses.noise_rgb, 2)),
+        ),
+    ];
+    let mut out = format!(
+        "| statistic | {} |\n|---|{}\n",
+        cols.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(" | "),
+        "---|".repeat(cols.len())
+    );
+    for (name, cell) in &rows {
+        let cells: Vec<String> = cols.iter().map(|(_, c)| cell(c)).collect();
+        out += &format!("| {name} | {} |\n", cells.join(" | "));
+    }
+    out
+}
+
+/// The nominal simulator's unit at the middle of its vignetting range.
+const NOMINAL_UNIT: UnitVariation = UnitVariation {
+    led_gain: [1.0; 3],
+    offset: [0.0; 3],
+    vignetting: 0.25,
+};
+
+fn columns(real: &Real, params: &RealisticParams, ball_radius_px: f64) -> [Column; 3] {
+    let size = (real.background.width, real.background.height);
+    let contacts: Vec<Contact> = real.presses.iter().map(|(c, _)| *c).collect();
+    let (bg, presses) = simulate(
+        &Optics::Realistic(Box::new(*params)),
+        &UnitVariation::NEUTRAL,
+        params.noise_rgb,
+        size,
+        &contacts,
+        ball_radius_px,
+    );
+    let realistic = column(&bg, &presses);
+    let (bg, presses) = simulate(
+        &Optics::Nominal,
+        &NOMINAL_UNIT,
+        [10.0; 3],
+        size,
+        &contacts,
+        ball_radius_px,
+    );
+    let nominal = column(&bg, &presses);
+    [column(&real.background, &real.presses), realistic, nominal]
+}
+
+#[test]
+fn side_by_side() {
+    let Some(real) = load() else {
+        eprintln!(
+            "skipped: no GelSight Mini data at {} (set GELGRIP_MINI_DATA)",
+            data_dir().display()
+        );
+        return;
+    };
+    let [real_col, realistic, nominal] = columns(&real, &MINI, MINI_BALL_RADIUS_PX);
+    let cols = [
+        ("real Mini", &real_col),
+        ("realistic sim", &realistic),
+        ("nominal sim", &nominal),
+    ];
+    println!("{}", table(&cols));
+    if let Some(path) = std::env::var_os("OPTICS_FIGURE") {
+        figure(&real, &PathBuf::from(path));
+    }
+    let tiles = |c: &Column| rms(&c.background.tiles_rgb, &real_col.background.tiles_rgb);
+    let sectors = |c: &Column| rms(&c.presses.sectors_rgb, &real_col.presses.sectors_rgb);
+    assert!(
+        tiles(&realistic) < 6.0,
+        "background tiles {}",
+        tiles(&realistic)
+    );
+    assert!(tiles(&realistic) < tiles(&nominal) / 3.0);
+    assert!(
+        sectors(&realistic) < 14.0,
+        "press sectors {}",
+        sectors(&realistic)
+    );
+    assert!(sectors(&realistic) < sectors(&nominal) / 2.0);
+    for c in 0..3 {
+        let (a, b) = (
+            realistic.presses.noise_rgb[c],
+            real_col.presses.noise_rgb[c],
+        );
+        assert!(
+            (a / b - 1.0).abs() < 0.3,
+            "noise channel {c}: {a} against {b}"
+        );
+        let (a, b) = (
+            realistic.background.mean_rgb[c],
+            real_col.background.mean_rgb[c],
+        );
+        assert!(
+            (a - b).abs() < 3.0,
+            "background channel {c}: {a} against {b}"
+        );
+    }
+}
+
+/// A figure: the real Mini, the realistic and the nominal simulator side by side: whole
+/// frames of one press at ¼ scale above, the contact at full scale below.
+fn figure(real: &Real, path: &std::path::Path) {
+    let size = (real.background.width, real.background.height);
+    let (contact, real_press) = &real.presses[5];
+    let sim = |optics: &Optics, unit: &UnitVariation, noise| {
+        simulate(optics, unit, noise, size, &[*contact], MINI_BALL_RADIUS_PX)
+            .1
+            .remove(0)
+            .1
+    };
+    let frames = [
+        real_press.clone(),
+        sim(
+            &Optics::Realistic(Box::new(MINI)),
+            &UnitVariation::NEUTRAL,
+            MINI.noise_rgb,
+        ),
+        sim(&Optics::Nominal, &NOMINAL_UNIT, [10.0; 3]),
+    ];
+    let (qw, qh) = (size.0 / 4, size.1 / 4);
+    let crop = qw;
+    let (w, h) = (3 * qw, qh + crop);
+    let mut out = RgbImage::new(w, h);
+    for (k, f) in frames.iter().enumerate() {
+        for y in 0..h {
+            for x in 0..qw {
+                let (sx, sy) = if y < qh {
+                    (x * 4, y * 4)
+                } else {
+                    let x0 = (contact.center_x_px as usize).saturating_sub(crop / 2);
+                    let y0 = (contact.center_y_px as usize).saturating_sub(crop / 2);
+                    ((x0 + x).min(size.0 - 1), (y0 + y - qh).min(size.1 - 1))
+                };
+                for c in 0..3 {
+                    out.data[(y * w + k * qw + x) * 3 + c] = f.data[(sy * size.0 + sx) * 3 + c];
+                }
+            }
+        }
+    }
+    out.write_png(path).expect("figure");
+}
+
+#[test]
+#[ignore = "the fit itself (about a minute in release): prints the parameters"]
+fn fit() {
+    let Some(real) = load() else {
+        panic!("no GelSight Mini data at {}", data_dir().display());
+    };
+    let size = (real.background.width, real.background.height);
+    let contacts: Vec<Contact> = real.presses.iter().map(|(c, _)| *c).collect();
+    let real_col = column(&real.background, &real.presses);
+    let mut start = MINI;
+    start.background = fit_background(image(&real.background), 2);
+    start.noise_rgb = real_col
+        .presses
+        .noise_rgb
+        .map(|v| (v * 100.0).round() / 100.0);
+    let rounds: usize = std::env::var("FIT_ROUNDS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(40);
+    let fit = fit_presses(
+        &start,
+        MINI_BALL_RADIUS_PX,
+        &real_col.presses,
+        size,
+        &contacts,
+        rounds,
+    );
+    println!(
+        "rounds {}, sector RMS {:.2}, ball radius {:.1} px",
+        fit.rounds, fit.rms, fit.ball_radius_px
+    );
+    println!("{:#?}", fit.params);
+    let [real_col, realistic, nominal] = columns(&real, &fit.params, fit.ball_radius_px);
+    for (i, (a, b)) in real_col
+        .presses
+        .sectors_rgb
+        .iter()
+        .zip(&realistic.presses.sectors_rgb)
+        .enumerate()
+    {
+        println!("sector {i:2}: real {a:6.1?} realistic {b:6.1?}");
+    }
+    println!(
+        "{}",
+        table(&[
+            ("real Mini", &real_col),
+            ("realistic sim", &realistic),
+            ("nominal sim", &nominal),
+        ])
+    );
+}
