@@ -179,6 +179,39 @@ impl NodeIdentity {
     }
 }
 
+impl NodeIdentity {
+    /// The liveliness token of service server `entity_id` (`SS`) at `fq_service`
+    /// (`/gelgrip/estop`, `/gelgrip/gripper_cmd/_action/send_goal`) of service type `ty`,
+    /// with the services' QoS (reliable, volatile, keep last 10).
+    pub fn service_token(&self, entity_id: u32, fq_service: &str, ty: &'static MsgType) -> String {
+        let qos = Qos {
+            reliability: Reliability::Reliable,
+            depth: 10,
+        };
+        format!(
+            "{}/{}/{}/{}/{}",
+            self.prefix(entity_id, "SS"),
+            mangle(fq_service),
+            ty.dds_name(),
+            ty.rihs01(),
+            qos.token_text()
+        )
+    }
+}
+
+/// A request's attachment read back: its sequence number and the client's GID (`None`:
+/// not the 33 bytes of [`attachment`]).
+pub fn parse_attachment(bytes: &[u8]) -> Option<(i64, [u8; 16])> {
+    if bytes.len() != 33 || bytes[16] != 16 {
+        return None;
+    }
+    let mut seq = [0u8; 8];
+    seq.copy_from_slice(&bytes[..8]);
+    let mut g = [0u8; 16];
+    g.copy_from_slice(&bytes[17..]);
+    Some((i64::from_le_bytes(seq), g))
+}
+
 /// A publisher's GID: the first 16 bytes of the SHA-256 of its liveliness token (unique
 /// as the token is; rmw_zenoh hashes the token too, with another hash).
 pub fn gid(token: &str) -> [u8; 16] {
@@ -272,5 +305,26 @@ mod tests {
         assert_eq!(a[16], 16);
         assert_eq!(&a[17..], &g);
         assert_ne!(gid("x"), gid("y"));
+        assert_eq!(parse_attachment(&a), Some((7, g)));
+        assert_eq!(parse_attachment(&a[..32]), None);
+    }
+
+    #[test]
+    fn service_tokens_are_ss_with_the_services_qos() {
+        let node = NodeIdentity {
+            domain: 0,
+            session_id: "abc".into(),
+            namespace: "/gelgrip".into(),
+            name: "gelgrip".into(),
+        };
+        let t = node.service_token(100, "/gelgrip/estop", &crate::services::TRIGGER);
+        assert_eq!(
+            t,
+            format!(
+                "@ros2_lv/0/abc/0/100/SS/%/%gelgrip/gelgrip/%gelgrip%estop/\
+                 std_srvs::srv::dds_::Trigger_/{}/:2:,10:,:,:,,",
+                crate::services::TRIGGER.rihs01()
+            )
+        );
     }
 }

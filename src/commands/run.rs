@@ -108,6 +108,15 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
     let mut session = Session::open(&options).await?;
     let ros = RosPublisher::for_run(session.config(), args.ros, args.ros_namespace.as_deref())?;
     if let Some(publisher) = ros {
+        let commands = gelgrip::ros::command::RosCommands::for_run(
+            session.config(),
+            &publisher,
+            session.runtime.gripper(),
+        )?;
+        // The command side first: it sees each pass right after the servo write.
+        if let Some(c) = commands {
+            session.runtime.observe(Box::new(c));
+        }
         session.runtime.observe(Box::new(publisher));
     }
     let report = session.run(signal_events()).await;

@@ -88,6 +88,11 @@ impl RosPublisher {
         Self::start(config, &ros, config.hub.transport.clone()).map(Some)
     }
 
+    /// The live link (the command side shares its session).
+    pub fn link(&self) -> &LiveLink {
+        &self.link
+    }
+
     fn stamp(&mut self, host_us: u64, now_us: u64) -> Time {
         let offset = *self
             .unix_offset_us

@@ -10,6 +10,7 @@
 //! image_rate_hz = 10
 //! depth = "window"                    # window | full | off
 //! depth_rate_hz = 10
+//! commands = false                    # the GripperCommand action and Trigger services
 //! ```
 
 use gelgrip_controller::config::{BackendSection, ConfigError};
@@ -64,6 +65,9 @@ pub struct RosConfig {
     pub depth: DepthMode,
     /// Depth images at most this often per sensor, Hz.
     pub depth_rate_hz: f64,
+    /// Serve the `gripper_cmd` action and the `release`, `stop` and `estop` services
+    /// (docs/ros.md); off, nothing on the network can command the gripper.
+    pub commands: bool,
 }
 
 impl Default for RosConfig {
@@ -77,6 +81,7 @@ impl Default for RosConfig {
             image_rate_hz: 10.0,
             depth: DepthMode::Window,
             depth_rate_hz: 10.0,
+            commands: false,
         }
     }
 }
@@ -92,6 +97,7 @@ struct RawRos {
     image_rate_hz: f64,
     depth: String,
     depth_rate_hz: f64,
+    commands: bool,
 }
 
 impl Default for RawRos {
@@ -106,6 +112,7 @@ impl Default for RawRos {
             image_rate_hz: d.image_rate_hz,
             depth: "window".into(),
             depth_rate_hz: d.depth_rate_hz,
+            commands: d.commands,
         }
     }
 }
@@ -164,6 +171,7 @@ impl RosConfig {
             image_rate_hz,
             depth,
             depth_rate_hz,
+            commands: raw.commands,
         })
     }
 }

@@ -66,6 +66,9 @@ pub struct LiveLink {
     thread: Option<JoinHandle<()>>,
     /// The session's id (the `<session id>` of the liveliness tokens).
     pub session_id: String,
+    /// The session, and the node it is (for the command side to declare on).
+    session: zenoh::Session,
+    node: NodeIdentity,
 }
 
 impl std::fmt::Debug for LiveLink {
@@ -128,8 +131,8 @@ impl LiveLink {
         let in_flight = Arc::new(AtomicUsize::new(0));
         let counters = Arc::new(LinkCounters::default());
         let worker = Worker {
-            session,
-            node,
+            session: session.clone(),
+            node: node.clone(),
             topics,
             rx,
             in_flight: in_flight.clone(),
@@ -147,7 +150,14 @@ impl LiveLink {
             warned_full: AtomicBool::new(false),
             thread: Some(thread),
             session_id,
+            session,
+            node,
         })
+    }
+
+    /// The Zenoh session and the node (the command side declares on them).
+    pub fn session(&self) -> (&zenoh::Session, &NodeIdentity) {
+        (&self.session, &self.node)
     }
 
     /// Hand `sample` to the publisher thread without waiting; dropped (and counted) when the
