@@ -14,7 +14,7 @@ use gelgrip_plugins::gradient::{GradientModel, MlpMode};
 use gelgrip_plugins::lut::Input;
 use gelgrip_plugins::mlp::MlpModel;
 use gelgrip_plugins::mlp::bake::{BakeOptions, bake};
-use gelgrip_plugins::mlp::train::TrainOptions;
+use gelgrip_plugins::mlp::train::{InputNorm, Loss, TrainOptions};
 use gelgrip_plugins::mlp::transfer::{Fit, transfer};
 use gelgrip_plugins::poisson::Solver;
 
@@ -39,6 +39,13 @@ async fn collect(args: CollectArgs) -> anyhow::Result<u8> {
     let config = wiring::load_config(args.config.as_deref(), &registry)?;
     if config.hub.transport != "sim" {
         return crate::commands::calibrate_collect_hw::collect(&args, &config).await;
+    }
+    if let Some(addr) = args.http {
+        return Err(UsageError(format!(
+            "--http {addr}: the calibration view is for a collect through a hardware hub; the \
+             simulator's collect asks nothing"
+        ))
+        .into());
     }
     let (cam, mut sim) = simcam::camera(&config, &args.sensor)?;
     if let Some(mm) = args
@@ -87,6 +94,9 @@ struct TrainJson {
     parameters: Option<usize>,
     epochs: Option<u32>,
     blur_px: Option<usize>,
+    /// MLP: the training loss and input scaling.
+    loss: Option<&'static str>,
+    input_norm: Option<&'static str>,
     train_presses: usize,
     test_presses: usize,
     train_gx_mae: f64,
@@ -168,12 +178,17 @@ fn train(args: TrainArgs) -> anyhow::Result<u8> {
                 epochs: args.epochs as usize,
                 seed: args.seed,
                 patience: args.patience as usize,
+                loss: args.loss.into(),
+                input_norm: args.input_norm.into(),
                 ..TrainOptions::default()
             };
             let rows = calibrate::validation_split_of(&ds)?;
             eprintln!(
-                "training mlp 5-{h}-{h}-{h}-2 (tanh, dropout {}, {} input) on {} presses, validating on {}, testing on {}, up to {} epochs (patience {})",
+                "training mlp 5-{h}-{h}-{h}-2 (tanh, dropout {}, {} loss, {} inputs, learning rate {}, {} input) on {} presses, validating on {}, testing on {}, up to {} epochs (patience {})",
                 args.dropout,
+                opts.loss.as_str(),
+                opts.input_norm.as_str(),
+                args.learning_rate,
                 input.as_str(),
                 rows.train.len(),
                 rows.validation.len(),
@@ -231,6 +246,9 @@ fn train(args: TrainArgs) -> anyhow::Result<u8> {
         parameters,
         epochs: (args.model == ModelKind::Mlp).then_some(args.epochs),
         blur_px,
+        loss: (args.model == ModelKind::Mlp).then(|| Loss::from(args.loss).as_str()),
+        input_norm: (args.model == ModelKind::Mlp)
+            .then(|| InputNorm::from(args.input_norm).as_str()),
         train_presses: train.presses,
         test_presses: test.presses,
         train_gx_mae: train.gx_mae,
@@ -449,6 +467,14 @@ pub struct CollectArgs {
     /// Pixel size on the gel, mm (default: the layout's, for the sensor).
     #[arg(long, value_parser = crate::commands::calibrate_label::parse_mm_per_px)]
     pub mm_per_px: Option<f64>,
+    /// On a hardware hub: serve the calibration view (the live difference image, the label,
+    /// Keep and Redo) on this address instead of `[http] bind` (port 0: any free port; the
+    /// URL is printed to stderr).
+    #[arg(long, value_name = "ADDR", conflicts_with = "headless")]
+    pub http: Option<std::net::SocketAddr>,
+    /// On a hardware hub: no calibration view; decide on stdin only.
+    #[arg(long)]
+    pub headless: bool,
 }
 
 /// Gradient model kinds.
@@ -458,6 +484,45 @@ pub enum ModelKind {
     Lut,
     /// Multi-layer perceptron: RGB + x, y → (Gx, Gy), three tanh hidden layers.
     Mlp,
+}
+
+/// MLP training losses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum LossKind {
+    /// Mean absolute error.
+    L1,
+    /// Mean squared error.
+    L2,
+    /// Huber (δ 0.1).
+    Huber,
+}
+
+impl From<LossKind> for Loss {
+    fn from(k: LossKind) -> Self {
+        match k {
+            LossKind::L1 => Loss::L1,
+            LossKind::L2 => Loss::L2,
+            LossKind::Huber => Loss::Huber,
+        }
+    }
+}
+
+/// MLP input scalings.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum InputNormKind {
+    /// Colour / 128, position / size.
+    Fixed,
+    /// Standardised on the training pixels.
+    Standard,
+}
+
+impl From<InputNormKind> for InputNorm {
+    fn from(k: InputNormKind) -> Self {
+        match k {
+            InputNormKind::Fixed => InputNorm::Fixed,
+            InputNormKind::Standard => InputNorm::Standard,
+        }
+    }
 }
 
 /// `gelgrip calibrate train`.
@@ -490,26 +555,33 @@ pub struct TrainArgs {
     #[arg(long, default_value_t = DEFAULT_EPOCHS, value_parser = clap::value_parser!(u32).range(1..=100_000))]
     pub epochs: u32,
     /// MLP: dropout after each hidden layer while training.
-    #[arg(long, default_value_t = 0.05, value_parser = parse_dropout)]
+    #[arg(long, default_value_t = 0.0, value_parser = parse_dropout)]
     pub dropout: f64,
     /// MLP: initial learning rate (Adam; cosine decay to 5 % of it).
-    #[arg(long, default_value_t = 2e-3, value_parser = parse_learning_rate)]
+    #[arg(long, default_value_t = gelgrip_plugins::mlp::train::DEFAULT_LEARNING_RATE, value_parser = parse_learning_rate)]
     pub learning_rate: f64,
     /// MLP: early stopping after this many epochs without a lower validation loss (0:
     /// never); the best epoch's weights are kept either way.
-    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(0..=100_000))]
+    #[arg(long, default_value_t = gelgrip_plugins::mlp::train::DEFAULT_PATIENCE as u32, value_parser = clap::value_parser!(u32).range(0..=100_000))]
     pub patience: u32,
     /// MLP: seed of initialisation, shuffling and dropout.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// MLP: training loss (early stopping watches the validation L1 loss whatever it is).
+    #[arg(long, value_enum, default_value = "l1")]
+    pub loss: LossKind,
+    /// MLP: input scaling: `fixed` (colour / 128, position / size) or `standard` (each input
+    /// further standardised on the training pixels, folded into the first layer).
+    #[arg(long, value_enum, default_value = "standard")]
+    pub input_norm: InputNormKind,
     /// Print one JSON object (the MAEs) on stdout.
     #[arg(long)]
     pub json: bool,
 }
 
-/// Default MLP training epochs (about a minute for 50 presses at 320×240 on 2 cores;
-/// docs/calibration.md).
-pub const DEFAULT_EPOCHS: u32 = 40;
+/// Default MLP training epochs, an upper bound: early stopping ends most runs sooner
+/// (10–20 s for 50 realistic presses at 320×240 on 2 shared cores; docs/calibration.md).
+pub const DEFAULT_EPOCHS: u32 = gelgrip_plugins::mlp::train::DEFAULT_EPOCHS as u32;
 
 fn parse_dropout(s: &str) -> Result<f64, String> {
     parse_within(s, "a dropout probability", "", 0.0..=0.9)
