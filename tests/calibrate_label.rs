@@ -5,9 +5,10 @@
 mod common;
 
 use std::io::{BufRead, BufReader, Write};
-use std::path::{Path, PathBuf};
-use std::process::{Child, ChildStdin, Command, Output, Stdio};
+use std::path::Path;
+use std::process::{Command, Output, Stdio};
 
+use common::press_hub::PressHub;
 use common::{gelgrip, json, ok, s, scratch};
 use gelgrip::{simcam, wiring};
 use gelgrip_plugins::calibrate::label::detect;
@@ -248,62 +249,6 @@ fn label_without_a_background_or_presses_exits_2() {
     assert_eq!(out.status.code(), Some(2));
 }
 
-/// `gelgrip emulate hub --presses-on-stdin` on `dir/hub`, with the CDC config on it.
-struct PressHub {
-    child: Child,
-    stdin: ChildStdin,
-    answers: std::io::Lines<BufReader<std::process::ChildStdout>>,
-    config: PathBuf,
-}
-
-impl PressHub {
-    fn start(dir: &Path) -> Self {
-        let link = dir.join("hub");
-        let mut child = Command::new(env!("CARGO_BIN_EXE_gelgrip"))
-            .args(["emulate", "hub", "--presses-on-stdin", "--link", s(&link)])
-            .env("RUST_LOG", "warn")
-            .stdin(Stdio::piped())
-            .stdout(Stdio::piped())
-            .spawn()
-            .expect("the emulator starts");
-        let stdin = child.stdin.take().expect("stdin");
-        let mut answers = BufReader::new(child.stdout.take().expect("stdout")).lines();
-        let hello = answers.next().expect("announcement").expect("a line");
-        assert!(hello.contains("\"pty\""), "{hello}");
-        let layout =
-            Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/layouts/three-finger.toml");
-        let text = format!(
-            "version = 1\nlayout = {:?}\n[hub]\ntransport = \"cdc\"\ntrigger = \"broadcast\"\n\
-             [hub.cdc]\nport = {:?}\nusb = \"hs\"\n[gate]\npolicy = \"trigger\"\n\
-             [servos]\nbus = \"sim\"\n",
-            s(&layout),
-            s(&link)
-        );
-        let config = dir.join("hw.toml");
-        std::fs::write(&config, text).expect("config");
-        Self {
-            child,
-            stdin,
-            answers,
-            config,
-        }
-    }
-
-    /// Ask the emulator for `line`; its JSON answer.
-    fn ask(&mut self, line: &str) -> serde_json::Value {
-        writeln!(self.stdin, "{line}").expect("emulator stdin");
-        let answer = self.answers.next().expect("an answer").expect("a line");
-        serde_json::from_str(&answer).expect("the answer is JSON")
-    }
-}
-
-impl Drop for PressHub {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
 /// How a collect session is driven: keep every press, or end it after `after` kept
 /// presses by SIGINT or by closing stdin.
 #[derive(Clone, Copy, PartialEq)]
@@ -333,6 +278,7 @@ fn collect_on_hub(hub: &mut PressHub, out: &Path, presses: &str, end: End) -> (O
             "0.0625",
             "--config",
             s(&hub.config),
+            "--headless",
         ])
         .args(["--out", s(out)])
         .env("RUST_LOG", "warn")

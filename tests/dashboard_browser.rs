@@ -3,70 +3,17 @@
 //! views update; clicking Grasp leads to a grasped state; a screenshot is saved
 //! (`$GELGRIP_SCREENSHOT`, else `dashboard.png` under the build's tmp dir).
 
-use std::os::unix::process::CommandExt;
-use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use fantoccini::{ClientBuilder, Locator};
+use fantoccini::Locator;
 
 mod common;
-use common::server::{Running, Start, free_port, post, start_gelgrip, start_gelgrip_with};
-
-fn start_chromedriver() -> (Running, String) {
-    let port = free_port();
-    let child = Command::new("chromedriver")
-        .process_group(0)
-        .arg(format!("--port={port}"))
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("chromedriver starts (Debian chromium-driver)");
-    let deadline = Instant::now() + Duration::from_secs(20);
-    while std::net::TcpStream::connect(("127.0.0.1", port)).is_err() {
-        assert!(Instant::now() < deadline, "chromedriver is not listening");
-        std::thread::sleep(Duration::from_millis(100));
-    }
-    (Running(child), format!("http://127.0.0.1:{port}"))
-}
-
-async fn text(client: &fantoccini::Client, css: &str) -> String {
-    match client.find(Locator::Css(css)).await {
-        Ok(e) => e.text().await.unwrap_or_default(),
-        Err(_) => String::new(),
-    }
-}
-
-/// Poll `check` until it returns `Some`, or fail with `what` after `timeout`.
-async fn wait_for<T, F, Fut>(timeout: Duration, what: &str, mut check: F) -> T
-where
-    F: FnMut() -> Fut,
-    Fut: std::future::Future<Output = Option<T>>,
-{
-    let deadline = Instant::now() + timeout;
-    loop {
-        if let Some(v) = check().await {
-            return v;
-        }
-        assert!(Instant::now() < deadline, "timed out waiting for {what}");
-        tokio::time::sleep(Duration::from_millis(200)).await;
-    }
-}
+use common::browser::{chromium, start_chromedriver, text, wait_for};
+use common::server::{Start, post, start_gelgrip, start_gelgrip_with};
 
 /// A headless Chromium session on the page at `url`, once its `sensors` tiles are there.
 async fn open_page(webdriver: &str, url: &str, sensors: usize) -> fantoccini::Client {
-    let mut caps = serde_json::Map::new();
-    caps.insert(
-        "goog:chromeOptions".into(),
-        serde_json::json!({
-            "binary": "/usr/bin/chromium",
-            "args": ["--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--window-size=1400,1100"]
-        }),
-    );
-    let client = ClientBuilder::new(hyper_util::client::legacy::connect::HttpConnector::new())
-        .capabilities(caps)
-        .connect(webdriver)
-        .await
-        .expect("a Chromium session");
+    let client = chromium(webdriver).await;
     client.goto(url).await.expect("the page loads");
     // The hand layout: one tile per sensor, each with its camera view.
     wait_for(Duration::from_secs(20), "the sensor tiles", || async {

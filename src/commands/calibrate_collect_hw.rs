@@ -16,9 +16,16 @@
 //! SIGINT or stdin closing ends the session early: every press already kept stays on disk
 //! and in `presses.csv`, and the command says how many (exit 0 on SIGINT, 1 when stdin
 //! closed).
+//!
+//! Unless `--headless`, the calibration view is served too (`--http ADDR`, else
+//! `[http] bind`; [`calibrate_collect_view`](super::calibrate_collect_view)): the live
+//! difference image with the detected circle, the label or why a press is not usable, the
+//! count kept, and Keep and Redo. A decision comes from stdin or from the page, whichever
+//! answers first ([`Session::decide`]); the other prompt moves on.
 
 use std::path::Path;
 use std::pin::Pin;
+use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::Context;
@@ -28,10 +35,13 @@ use gelgrip_controller::acquire::Acquisition;
 use gelgrip_controller::clock::Clock;
 use gelgrip_controller::config::AppConfig;
 use gelgrip_plugins::calibrate::label::{ContactCircle, Rejection, detect};
+use gelgrip_plugins::calibrate::sheet::difference_view;
 use gelgrip_plugins::dataset::{DatasetInfo, Press, PressDataset, write_presses_csv};
 use gelgrip_plugins::image::RgbImage;
+use gelgrip_web::calibrate::{CollectStatus, CollectView, Decision, LabelView, Phase};
 
 use crate::cli::{ClockArg, CollectArgs, UsageError};
+use crate::commands::calibrate_collect_view::ViewServer;
 use crate::commands::calibrate_force_hw::stdin_lines;
 use crate::commands::calibrate_label::label_one;
 use gelgrip::wiring;
@@ -85,6 +95,27 @@ pub async fn collect(args: &CollectArgs, config: &AppConfig) -> anyhow::Result<u
         ball_diameter_mm: ball_mm,
         mm_per_px,
     };
+    let wanted = args.presses as usize;
+    let view = CollectView::new(CollectStatus {
+        sensor: id.to_string(),
+        wanted,
+        kept: 0,
+        phase: Phase::Background,
+        message: String::new(),
+        attempt: None,
+        label: None,
+        rejection: None,
+        image: 0,
+        ball_mm,
+        mm_per_px,
+        out: args.out.display().to_string(),
+    });
+    let server = if args.headless {
+        None
+    } else {
+        let bind = args.http.unwrap_or(config.http.bind);
+        Some(ViewServer::start(config, bind, view.clone()).await?)
+    };
     let clock = wiring::make_clock(ClockArg::Real.into());
     let acq = wiring::open_acquisition(config, &wiring::registry(), clock.clone())
         .await
@@ -95,9 +126,10 @@ pub async fn collect(args: &CollectArgs, config: &AppConfig) -> anyhow::Result<u
         clock,
         stdin: stdin_lines(),
         signal: Box::pin(crate::commands::run::shutdown_signal()),
+        view,
+        served: server.is_some(),
     };
     let mut kept = Vec::new();
-    let wanted = args.presses as usize;
     eprintln!(
         "calibrate collect on {id} through the {} hub: {wanted} presses of a {ball_mm} mm ball at {mm_per_px} mm/px into {}",
         config.hub.transport,
@@ -106,6 +138,19 @@ pub async fn collect(args: &CollectArgs, config: &AppConfig) -> anyhow::Result<u
     let outcome = session(&mut s, &args.out, &info, wanted, &mut kept).await;
     let n = kept.len();
     let place = args.out.display();
+    let (phase, note) = match &outcome {
+        Ok(()) => (Phase::Done, format!("{n} presses kept in {place}")),
+        Err(Stop::Signal) => (Phase::Ended, format!("interrupted: {n} of {wanted} kept")),
+        Err(Stop::StdinClosed) => (Phase::Ended, format!("stdin closed: {n} of {wanted} kept")),
+        Err(Stop::Failed(e)) => (
+            Phase::Ended,
+            format!("failed ({e:#}): {n} of {wanted} kept"),
+        ),
+    };
+    s.view.end(phase, note);
+    if let Some(server) = server {
+        server.shut_down().await;
+    }
     match outcome {
         Ok(()) => {
             println!("{place}: {n} presses kept, ball {ball_mm} mm, {mm_per_px} mm/px");
@@ -141,18 +186,26 @@ async fn session(
         .await?;
     let background = average(&s.frames(BACKGROUND_FRAMES).await?)?;
     PressDataset::write_index(out, info, &background, &[]).map_err(anyhow::Error::from)?;
+    s.show(&background, &background, None);
     let ball_radius_px = info.ball_diameter_mm / 2.0 / info.mm_per_px;
     let mut last: Option<ContactCircle> = None;
+    let mut attempt = 0;
     while kept.len() < wanted {
-        eprintln!(
-            "> press the ball on the sensor and hold it still (press {} of {wanted})",
+        s.say(&format!(
+            "press the ball on the sensor and hold it still (press {} of {wanted})",
             kept.len() + 1
-        );
+        ));
+        s.view.update(|v| v.phase = Phase::Pressing);
         let img = s.settled_press(&background, last).await?;
         let circle = match label_one(&img, &background, ball_radius_px) {
             Ok(c) => c,
             Err(reason) => {
                 eprintln!("  not usable: {reason}; lift the ball and press again");
+                s.show(&img, &background, None);
+                s.view.update(|v| {
+                    v.label = None;
+                    v.rejection = Some(reason.to_string());
+                });
                 last = detect(&img, &background).ok();
                 continue;
             }
@@ -162,11 +215,18 @@ async fn session(
             "  contact at ({:.1}, {:.1}) px, radius {:.1} px, score {:.2}",
             circle.center_x_px, circle.center_y_px, circle.contact_radius_px, circle.score
         );
-        let answer = s
-            .prompt_line("keep it? Enter keeps it, `r` then Enter redoes it")
-            .await?;
-        if answer.trim().eq_ignore_ascii_case("r") {
+        s.show(&img, &background, Some(circle));
+        s.view.update(|v| {
+            v.label = Some(label_view(&circle));
+            v.rejection = None;
+        });
+        attempt += 1;
+        let (decision, page) = s.decide(attempt).await?;
+        if decision == Decision::Redo {
             eprintln!("  redo: lift the ball and press again");
+            if let Some(page) = page {
+                page.done(s.view.status());
+            }
             continue;
         }
         let file = format!("press_{:03}.png", kept.len());
@@ -180,8 +240,22 @@ async fn session(
         });
         write_presses_csv(out, kept).map_err(anyhow::Error::from)?;
         eprintln!("  kept {} of {wanted}", kept.len());
+        let n = kept.len();
+        s.view.update(|v| v.kept = n);
+        if let Some(page) = page {
+            page.done(s.view.status());
+        }
     }
     Ok(())
+}
+
+fn label_view(c: &ContactCircle) -> LabelView {
+    LabelView {
+        center_x_px: c.center_x_px,
+        center_y_px: c.center_y_px,
+        contact_radius_px: c.contact_radius_px,
+        score: c.score,
+    }
 }
 
 /// The live session: the hub's sets, stdin's lines and the shutdown signal.
@@ -191,12 +265,80 @@ struct Session {
     clock: std::sync::Arc<dyn Clock>,
     stdin: mpsc::Receiver<String>,
     signal: Pin<Box<dyn Future<Output = ()> + Send>>,
+    /// What the calibration view shows, and its decisions.
+    view: Arc<CollectView>,
+    /// Whether the view is served (else no image is drawn for it).
+    served: bool,
 }
 
 impl Session {
+    /// Prompt `> step` on stderr and on the page.
+    fn say(&self, step: &str) {
+        eprintln!("> {step}");
+        let step = step.to_string();
+        self.view.update(|v| v.message = step);
+    }
+
+    /// Show `img`'s difference from `background`, with `circle`, on the page.
+    fn show(&self, img: &RgbImage, background: &RgbImage, circle: Option<ContactCircle>) {
+        if self.served {
+            let d = difference_view(img, background, circle);
+            self.view.set_image(d.width, d.height, d.data);
+        }
+    }
+
+    /// Ask whether to keep press `attempt`, on stdin (Enter keeps, `r` redoes) and on the
+    /// page at once; the first answer decides, and the other question is withdrawn. The
+    /// page's answer is returned too, for the session to answer it once it has acted.
+    async fn decide(
+        &mut self,
+        attempt: u64,
+    ) -> Result<(Decision, Option<gelgrip_web::calibrate::PageAnswer>), Stop> {
+        // Open on the page before the prompt, so that whoever reads the prompt can answer
+        // on either.
+        let mut page = self.view.ask(attempt);
+        let on_page = if self.served {
+            " (or Keep / Redo on the dashboard)"
+        } else {
+            ""
+        };
+        self.say(&format!(
+            "keep it? Enter keeps it, `r` then Enter redoes it{on_page}"
+        ));
+
+        let mut page_open = true;
+        loop {
+            tokio::select! {
+                line = self.stdin.recv() => {
+                    let line = line.ok_or(Stop::StdinClosed)?;
+                    if self.view.withdraw(attempt) || !page_open {
+                        let d = if line.trim().eq_ignore_ascii_case("r") {
+                            Decision::Redo
+                        } else {
+                            Decision::Keep
+                        };
+                        return Ok((d, None));
+                    }
+                    // The page claimed the press just before: its answer is on its way,
+                    // and this line is spent.
+                    if let Ok(answer) = (&mut page).await {
+                        return Ok(page_decision(answer));
+                    }
+                    page_open = false;
+                }
+                answer = &mut page, if page_open => match answer {
+                    Ok(answer) => return Ok(page_decision(answer)),
+                    Err(_) => page_open = false,
+                },
+                () = &mut self.signal => return Err(Stop::Signal),
+                step = self.acq.step() => { step.context("the hub, between presses")?; }
+            }
+        }
+    }
+
     /// Prompt `> step` and wait for a line, keeping the hub's sets flowing meanwhile.
     async fn prompt_line(&mut self, step: &str) -> Result<String, Stop> {
-        eprintln!("> {step}");
+        self.say(step);
         loop {
             tokio::select! {
                 line = self.stdin.recv() => return line.ok_or(Stop::StdinClosed),
@@ -262,13 +404,20 @@ impl Session {
                 recent.pop_front();
             }
             let img = average(recent.make_contiguous())?;
-            let c = match detect(&img, background) {
+            let found = detect(&img, background);
+            self.show(&img, background, found.as_ref().ok().copied());
+            let c = match found {
                 Ok(c) => c,
                 Err(why) => {
                     // Say once why a contact that is there is not taken.
                     if !matches!(why, Rejection::NoContact { .. }) && said != why.kind() {
                         eprintln!("  waiting: {why}");
                         said = why.kind();
+                        let why = why.to_string();
+                        self.view.update(|v| {
+                            v.label = None;
+                            v.rejection = Some(why);
+                        });
                     }
                     last = None;
                     run.clear();
@@ -289,6 +438,14 @@ impl Session {
             }
         }
     }
+}
+
+/// A decision the page took: said on stderr, and kept to be answered once acted on.
+fn page_decision(
+    answer: gelgrip_web::calibrate::PageAnswer,
+) -> (Decision, Option<gelgrip_web::calibrate::PageAnswer>) {
+    eprintln!("  {} (from the dashboard)", answer.decision.as_str());
+    (answer.decision, Some(answer))
 }
 
 fn same(a: &ContactCircle, b: &ContactCircle) -> bool {

@@ -10,6 +10,7 @@ pub mod bench_sync;
 pub mod bench_tradeoff;
 pub mod calibrate;
 pub mod calibrate_collect_hw;
+pub mod calibrate_collect_view;
 pub mod calibrate_force;
 pub mod calibrate_force_hw;
 pub mod calibrate_label;

@@ -4,6 +4,8 @@
 
 use std::process::{Command, Output};
 
+pub mod browser;
+pub mod press_hub;
 pub mod server;
 
 /// A fresh scratch directory for test `name` (removed first if left over).

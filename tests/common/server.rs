@@ -98,6 +98,17 @@ pub fn start_gelgrip_with(
 
 /// One HTTP/1.1 request to `url` (`http://host:port/`) + `path`; the status and the body.
 pub fn http(url: &str, method: &str, path: &str, body: Option<&str>) -> (u16, String) {
+    http_with(url, method, path, &[], body)
+}
+
+/// [`http`] with extra `headers` (`Name: value` each).
+pub fn http_with(
+    url: &str,
+    method: &str,
+    path: &str,
+    headers: &[&str],
+    body: Option<&str>,
+) -> (u16, String) {
     let host = url
         .trim_start_matches("http://")
         .trim_end_matches('/')
@@ -107,9 +118,10 @@ pub fn http(url: &str, method: &str, path: &str, body: Option<&str>) -> (u16, St
         .set_read_timeout(Some(Duration::from_secs(30)))
         .expect("timeout");
     let body = body.unwrap_or("");
+    let extra: String = headers.iter().map(|h| format!("{h}\r\n")).collect();
     write!(
         stream,
-        "{method} {path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\
+        "{method} {path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n{extra}\
          Content-Type: application/json\r\nContent-Length: {}\r\n\r\n{body}",
         body.len()
     )

@@ -10,7 +10,11 @@
 //! Bound off loopback, every route but the login needs the token (`Authorization: Bearer
 //! <token>`, or the session cookie the login sets); command endpoints are rate-limited,
 //! except e-stop, which is never delayed.
+//!
+//! [`calibrate::app`] serves the calibration view of `calibrate collect` on a hub instead,
+//! with the same token scheme.
 
+pub mod calibrate;
 pub mod control;
 mod grasps;
 pub mod history;

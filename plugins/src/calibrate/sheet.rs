@@ -72,6 +72,34 @@ pub fn contact_sheet(background: &RgbImage, tiles: &[Tile<'_>]) -> RgbImage {
     sheet
 }
 
+/// One press's difference from `background` at full size, with `circle` drawn on it when
+/// there is one (the live view of `calibrate collect`). A press of another size than the
+/// background shows grey.
+pub fn difference_view(
+    press: &RgbImage,
+    background: &RgbImage,
+    circle: Option<ContactCircle>,
+) -> RgbImage {
+    let (w, h) = (background.width, background.height);
+    let mut out = RgbImage::new(w, h);
+    let same = (press.width, press.height) == (w, h);
+    for y in 0..h {
+        for x in 0..w {
+            let rgb = if same {
+                mean_diff(press, background, x, y, 1)
+            } else {
+                [128; 3]
+            };
+            put(&mut out, x, y, rgb);
+        }
+    }
+    if let Some(c) = circle.filter(|_| same) {
+        let centre = (c.center_x_px, c.center_y_px);
+        draw_circle(&mut out, (0, 0, w, h), centre, c.contact_radius_px);
+    }
+    out
+}
+
 fn mean_diff(p: &RgbImage, bg: &RgbImage, x0: usize, y0: usize, k: usize) -> [u8; 3] {
     let mut sum = [0.0f64; 3];
     let mut n = 0.0;
@@ -167,5 +195,28 @@ mod tests {
         // The second tile's cross starts at its corner.
         assert_eq!(px(4 + 244, 4), REJECTED_RGB);
         assert!(contact_sheet(&RgbImage::new(0, 0), &[]).width > 0);
+    }
+
+    #[test]
+    fn the_difference_view_is_full_size_with_its_circle() {
+        let bg = RgbImage::new(40, 30);
+        let mut press = bg.clone();
+        press.data[0] = 10;
+        let c = ContactCircle {
+            center_x_px: 20.0,
+            center_y_px: 15.0,
+            contact_radius_px: 10.0,
+            score: 1.0,
+        };
+        let view = difference_view(&press, &bg, Some(c));
+        assert_eq!((view.width, view.height), (40, 30));
+        assert_eq!(view.data[0], 148, "128 + 2 x 10");
+        let px = |x: usize, y: usize| &view.data[3 * (y * 40 + x)..3 * (y * 40 + x) + 3];
+        assert_eq!(px(30, 15), CIRCLE_RGB);
+        assert_eq!(px(5, 5), [128; 3]);
+        let plain = difference_view(&press, &bg, None);
+        assert_eq!(plain.data[3 * (15 * 40 + 30)..][..3], [128; 3], "no circle");
+        let other = difference_view(&RgbImage::new(3, 3), &bg, Some(c));
+        assert!(other.data.iter().all(|v| *v == 128), "another size: grey");
     }
 }
