@@ -7,8 +7,9 @@ mod common;
 
 use std::io::{BufRead, BufReader, Write};
 use std::path::{Path, PathBuf};
-use std::process::{Child, ChildStdin, Command, Stdio};
+use std::process::{Command, Stdio};
 
+use common::press_hub::StdinHub;
 use common::{gelgrip, ok, s, scratch};
 
 /// A LUT for f1.tip, trained on simulated presses as a user trains one on a sensor's
@@ -60,49 +61,17 @@ fn f1_tip_model(model: &Path) -> String {
     )
 }
 
-/// `gelgrip emulate hub --weights-on-stdin` on `dir/hub`: the child, its stdin and its
-/// stdout's lines after the announcement.
-struct WeightHub {
-    child: Child,
-    stdin: ChildStdin,
-    answers: std::io::Lines<BufReader<std::process::ChildStdout>>,
-    link: PathBuf,
-}
+/// `gelgrip emulate hub --weights-on-stdin` on `dir/hub`.
+struct WeightHub(StdinHub);
 
 impl WeightHub {
     fn start(dir: &Path) -> Self {
-        let link = dir.join("hub");
-        let mut child = Command::new(env!("CARGO_BIN_EXE_gelgrip"))
-            .args(["emulate", "hub", "--weights-on-stdin", "--link", s(&link)])
-            .env("RUST_LOG", "warn")
-            .stdin(Stdio::piped())
-            .stdout(Stdio::piped())
-            .spawn()
-            .expect("the emulator starts");
-        let stdin = child.stdin.take().expect("stdin");
-        let mut answers = BufReader::new(child.stdout.take().expect("stdout")).lines();
-        let hello = answers.next().expect("announcement").expect("a line");
-        assert!(hello.contains("\"pty\""), "{hello}");
-        Self {
-            child,
-            stdin,
-            answers,
-            link,
-        }
+        Self(StdinHub::start(dir, "--weights-on-stdin"))
     }
 
     /// Rest `grams` on `sensor`; the emulator's JSON answer.
     fn place(&mut self, sensor: &str, grams: &str) -> serde_json::Value {
-        writeln!(self.stdin, "{sensor} {grams}").expect("emulator stdin");
-        let line = self.answers.next().expect("an answer").expect("a line");
-        serde_json::from_str(&line).expect("the answer is JSON")
-    }
-}
-
-impl Drop for WeightHub {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
+        self.0.ask(&format!("{sensor} {grams}"))
     }
 }
 
@@ -163,7 +132,7 @@ fn known_weights_on_the_cdc_hub_emulator_fit_the_gels_stiffness() {
     let dir = scratch("force-hw");
     let model = f1_tip_lut(&dir);
     let mut hub = WeightHub::start(&dir);
-    let config = hardware_config(&dir, &hub.link.clone(), &f1_tip_model(&model));
+    let config = hardware_config(&dir, &hub.0.link.clone(), &f1_tip_model(&model));
     let (out, stderr) = calibrate(&mut hub, &config, "50,100,200", None);
     let stderr = stderr.join("\n");
     assert!(out.status.success(), "{:?}\n{stderr}", out.status);
@@ -202,7 +171,7 @@ fn known_weights_on_the_cdc_hub_emulator_fit_the_gels_stiffness() {
         "{stderr:?}"
     );
     // A sensor without a model file on a hardware hub is a configuration error.
-    let bare = hardware_config(&dir, &hub.link.clone(), "");
+    let bare = hardware_config(&dir, &hub.0.link.clone(), "");
     let out = gelgrip(&[
         "calibrate",
         "force",
@@ -253,7 +222,7 @@ fn a_run_on_the_hardware_hub_references_live_frames_and_feels_a_weight() {
     let model = f1_tip_lut(&dir);
     let mut hub = WeightHub::start(&dir);
     let everyone = format!("model = {:?}\n", s(&model));
-    let config = hardware_config(&dir, &hub.link.clone(), &everyone);
+    let config = hardware_config(&dir, &hub.0.link.clone(), &everyone);
     let log = dir.join("grasp.csv");
     let mut run = Command::new(env!("CARGO_BIN_EXE_gelgrip"))
         .args(["run", "--config", s(&config), "--headless", "--json"])
@@ -341,7 +310,7 @@ fn a_run_on_the_hardware_hub_references_live_frames_and_feels_a_weight() {
     );
 
     // Without model files a hardware hub's pipelines cannot be built: exit 2, said so.
-    let bare = hardware_config(&dir, &hub.link.clone(), "");
+    let bare = hardware_config(&dir, &hub.0.link.clone(), "");
     let out = gelgrip(&[
         "run",
         "--config",

@@ -7,21 +7,22 @@ use std::process::{Child, ChildStdin, Command, Stdio};
 
 use super::s;
 
-/// `gelgrip emulate hub --presses-on-stdin` on `dir/hub`, with the CDC config on it.
-pub struct PressHub {
+/// `gelgrip emulate hub FLAG` (`--presses-on-stdin` or `--weights-on-stdin`) on `dir/hub`:
+/// the child, its stdin, and its stdout's lines after the announcement; killed when dropped.
+pub struct StdinHub {
     child: Child,
     stdin: ChildStdin,
     answers: std::io::Lines<BufReader<std::process::ChildStdout>>,
-    /// The config that collects through the hub (`transport = "cdc"` on its link).
-    pub config: PathBuf,
+    /// The link it serves on.
+    pub link: PathBuf,
 }
 
-impl PressHub {
-    /// Start it on `dir/hub`, with its config in `dir/hw.toml`.
-    pub fn start(dir: &Path) -> Self {
+impl StdinHub {
+    /// Start it on `dir/hub` with `flag`, and wait for its announcement.
+    pub fn start(dir: &Path, flag: &str) -> Self {
         let link = dir.join("hub");
         let mut child = Command::new(env!("CARGO_BIN_EXE_gelgrip"))
-            .args(["emulate", "hub", "--presses-on-stdin", "--link", s(&link)])
+            .args(["emulate", "hub", flag, "--link", s(&link)])
             .env("RUST_LOG", "warn")
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
@@ -31,22 +32,11 @@ impl PressHub {
         let mut answers = BufReader::new(child.stdout.take().expect("stdout")).lines();
         let hello = answers.next().expect("announcement").expect("a line");
         assert!(hello.contains("\"pty\""), "{hello}");
-        let layout =
-            Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/layouts/three-finger.toml");
-        let text = format!(
-            "version = 1\nlayout = {:?}\n[hub]\ntransport = \"cdc\"\ntrigger = \"broadcast\"\n\
-             [hub.cdc]\nport = {:?}\nusb = \"hs\"\n[gate]\npolicy = \"trigger\"\n\
-             [servos]\nbus = \"sim\"\n",
-            s(&layout),
-            s(&link)
-        );
-        let config = dir.join("hw.toml");
-        std::fs::write(&config, text).expect("config");
         Self {
             child,
             stdin,
             answers,
-            config,
+            link,
         }
     }
 
@@ -58,9 +48,40 @@ impl PressHub {
     }
 }
 
-impl Drop for PressHub {
+impl Drop for StdinHub {
     fn drop(&mut self) {
         let _ = self.child.kill();
         let _ = self.child.wait();
+    }
+}
+
+/// `gelgrip emulate hub --presses-on-stdin` on `dir/hub`, with the CDC config on it.
+pub struct PressHub {
+    hub: StdinHub,
+    /// The config that collects through the hub (`transport = "cdc"` on its link).
+    pub config: PathBuf,
+}
+
+impl PressHub {
+    /// Start it on `dir/hub`, with its config in `dir/hw.toml`.
+    pub fn start(dir: &Path) -> Self {
+        let hub = StdinHub::start(dir, "--presses-on-stdin");
+        let layout =
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/layouts/three-finger.toml");
+        let text = format!(
+            "version = 1\nlayout = {:?}\n[hub]\ntransport = \"cdc\"\ntrigger = \"broadcast\"\n\
+             [hub.cdc]\nport = {:?}\nusb = \"hs\"\n[gate]\npolicy = \"trigger\"\n\
+             [servos]\nbus = \"sim\"\n",
+            s(&layout),
+            s(&hub.link)
+        );
+        let config = dir.join("hw.toml");
+        std::fs::write(&config, text).expect("config");
+        Self { hub, config }
+    }
+
+    /// Ask the emulator for `line`; its JSON answer.
+    pub fn ask(&mut self, line: &str) -> serde_json::Value {
+        self.hub.ask(line)
     }
 }
