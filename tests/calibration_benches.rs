@@ -47,6 +47,17 @@ fn bench_calibration_prints_table_two() {
     assert_eq!(cols[0]["data_used_presses"], 42);
     assert_eq!(cols[4]["data_used_presses"], 12);
     assert_eq!(v["per_sensor"].as_array().map(Vec::len), Some(7));
+    // LUT against MLP on the realistic optics, each with its held-out MAE and time.
+    let rows = v["realistic"].as_array().expect("realistic rows");
+    let models: Vec<&str> = rows.iter().filter_map(|r| r["model"].as_str()).collect();
+    assert_eq!(models, ["lut", "mlp"], "{v}");
+    for r in rows {
+        for k in ["gx_mae", "gy_mae", "train_s"] {
+            assert!(finite(&r[k]), "{k}: {r}");
+        }
+        assert!(r["test_presses"].as_u64() >= Some(1), "{r}");
+    }
+    assert!(rows[1]["best_epoch"].as_u64() >= Some(1), "{v}");
 }
 
 #[test]
