@@ -18,6 +18,7 @@ pub mod loop_control;
 pub mod observers;
 pub mod output;
 pub mod plot;
+pub mod press_requests;
 pub mod progress;
 pub mod replay;
 pub mod ros;

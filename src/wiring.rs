@@ -40,7 +40,9 @@ pub fn registry() -> TransportRegistry {
 
 /// The CH347 factory, its emulator's boards showing `world` (else the built-in presses).
 fn ch347(world: Option<SharedWorld>) -> Ch347Factory {
-    Ch347Factory::new(Some(thread_cpu_ns)).with_cameras(Arc::new(SimCameraSource::new(world)))
+    Ch347Factory::new(Some(thread_cpu_ns)).with_cameras(Arc::new(
+        crate::press_requests::RequestedPresses::new(SimCameraSource::new(world)),
+    ))
 }
 
 /// The same registry, with the simulated hub rendering `world`.

@@ -13,7 +13,7 @@ use std::process::{Child, ChildStdin, Command, Stdio};
 use std::sync::mpsc;
 use std::time::Duration;
 
-use common::press_hub::PressHub;
+use common::press_hub::{PressHub, collect_command};
 use common::server::{http_with, wait_until};
 use common::{s, scratch};
 
@@ -33,16 +33,10 @@ struct Collect {
 
 impl Collect {
     fn start(hub: &PressHub, out: &Path, presses: &str, bind: &str, env: &[(&str, &str)]) -> Self {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_gelgrip"))
+        let mut child = collect_command(&hub.config, out, presses)
             .process_group(0)
-            .args(["calibrate", "collect", "--sensor", "f1.tip", "--presses"])
-            .args([presses, "--ball-mm", "6", "--mm-per-px", "0.0625"])
-            .args(["--config", s(&hub.config), "--out", s(out), "--http", bind])
-            .env("RUST_LOG", "warn")
+            .args(["--http", bind])
             .envs(env.iter().copied())
-            .stdin(Stdio::piped())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
             .spawn()
             .expect("calibrate collect starts");
         let stdin = child.stdin.take();

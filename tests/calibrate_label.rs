@@ -6,9 +6,9 @@ mod common;
 
 use std::io::{BufRead, BufReader, Write};
 use std::path::Path;
-use std::process::{Command, Output, Stdio};
+use std::process::{Command, Output};
 
-use common::press_hub::PressHub;
+use common::press_hub::{PressHub, collect_command};
 use common::{gelgrip, json, ok, s, scratch};
 use gelgrip::{simcam, wiring};
 use gelgrip_plugins::calibrate::label::detect;
@@ -262,44 +262,13 @@ enum End {
 /// random places and depths on f1.tip at each prompt and keeping each press but the first
 /// (redone).
 fn collect_on_hub(hub: &mut PressHub, out: &Path, presses: &str, end: End) -> (Output, String) {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_gelgrip"))
-        .args([
-            "calibrate",
-            "collect",
-            "--sensor",
-            "f1.tip",
-            "--presses",
-            presses,
-        ])
-        .args([
-            "--ball-mm",
-            "6",
-            "--mm-per-px",
-            "0.0625",
-            "--config",
-            s(&hub.config),
-            "--headless",
-        ])
-        .args(["--out", s(out)])
-        .env("RUST_LOG", "warn")
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
+    let mut child = collect_command(&hub.config, out, presses)
+        .arg("--headless")
         .spawn()
         .expect("calibrate collect starts");
     let mut stdin = child.stdin.take();
     // A session that stops making progress fails the test instead of hanging it.
-    let done = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-    let (watch, pid) = (done.clone(), child.id().to_string());
-    std::thread::spawn(move || {
-        for _ in 0..1800 {
-            std::thread::sleep(std::time::Duration::from_millis(100));
-            if watch.load(std::sync::atomic::Ordering::Relaxed) {
-                return;
-            }
-        }
-        let _ = Command::new("kill").args(["-KILL", &pid]).status();
-    });
+    let watchdog = common::Watchdog::new(child.id(), std::time::Duration::from_secs(180));
     let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(7);
     let (mut kept, mut redone, mut log) = (0, false, String::new());
     for line in BufReader::new(child.stderr.take().expect("stderr")).lines() {
@@ -352,7 +321,7 @@ fn collect_on_hub(hub: &mut PressHub, out: &Path, presses: &str, end: End) -> (O
         }
     }
     let out = child.wait_with_output().expect("collect exits");
-    done.store(true, std::sync::atomic::Ordering::Relaxed);
+    drop(watchdog);
     (out, log)
 }
 

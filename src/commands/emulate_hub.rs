@@ -31,7 +31,7 @@ use gelgrip_sim::config::SimConfig;
 use gelgrip_sim::weights::{WeightControl, weighted_cameras};
 
 use crate::cli::UsageError;
-use gelgrip::wiring;
+use gelgrip::{press_requests, wiring};
 
 /// Run the command; returns the exit code.
 pub async fn run(args: EmulateHubArgs) -> anyhow::Result<u8> {
@@ -98,100 +98,16 @@ pub async fn run(args: EmulateHubArgs) -> anyhow::Result<u8> {
     Ok(0)
 }
 
-/// Read `SENSOR GRAMS` lines from stdin until it closes, placing each weight and answering
-/// each line with one JSON line on stdout.
+/// Read `SENSOR GRAMS` and press lines from stdin until it closes, answering each with one
+/// JSON line on stdout ([`press_requests::serve`]).
 fn serve_weights(layout: &HandLayout, control: &WeightControl, ball_mm: f64) {
-    use std::io::{BufRead, Write};
-    for line in std::io::stdin().lock().lines() {
-        let Ok(line) = line else { break };
-        if line.trim().is_empty() {
-            continue;
-        }
-        let words: Vec<&str> = line.split_whitespace().collect();
-        let answer = if words.len() == 2 && words[1] != "lift" {
-            place_weight(layout, control, &line)
-        } else {
-            press_ball(layout, control, &line, ball_mm)
-        };
-        let mut out = std::io::stdout().lock();
-        let _ = writeln!(out, "{answer}");
-        let _ = out.flush();
-    }
-}
-
-/// Place the weight one stdin line asks for; the JSON answer.
-fn place_weight(layout: &HandLayout, control: &WeightControl, line: &str) -> serde_json::Value {
-    let mut words = line.split_whitespace();
-    let (sensor, grams) = (words.next().unwrap_or(""), words.next());
-    let fail = |why: String| {
-        tracing::warn!("weights: `{line}`: {why}");
-        serde_json::json!({ "sensor": sensor, "weight_g": grams, "error": why })
-    };
-    let Some(board) = layout.index_of(sensor) else {
-        return fail(format!(
-            "no sensor `{sensor}`; sensors: {}",
-            layout.id_list()
-        ));
-    };
-    let Some(Ok(g)) = grams.map(str::parse::<f64>) else {
-        return fail("expected `SENSOR GRAMS`, e.g. `f1.tip 100`".into());
-    };
-    if words.next().is_some() {
-        return fail("expected `SENSOR GRAMS`, e.g. `f1.tip 100`".into());
-    }
-    match control.place(board, g) {
-        Ok(p) => serde_json::json!({
-            "sensor": sensor,
-            "weight_g": p.grams,
-            "force_n": p.force_n,
-            "depth_mm": p.depth_mm,
-        }),
-        Err(e) => fail(e.to_string()),
-    }
-}
-
-/// Press or lift the ball one stdin line asks for (`SENSOR X_PX Y_PX DEPTH_MM [BALL_MM]`
-/// or `SENSOR lift`); the JSON answer.
-fn press_ball(
-    layout: &HandLayout,
-    control: &WeightControl,
-    line: &str,
-    ball_mm: f64,
-) -> serde_json::Value {
-    let words: Vec<&str> = line.split_whitespace().collect();
-    let sensor = words.first().copied().unwrap_or("");
-    let fail = |why: String| {
-        tracing::warn!("presses: `{line}`: {why}");
-        serde_json::json!({ "sensor": sensor, "error": why })
-    };
-    let Some(board) = layout.index_of(sensor) else {
-        return fail(format!(
-            "no sensor `{sensor}`; sensors: {}",
-            layout.id_list()
-        ));
-    };
-    if words.len() == 2 && words[1] == "lift" {
-        return match control.place(board, 0.0) {
-            Ok(_) => serde_json::json!({ "sensor": sensor, "lifted": true }),
-            Err(e) => fail(e.to_string()),
-        };
-    }
-    let nums: Option<Vec<f64>> = words[1..].iter().map(|w| w.parse().ok()).collect();
-    let Some(nums) = nums.filter(|n| n.len() == 3 || n.len() == 4) else {
-        return fail("expected `SENSOR X_PX Y_PX DEPTH_MM [BALL_MM]` or `SENSOR lift`".into());
-    };
-    let ball = nums.get(3).copied().unwrap_or(ball_mm);
-    match control.press_ball(board, (nums[0], nums[1]), ball, nums[2]) {
-        Ok(p) => serde_json::json!({
-            "sensor": sensor,
-            "center_x_px": p.center_x_px,
-            "center_y_px": p.center_y_px,
-            "depth_mm": p.depth_mm,
-            "ball_mm": p.ball_mm,
-            "contact_radius_px": p.contact_radius_px,
-        }),
-        Err(e) => fail(e.to_string()),
-    }
+    press_requests::serve(
+        std::io::stdin().lock(),
+        std::io::stdout(),
+        layout,
+        control,
+        ball_mm,
+    );
 }
 
 /// USB speed of an emulated hub's link.

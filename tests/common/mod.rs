@@ -8,6 +8,37 @@ pub mod browser;
 pub mod press_hub;
 pub mod server;
 
+/// Kills process `pid` (SIGKILL) unless dropped within `timeout`: a child that stops making
+/// progress fails its test instead of hanging it.
+pub struct Watchdog(std::sync::Arc<std::sync::atomic::AtomicBool>);
+
+impl Watchdog {
+    /// Watch `pid` for `timeout`.
+    pub fn new(pid: u32, timeout: std::time::Duration) -> Self {
+        let done = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let watch = done.clone();
+        std::thread::spawn(move || {
+            let deadline = std::time::Instant::now() + timeout;
+            while std::time::Instant::now() < deadline {
+                std::thread::sleep(std::time::Duration::from_millis(100));
+                if watch.load(std::sync::atomic::Ordering::Relaxed) {
+                    return;
+                }
+            }
+            let _ = Command::new("kill")
+                .args(["-KILL", &pid.to_string()])
+                .status();
+        });
+        Self(done)
+    }
+}
+
+impl Drop for Watchdog {
+    fn drop(&mut self) {
+        self.0.store(true, std::sync::atomic::Ordering::Relaxed);
+    }
+}
+
 /// A fresh scratch directory for test `name` (removed first if left over).
 pub fn scratch(name: &str) -> std::path::PathBuf {
     let dir = std::env::temp_dir().join(format!("gelgrip-e2e-{}-{name}", std::process::id()));

@@ -85,3 +85,24 @@ impl PressHub {
         self.hub.ask(line)
     }
 }
+
+/// `gelgrip calibrate collect` of `presses` presses of a 6 mm ball on f1.tip at 0.0625 mm/px,
+/// through `config` into `out`, logs at warn, stdin, stdout and stderr piped (not started).
+pub fn collect_command(config: &Path, out: &Path, presses: &str) -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_gelgrip"));
+    c.args([
+        "calibrate",
+        "collect",
+        "--sensor",
+        "f1.tip",
+        "--presses",
+        presses,
+    ])
+    .args(["--ball-mm", "6", "--mm-per-px", "0.0625"])
+    .args(["--config", s(config), "--out", s(out)])
+    .env("RUST_LOG", "warn")
+    .stdin(Stdio::piped())
+    .stdout(Stdio::piped())
+    .stderr(Stdio::piped());
+    c
+}
