@@ -1,7 +1,8 @@
 //! Commanding gelgrip from ROS 2 with no ROS installed (issue 26): a Python client
 //! (tests/python/ros_commands_client.py, PyPI `eclipse-zenoh` in router mode on loopback,
 //! requests serialised by PyPI `rosbags`) speaks rmw_zenoh's service and action format to a
-//! simulated `gelgrip run` with `[ros] commands = true`. Three runs, two at once:
+//! simulated `gelgrip run` with `[ros] commands = true` (on the virtual clock: on a busy
+//! machine a real-clock squeeze can lose sets until the watchdog stops it). Three runs:
 //! - the tennis ball (its table kept, so it stays between cases): bad input (truncated,
 //!   big-endian, NaN, negative and out-of-range goals, unknown and truncated cancels, an
 //!   unknown result, an empty Trigger request, a service that does not exist) each refused
@@ -178,7 +179,14 @@ fn ros_clients_command_the_gripper_through_the_grasp_api() {
     let (port, readonly_port) = (free_port(), free_port());
     let cmd = client(port, "/gelgrip", "commands");
     let ro = client(readonly_port, "/readonly", "readonly");
-    let run = gelgrip(&dir, &config(&dir, port, "/gelgrip", true, ""), "90", &[]);
+    let run = gelgrip(
+        &dir,
+        &config(&dir, port, "/gelgrip", true, ""),
+        "600",
+        // Virtual time (the run is stopped when the client is done): on a busy machine a
+        // real-clock squeeze can lose sets long enough for the watchdog to stop it.
+        &["--clock", "virtual"],
+    );
     let ro_run = gelgrip(
         &dir,
         &config(&dir, readonly_port, "/readonly", false, ""),

@@ -115,6 +115,9 @@ enum Event {
     /// A request, and when its callback ran.
     Query(Service, Query, Instant),
     Report(Snapshot),
+    /// The run has ended (the queryables' callbacks hold senders too, so the channel
+    /// never closes by itself).
+    Stop,
 }
 
 /// The run's command side: an observer feeding the command thread.
@@ -251,7 +254,9 @@ impl Observer for RosCommands {
     }
 
     fn finish(&mut self) -> Result<(), ObserverError> {
-        self.tx = None;
+        if let Some(tx) = self.tx.take() {
+            let _ = tx.send(Event::Stop);
+        }
         if let Some(t) = self.thread.take()
             && t.join().is_err()
         {
@@ -443,8 +448,8 @@ impl Worker {
             match self.rx.recv_timeout(STATUS_PERIOD) {
                 Ok(Event::Query(service, q, arrived)) => self.query(service, q, arrived),
                 Ok(Event::Report(s)) => self.report(s),
+                Ok(Event::Stop) | Err(RecvTimeoutError::Disconnected) => break,
                 Err(RecvTimeoutError::Timeout) => {}
-                Err(RecvTimeoutError::Disconnected) => break,
             }
             if !self.goals.is_empty() && self.last_status.elapsed() >= STATUS_PERIOD {
                 self.publish_status();

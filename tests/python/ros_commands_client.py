@@ -283,6 +283,13 @@ def approaching(f):
     return f["position"] < 3.0
 
 
+if scenario == "latency":
+    # One goal after two seconds of steady running (docs/ros.md's latency figure).
+    time.sleep(2.0)
+    summary["goal"] = send_goal(uuid.uuid4().bytes, 0.0, 2.0)
+    time.sleep(1.0)
+    done(summary)
+
 if scenario == "stall":
     summary["stall"] = case_grasp(float(os.environ.get("STALL_EFFORT_N", "200.0")))
     done(summary)
