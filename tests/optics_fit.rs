@@ -3,7 +3,7 @@
 //! by side (real, realistic sim, nominal sim), as in docs/calibration.md.
 //!
 //! - `side_by_side`: prints the table and checks that the realistic optics are close to the
-//!   real data and closer than the nominal ones (skipped, saying so, without the data);
+//!   real data and closer than the nominal ones (fails without the data);
 //! - `fit` (ignored; `cargo test --release --test optics_fit -- --ignored --nocapture fit`):
 //!   the fit itself, printing the parameters for `optics::realistic::MINI` and
 //!   `optics::fit::MINI_BALL_RADIUS_PX`.
@@ -32,9 +32,15 @@ fn data_dir() -> PathBuf {
     )
 }
 
-fn load() -> Option<Real> {
+/// The real presses; their absence fails the test (CI has `../shared` beside the checkout).
+fn load() -> Real {
     let dir = data_dir();
-    let index = std::fs::read_to_string(dir.join("presses.csv")).ok()?;
+    let index = std::fs::read_to_string(dir.join("presses.csv")).unwrap_or_else(|e| {
+        panic!(
+            "no GelSight Mini data at {} ({e}): put ../shared beside the checkout or set GELGRIP_MINI_DATA",
+            dir.display()
+        )
+    });
     let background = RgbImage::read_png(&dir.join("background.png")).expect("background.png");
     let presses = index
         .lines()
@@ -52,10 +58,10 @@ fn load() -> Option<Real> {
             (contact, img)
         })
         .collect();
-    Some(Real {
+    Real {
         background,
         presses,
-    })
+    }
 }
 
 fn image(img: &RgbImage) -> Image<'_> {
@@ -228,13 +234,7 @@ fn columns(real: &Real, params: &RealisticParams, ball_radius_px: f64) -> [Colum
 
 #[test]
 fn side_by_side() {
-    let Some(real) = load() else {
-        eprintln!(
-            "skipped: no GelSight Mini data at {} (set GELGRIP_MINI_DATA)",
-            data_dir().display()
-        );
-        return;
-    };
+    let real = load();
     let [real_col, realistic, nominal] = columns(&real, &MINI, MINI_BALL_RADIUS_PX);
     let cols = [
         ("real Mini", &real_col),
@@ -325,9 +325,7 @@ fn figure(real: &Real, path: &std::path::Path) {
 #[test]
 #[ignore = "the fit itself (about a minute in release): prints the parameters"]
 fn fit() {
-    let Some(real) = load() else {
-        panic!("no GelSight Mini data at {}", data_dir().display());
-    };
+    let real = load();
     let size = (real.background.width, real.background.height);
     let contacts: Vec<Contact> = real.presses.iter().map(|(c, _)| *c).collect();
     let real_col = column(&real.background, &real.presses);
