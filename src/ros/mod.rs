@@ -2,8 +2,8 @@
 //! the topics and their messages built from gelgrip's data ([`feed`], encoded through the
 //! `gelgrip-ros` crate), the live Zenoh link in rmw_zenoh's format ([`live`]), and MCAP
 //! files of the same messages ([`mcap_out`]). With `[ros] commands`, the GripperCommand
-//! action and the Trigger services ([`command`], [`command_goals`], `command_wire`). docs/ros.md has the
-//! topic table and the commands.
+//! action and the Trigger services ([`command`], [`command_goals`], `command_wire`).
+//! docs/ros.md has the topic table and the commands.
 
 pub mod command;
 pub mod command_goals;
