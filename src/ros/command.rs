@@ -48,6 +48,11 @@ use super::live::LiveError;
 const QUEUE_EVENTS: usize = 256;
 /// Goals kept for `get_result` and the status topic.
 const GOALS_KEPT: usize = 32;
+/// An ended goal's result is kept this long (rcl_action's default `result_timeout`), then
+/// forgotten: a long run's status topic does not carry its old goals forever.
+const RESULT_TIMEOUT: Duration = Duration::from_secs(15 * 60);
+/// `get_result` requests waiting on one goal at most; more get an error reply.
+const WAITING_PER_GOAL: usize = 8;
 /// Feedback at most this often.
 const FEEDBACK_PERIOD: Duration = Duration::from_millis(100);
 /// The status topic is published again this often while goals are kept (for late joiners).
@@ -215,6 +220,8 @@ struct ActionGoal {
     waiting: Vec<(Query, i64, [u8; 16])>,
     arrived: Instant,
     write_seen: bool,
+    /// When it ended (its result is forgotten [`RESULT_TIMEOUT`] later).
+    ended: Option<Instant>,
 }
 
 struct Worker {
@@ -237,7 +244,12 @@ impl Worker {
                 Ok(Event::Stop) | Err(RecvTimeoutError::Disconnected) => break,
                 Err(RecvTimeoutError::Timeout) => {}
             }
-            if !self.goals.is_empty() && self.last_status.elapsed() >= STATUS_PERIOD {
+            let kept = self.goals.len();
+            self.goals
+                .retain(|g| g.ended.is_none_or(|t| t.elapsed() < RESULT_TIMEOUT));
+            if self.goals.len() < kept
+                || (!self.goals.is_empty() && self.last_status.elapsed() >= STATUS_PERIOD)
+            {
                 self.publish_status();
             }
         }
@@ -364,6 +376,7 @@ impl Worker {
             waiting: Vec::new(),
             arrived,
             write_seen: false,
+            ended: None,
         });
         if self.goals.len() > GOALS_KEPT
             && let Some(i) = self.goals.iter().position(|g| g.status.is_terminal())
@@ -453,6 +466,15 @@ impl Worker {
                     result: g.result,
                 };
                 reply(&q, seq, &client, r.to_cdr());
+            }
+            Some(g) if g.waiting.len() >= WAITING_PER_GOAL => {
+                tracing::warn!(
+                    "ROS 2: get_result: goal {}: {WAITING_PER_GOAL} requests wait already; refused",
+                    short(&id)
+                );
+                let _ = q
+                    .reply_err("gelgrip: too many get_result requests wait on this goal")
+                    .wait();
             }
             Some(g) => g.waiting.push((q, seq, client)),
         }
@@ -557,6 +579,7 @@ impl Worker {
     fn end(&mut self, i: usize, status: GoalStatusCode, why: String) {
         let g = &mut self.goals[i];
         g.status = status;
+        g.ended = Some(Instant::now());
         let r = GetResultResponse {
             status,
             result: g.result,
