@@ -424,7 +424,17 @@ impl Worker {
                 "this run has no grasp API".into(),
             );
         };
-        if let Err(e) = handle.stop() {
+        // Only the newest goal's grasp can still be running: an older goal not yet ended was
+        // preempted, and stopping for it would stop whatever grasp replaced it.
+        let running = self.goals.iter().rev().find(|g| !g.status.is_terminal());
+        let stops = running.is_some_and(|g| {
+            targets.contains(&g.info)
+                && self
+                    .store
+                    .status(g.grasp_id)
+                    .is_some_and(|st| st.state == GoalState::Running)
+        });
+        if stops && let Err(e) = handle.stop() {
             return refused(actions::CancelCode::Rejected, e.to_string());
         }
         for g in self.goals.iter_mut().filter(|g| targets.contains(&g.info)) {
