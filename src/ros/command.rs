@@ -273,11 +273,8 @@ impl Worker {
             return;
         }
         let (payload, att) = request_parts(&q);
-        if service == Service::Unknown && att.is_none() {
-            // Not a ROS service request (a Zenoh tool's query, an advanced subscriber's
-            // history query under the namespace): none of ours to answer.
-            return;
-        }
+        // (Queries under the namespace without an attachment, not ROS requests, never get
+        // here: `command_wire::hand_over` drops them.)
         let Some((seq, client)) = att else {
             tracing::warn!(
                 "ROS 2: {}: a request without rmw_zenoh's attachment; refused",

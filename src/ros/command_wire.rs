@@ -201,6 +201,11 @@ impl Declared {
 
 /// A queryable's callback: hand the query to the command thread, never waiting.
 fn hand_over(tx: &SyncSender<Event>, service: Service, q: Query) {
+    if service == Service::Unknown && q.attachment().is_none() {
+        // Not a ROS request (a Zenoh tool's query, a history query under the namespace):
+        // dropped here, so such queries never take the queue's room from real requests.
+        return;
+    }
     match tx.try_send(Event::Query(service, q, Instant::now())) {
         Ok(()) => {}
         Err(TrySendError::Full(Event::Query(_, q, _))) => {
