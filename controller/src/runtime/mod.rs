@@ -37,7 +37,7 @@ use tokio::sync::mpsc;
 use crate::acquire::Acquisition;
 use crate::actuator::{ServoError, ServoState};
 use crate::clock::{Clock, ClockKind};
-use crate::frame::FrameSet;
+use crate::frame::{FrameSet, ReceivedFrame};
 use crate::gripper::{GripperError, GripperHandle};
 use crate::hub::HubError;
 use crate::runtime::control::LoopCommand;
@@ -375,9 +375,12 @@ impl Runtime {
     /// What a hub step brought: a set for the driver, an end, or nothing.
     fn on_step(&mut self, step: Result<Option<FrameSet>, HubError>) -> Option<EndReason> {
         // Streaming: the pipelines start on a frame as soon as it is in, before its set
-        // completes (the gate still decides on the set; see Sensing::frame_arrived).
+        // completes (the gate still decides on the set; see Sensing::frame_arrived). The
+        // frame that completes the set emitted now is not handed ahead: the set's
+        // processing, next, works on it on this thread, with no hand-off to the pool.
         if let Some(frame) = self.acq.take_arrived()
             && let Some(driver) = self.driver.as_mut()
+            && !completes(&step, &frame)
         {
             driver.plant_mut().sensing_mut().frame_arrived(&frame);
         }
@@ -659,4 +662,14 @@ async fn real_deadline(clock: Arc<dyn Clock>, deadline_us: Option<u64>) {
         Some(d) if clock.kind() == ClockKind::Real => clock.sleep_until(d).await,
         _ => std::future::pending().await,
     }
+}
+
+/// Whether `frame` is in the set `step` emitted (it completed that set).
+fn completes(step: &Result<Option<FrameSet>, HubError>, frame: &ReceivedFrame) -> bool {
+    let Ok(Some(set)) = step else {
+        return false;
+    };
+    set.frames.iter().any(|f| {
+        f.frame.sensor == frame.frame.sensor && f.frame.trigger_seq == frame.frame.trigger_seq
+    })
 }

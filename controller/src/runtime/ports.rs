@@ -35,7 +35,8 @@ pub trait Sensing: Send {
     /// A frame has arrived, before the gate decides on its set: a pipeline that streams
     /// starts its work now, so that [`Sensing::process`] finds it done. Whatever is worked
     /// on ahead for a set the gate refuses must never come out of `process` (default:
-    /// nothing is done ahead).
+    /// nothing is done ahead). The frame that completes a set the gate emits at once is not
+    /// given here: `process`, which comes next, works on it.
     fn frame_arrived(&mut self, _frame: &ReceivedFrame) {}
     /// Gated sets still needed for the sensors' references (0 when they have them).
     fn reference_sets_missing(&self) -> usize;

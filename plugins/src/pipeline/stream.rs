@@ -6,8 +6,10 @@
 //! queues a frame and hands its work to the rayon pool; the result waits in the sensor's
 //! slot, keyed by the frame (its trigger sequence and its bytes). [`StreamingSensors::process`]
 //! is given the set the gate emitted: a sensor whose slot holds the result of that very
-//! frame takes it; one whose frame is queued or not yet seen is processed then (the sensors
-//! in parallel, as [`super::process_set`]). A result is only ever handed out for the frame
+//! frame takes it; one whose frame is queued or not yet seen is processed then: on the
+//! caller's thread when it is the only one (as a rule the set's last frame: no hand-off to
+//! the pool and back on the critical path), else the sensors in parallel, as
+//! [`super::process_set`]. A result is only ever handed out for the frame
 //! it was computed from, so the work done for a set the gate refused never reaches the
 //! caller: it is overwritten by the sensor's next frame, and dropped as soon as a newer set
 //! is processed.
@@ -66,6 +68,11 @@ impl Slot {
         let result = self.pipe.process(&key.jpeg, needs);
         self.last = Some(key.clone());
         self.done = Some((key, result));
+    }
+
+    /// Whether the result for `key` was worked on ahead and waits here.
+    fn ready(&self, key: &FrameKey) -> bool {
+        self.done.as_ref().is_some_and(|(k, _)| k == key)
     }
 
     /// The result for `key`: worked on ahead, or now.
@@ -200,15 +207,34 @@ impl StreamingSensors {
             let mut guards: Vec<MutexGuard<'_, Slot>> =
                 self.slots.iter().map(|s| lock(s)).collect();
             let mut slots: Vec<&mut Slot> = guards.iter_mut().map(|g| &mut **g).collect();
-            slots
-                .par_iter_mut()
-                .zip(frames.par_iter())
-                .zip(out.par_iter_mut())
-                .for_each(|((slot, frame), result)| {
-                    if let Some(key) = frame {
-                        *result = slot.result_for(key, needs);
-                    }
-                });
+            // What was not worked on ahead is worked on now: one frame (the set's last, as a
+            // rule) on this thread, with no hand-off to the pool and back; more in parallel.
+            let pending = slots
+                .iter()
+                .zip(frames)
+                .filter(|(slot, frame)| frame.as_ref().is_some_and(|key| !slot.ready(key)))
+                .count();
+            let work = |((slot, frame), result): (
+                (&mut &mut Slot, &Option<FrameKey>),
+                &mut Result<ContactSummary, PipelineError>,
+            )| {
+                if let Some(key) = frame {
+                    *result = slot.result_for(key, needs);
+                }
+            };
+            if pending <= 1 {
+                slots
+                    .iter_mut()
+                    .zip(frames)
+                    .zip(out.iter_mut())
+                    .for_each(work);
+            } else {
+                slots
+                    .par_iter_mut()
+                    .zip(frames.par_iter())
+                    .zip(out.par_iter_mut())
+                    .for_each(work);
+            }
         }
         // A frame that arrived for a later set while the locks were held is worked on now.
         for slot in &self.slots {
