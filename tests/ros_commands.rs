@@ -9,8 +9,10 @@
 //!   with one log line and the gripper unmoved; a cancel on the approach holds the fingers;
 //!   a second goal preempts the first (aborted, `preempted`) and grasps the ball with
 //!   feedback to `reached_goal`; an e-stop mid-squeeze holds at the minimum current;
-//! - servos allowed their stall current and a target no cap reaches: `stalled` (on the
-//!   virtual clock: the real clock's watchdog fires first on a busy machine);
+//! - servos allowed their stall current: first a goal whose `command.position` (3.0 rad of
+//!   opening) comes before the ball stops and holds there, succeeded with `reached_goal`
+//!   and `stalled` false; then a target no cap reaches: `stalled` (on the virtual clock: the
+//!   real clock's watchdog fires first on a busy machine);
 //! - `commands = false`: no command token, and nothing answers a goal.
 //!
 //! The interpreter comes from `GELGRIP_PYTHON`; `scripts/test` makes `target/pyenv`.
@@ -170,6 +172,48 @@ fn check_bad_input(s: &Value, log: &str) {
     assert_eq!(lines_with(log, "accepted as grasp 1:").len(), 1, "{log}");
 }
 
+/// A goal with `command.position` = 3.0 rad of opening, short of the ball (it touches at
+/// about 2.78 rad): it succeeds there with `reached_goal` and `stalled` false (docs/ros.md),
+/// the fingers holding at that opening (joints at pi - 3.0 rad), touching nothing.
+fn check_position(s: &Value, log: &str) {
+    const OPENING_RAD: f64 = 3.0;
+    // The stop is taken from the reports: allow a few sets' travel at 15 deg/s past it.
+    const PAST_RAD: f64 = 0.05;
+    let o = &s["position"];
+    assert_eq!(o["accept"]["accepted"], true, "{o}");
+    assert_eq!(o["result"]["status"], 4, "{o}");
+    let r = &o["result"]["result"];
+    assert_eq!(r["reached_goal"], false, "{o}");
+    assert_eq!(r["stalled"], false, "{o}");
+    let opening = r["position"].as_f64().expect("position");
+    assert!(
+        opening <= OPENING_RAD && opening > OPENING_RAD - PAST_RAD,
+        "stopped at the opening: {o}"
+    );
+    assert!(r["effort"].as_f64().is_some_and(|f| f < 0.1), "{o}");
+    assert_eq!(
+        lines_with(log, "Succeeded (at the commanded opening, no contact)").len(),
+        1,
+        "{log}"
+    );
+    let held = o["joints_after"].as_array().expect("joints after");
+    assert!(held.len() >= 5, "{o}");
+    let (first, last) = (positions(&held[0]), positions(&held[held.len() - 1]));
+    let joint = std::f64::consts::PI - OPENING_RAD;
+    let mean = first.iter().sum::<f64>() / first.len() as f64;
+    assert!(
+        mean > joint - 0.005 && mean < joint + PAST_RAD,
+        "at the opening: joints {first:?} (pi - {OPENING_RAD} = {joint})"
+    );
+    for (a, b) in first.iter().zip(&last) {
+        assert!(
+            (a - joint).abs() < 2.0 * PAST_RAD,
+            "at the opening: {a} rad"
+        );
+        assert!((a - b).abs() < 0.005, "held: {a} then {b}");
+    }
+}
+
 #[test]
 #[ignore = "needs the PyPI eclipse-zenoh and rosbags: run scripts/test"]
 fn ros_clients_command_the_gripper_through_the_grasp_api() {
@@ -257,8 +301,19 @@ fn ros_clients_command_the_gripper_through_the_grasp_api() {
     assert!((effort - 2.0).abs() < 0.2, "about 2 N per finger: {g}");
     let feedback = g["feedback"].as_array().expect("feedback");
     assert!(feedback.len() >= 5, "{g}");
+    // On the way: closing, the force rising from below half the target to it. How far the
+    // fingers travel varies: they start where the cancel case held them (on the virtual
+    // clock the cancel lands anywhere on the approach), since the `release` after it leaves
+    // stopped fingers where they are (GraspController::release skips the fingers a stop put
+    // in `Fault`; the client's `opened` is false).
     let opening = |f: &Value| f["position"].as_f64().expect("position");
-    assert!(opening(&feedback[0]) > opening(&feedback[feedback.len() - 1]) + 0.1);
+    let force = |f: &Value| f["effort"].as_f64().expect("effort");
+    let (first, last) = (&feedback[0], &feedback[feedback.len() - 1]);
+    assert!(opening(first) > opening(last), "closing: {g}");
+    assert!(
+        force(first) < 1.0 && force(last) > 1.8,
+        "the force rising: {g}"
+    );
 
     // E-stop mid-squeeze: the goal ends, every finger holds at the minimum current.
     let e = &s["estop"];
@@ -314,6 +369,7 @@ fn a_goal_no_current_cap_reaches_ends_stalled() {
         &["--clock", "virtual"],
     );
     let (s, log) = finish(cmd, run);
+    check_position(&s, &log);
     let r = &s["stall"];
     assert_eq!(r["accept"]["accepted"], true, "{r}");
     assert_eq!(r["result"]["status"], 6, "{r}");

@@ -283,6 +283,19 @@ def approaching(f):
     return f["position"] < 3.0
 
 
+def case_position(opening):
+    """A goal whose command.position (an opening, rad) comes before the ball (the fingers
+    start open at pi rad and touch it at about 2.78 rad): they stop and hold there, touching
+    nothing."""
+    gid = uuid.uuid4().bytes
+    o = {"accept": send_goal(gid, opening, 2.0)}
+    o["result"] = get_result(gid, timeout=15.0)
+    t = now()
+    time.sleep(0.6)
+    o["joints_after"] = [j["position"] for j in joints_since(t + 0.1)]
+    return o
+
+
 if scenario == "latency":
     # One goal after two seconds of steady running (docs/ros.md's latency figure).
     time.sleep(2.0)
@@ -291,6 +304,9 @@ if scenario == "latency":
     done(summary)
 
 if scenario == "stall":
+    # First a goal that stops short of the ball at its command.position (the stall goal
+    # then closes on from there).
+    summary["position"] = case_position(3.0)
     summary["stall"] = case_grasp(float(os.environ.get("STALL_EFFORT_N", "200.0")))
     done(summary)
 
