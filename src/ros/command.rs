@@ -375,6 +375,9 @@ impl Worker {
             write_seen: false,
             ended: None,
         });
+        // The new goal's first feedback comes with the next report, not 100 ms after the
+        // preempted goal's last one.
+        self.last_feedback = None;
         if self.goals.len() > GOALS_KEPT
             && let Some(i) = self.goals.iter().position(|g| g.status.is_terminal())
         {
