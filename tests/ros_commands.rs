@@ -284,6 +284,10 @@ fn ros_clients_command_the_gripper_through_the_grasp_api() {
     for (a, b) in first.iter().zip(&last) {
         assert!((a - b).abs() < 0.01, "held: {a} then {b}");
     }
+    // `release` after the cancel's hold opens the fingers (it once answered success and
+    // left them held).
+    assert_eq!(s["release_after_cancel"]["success"], true, "{s}");
+    assert_eq!(s["opened"], true, "the fingers open after the release: {s}");
 
     // A second goal preempts the first: aborted, reason preempted.
     let p = &s["preempt"];
@@ -301,11 +305,7 @@ fn ros_clients_command_the_gripper_through_the_grasp_api() {
     assert!((effort - 2.0).abs() < 0.2, "about 2 N per finger: {g}");
     let feedback = g["feedback"].as_array().expect("feedback");
     assert!(feedback.len() >= 5, "{g}");
-    // On the way: closing, the force rising from below half the target to it. How far the
-    // fingers travel varies: they start where the cancel case held them (on the virtual
-    // clock the cancel lands anywhere on the approach), since the `release` after it leaves
-    // stopped fingers where they are (GraspController::release skips the fingers a stop put
-    // in `Fault`; the client's `opened` is false).
+    // On the way: closing, the force rising from below half the target to it.
     let opening = |f: &Value| f["position"].as_f64().expect("position");
     let force = |f: &Value| f["effort"].as_f64().expect("effort");
     let (first, last) = (&feedback[0], &feedback[feedback.len() - 1]);

@@ -816,10 +816,11 @@ impl GraspController {
             .collect()
     }
 
-    /// Open every finger.
+    /// Open every finger, also one a stop or an e-stop holds: opening is the operator's
+    /// deliberate way out of a hold.
     pub fn release(&mut self) {
         for c in &mut self.fingers {
-            if c.active && c.phase != Phase::Fault {
+            if c.active {
                 c.phase = Phase::Release;
                 c.status = FingerStatus::Moving;
             }

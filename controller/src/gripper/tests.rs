@@ -110,10 +110,14 @@ fn stop_estop_and_release_take_effect_and_resolve_a_waiting_grasp() {
     }
     let outcome = pending.try_outcome().expect("resolved").expect("outcome");
     assert_eq!(outcome.reason, "estop");
-    // Release after the e-stop: the fingers go back open and stay open.
-    let (mut svc, handle) = service();
-    let _grasp = handle.start_grasp(request(2.0)).expect("valid");
-    let t = drive(&mut svc, &mut fingers, t, 3.0, |_, _| {});
+    // Release after the e-stop, on the same service: the fingers go back open and stay
+    // open (the e-stop's hold does not swallow the release).
+    let t = drive(&mut svc, &mut fingers, t, 1.0, |_, _| {});
+    assert!(
+        fingers.iter().all(|f| f.position_deg > 2.0),
+        "held closed until the release: {:?}",
+        fingers.iter().map(|f| f.position_deg).collect::<Vec<_>>()
+    );
     handle.release().expect("running");
     drive(&mut svc, &mut fingers, t, 6.0, |_, _| {});
     assert!(
