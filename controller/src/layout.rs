@@ -277,10 +277,19 @@ impl HandLayout {
         self.sensors.iter().position(|s| s.id.to_string() == id)
     }
 
+    /// Sensor ids, in hub-board order.
+    pub fn sensor_ids(&self) -> Vec<String> {
+        self.sensors.iter().map(|s| s.id.to_string()).collect()
+    }
+
+    /// Finger ids, in the servos' order.
+    pub fn finger_ids(&self) -> Vec<String> {
+        self.fingers.iter().map(|f| f.id.clone()).collect()
+    }
+
     /// Sensor ids, comma-separated (for error messages).
     pub fn id_list(&self) -> String {
-        let ids: Vec<String> = self.sensors.iter().map(|s| s.id.to_string()).collect();
-        ids.join(", ")
+        self.sensor_ids().join(", ")
     }
 }
 

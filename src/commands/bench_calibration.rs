@@ -115,12 +115,7 @@ pub fn run(args: BenchCalibrationArgs) -> anyhow::Result<u8> {
     let presses = args.presses as usize;
     let tmp =
         std::env::temp_dir().join(format!("gelgrip-bench-calibration-{}", std::process::id()));
-    let ids: Vec<String> = config
-        .layout
-        .sensors
-        .iter()
-        .map(|s| s.id.to_string())
-        .collect();
+    let ids = config.layout.sensor_ids();
     let mut datasets = Vec::new();
     for (i, id) in ids.iter().enumerate() {
         let (cam, sim) = simcam::camera(&config, id)?;

@@ -69,14 +69,8 @@ impl Dashboard {
     ) -> anyhow::Result<Self> {
         let has_control = control.is_some() && gripper.is_some();
         check_bind(bind, config.http.token.as_deref())?;
-        let ids: Vec<String> = config
-            .layout
-            .sensors
-            .iter()
-            .map(|s| s.id.to_string())
-            .collect();
-        let live = Live::new(ids);
-        let fingers: Vec<String> = config.layout.fingers.iter().map(|f| f.id.clone()).collect();
+        let live = Live::new(config.layout.sensor_ids());
+        let fingers = config.layout.finger_ids();
         let mut state = AppState::new(live.clone(), gripper, fingers);
         state.control = control;
         state.current_limit_ma = config.servos.current_limit_ma;

@@ -124,12 +124,7 @@ impl RunRecorder {
     ) -> anyhow::Result<Self> {
         let options = RecorderOptions::from_section(&config.record)?;
         let header = HeaderInfo {
-            sensors: config
-                .layout
-                .sensors
-                .iter()
-                .map(|s| s.id.to_string())
-                .collect(),
+            sensors: config.layout.sensor_ids(),
             transport: hub.transport.clone(),
             config: serde_json::to_string(&files)?,
             started_unix_ms: wall_ms(),

@@ -42,13 +42,8 @@ fn unix_now_us() -> i128 {
 impl RosPublisher {
     /// Open the link for `config`'s hand, publishing as `ros` says.
     pub fn start(config: &AppConfig, ros: &RosConfig, transport: String) -> anyhow::Result<Self> {
-        let ids: Vec<String> = config
-            .layout
-            .sensors
-            .iter()
-            .map(|s| s.id.to_string())
-            .collect();
-        let joints: Vec<String> = config.layout.fingers.iter().map(|f| f.id.clone()).collect();
+        let ids = config.layout.sensor_ids();
+        let joints = config.layout.finger_ids();
         let feed = Feed::new(ros, &ids, &joints)?;
         let link = LiveLink::start(ros, feed.topics().to_vec())?;
         tracing::info!(
