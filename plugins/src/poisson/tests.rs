@@ -136,3 +136,40 @@ fn f32_runtime_is_close_to_f64() {
         .fold(0.0, f64::max);
     assert!(err < 1e-3, "{err}");
 }
+
+/// [`RowDct`]'s paired rows against rustdct's one-row transforms, for every length from 1
+/// to 64 and the depth windows' sizes, with an odd and an even number of rows.
+#[test]
+fn paired_row_transforms_equal_rustdcts() {
+    let mut rng = Pcg64Mcg::seed_from_u64(7);
+    let mut planner = DctPlanner::<f64>::new();
+    let lengths = (1..=64).chain([112, 176, 192, 208, 240, 272, 304, 320]);
+    for n in lengths {
+        let reference = planner.plan_dct2(n);
+        let mut dct = RowDct::<f64>::new(n);
+        for rows in [1, 2, 3, 4] {
+            let x: Vec<f64> = (0..rows * n).map(|_| rng.random_range(-1.0..1.0)).collect();
+            for inverse in [false, true] {
+                let mut expected = x.clone();
+                for row in expected.chunks_exact_mut(n) {
+                    if inverse {
+                        reference.process_dct3(row);
+                    } else {
+                        reference.process_dct2(row);
+                    }
+                }
+                let mut got = x.clone();
+                if inverse {
+                    dct.dct3_rows(&mut got);
+                } else {
+                    dct.dct2_rows(&mut got);
+                }
+                let err = max_err(&got, &expected);
+                assert!(
+                    err < 1e-12 * n as f64,
+                    "length {n}, {rows} rows, inverse {inverse}: max error {err:e}"
+                );
+            }
+        }
+    }
+}
