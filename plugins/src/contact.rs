@@ -85,14 +85,17 @@ pub fn summarize(
 ) -> ContactSummary {
     let px_area = mm_per_px * mm_per_px;
     let (mut n, mut sum, mut max, mut cx, mut cy) = (0usize, 0.0f64, 0.0f64, 0.0f64, 0.0f64);
-    for (k, d) in depth_mm.iter().enumerate() {
-        if d.is_finite() && *d > noise.depth_threshold_mm {
-            let d = f64::from(*d);
-            n += 1;
-            sum += d;
-            max = max.max(d);
-            cx += (x0 + k % w) as f64 * d;
-            cy += (y0 + k / w) as f64 * d;
+    for (y, row) in depth_mm.chunks(w.max(1)).enumerate() {
+        let fy = (y0 + y) as f64;
+        for (x, d) in row.iter().enumerate() {
+            if d.is_finite() && *d > noise.depth_threshold_mm {
+                let d = f64::from(*d);
+                n += 1;
+                sum += d;
+                max = max.max(d);
+                cx += (x0 + x) as f64 * d;
+                cy += fy * d;
+            }
         }
     }
     if n < MIN_CONTACT_PX {

@@ -81,6 +81,7 @@ pub struct LutTrainer {
     counts: Vec<u32>,
 }
 
+#[inline]
 fn bin_of(v: f32, input: Input, bins: usize) -> usize {
     let unit = match input {
         Input::Diff => (v + 128.0) / 256.0,
@@ -90,6 +91,7 @@ fn bin_of(v: f32, input: Input, bins: usize) -> usize {
     b.clamp(0, bins as isize - 1) as usize
 }
 
+#[inline]
 fn index(rgb: [f32; 3], input: Input, bins: usize) -> usize {
     let [r, g, b] = rgb.map(|c| bin_of(c, input, bins));
     (r * bins + g) * bins + b
@@ -211,6 +213,7 @@ impl LutModel {
         })
     }
 
+    #[inline]
     fn shifted(&self, rgb: [f32; 3]) -> usize {
         let key = [
             rgb[0] + self.offset_rgb[0],

@@ -438,16 +438,28 @@ impl SensorPipeline {
         let s = self.choice.stages.decode_scale.max(1);
         match &self.choice.model {
             GradientModel::Lut(lut) => {
-                for y in 0..h {
-                    for x in 0..w {
-                        let (fx, fy) = (x0 + x, y0 + y);
-                        let [gx, gy] = if near(fx, fy) {
-                            lut.predict_at(key(fy * width + fx), fx * s, fy * s)
+                // Row by row, one block's run of pixels at a time: a run away from every
+                // active block is zero at once.
+                let rows = self.gx[..w * h]
+                    .chunks_exact_mut(w)
+                    .zip(self.gy[..w * h].chunks_exact_mut(w));
+                for (y, (gx_row, gy_row)) in rows.enumerate() {
+                    let fy = y0 + y;
+                    let mut x = 0;
+                    while x < w {
+                        let fx = x0 + x;
+                        let run = (BLOCK_PX - fx % BLOCK_PX).min(w - x);
+                        let (gx_run, gy_run) = (&mut gx_row[x..x + run], &mut gy_row[x..x + run]);
+                        if near(fx, fy) {
+                            for (k, (gx, gy)) in gx_run.iter_mut().zip(gy_run).enumerate() {
+                                let p = fy * width + fx + k;
+                                [*gx, *gy] = lut.predict_at(key(p), (fx + k) * s, fy * s);
+                            }
                         } else {
-                            [0.0, 0.0]
-                        };
-                        self.gx[y * w + x] = gx;
-                        self.gy[y * w + x] = gy;
+                            gx_run.fill(0.0);
+                            gy_run.fill(0.0);
+                        }
+                        x += run;
                     }
                 }
             }
