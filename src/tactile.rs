@@ -45,8 +45,26 @@ const CALIBRATION_PRESSES: usize = 50;
 /// alone, the LUT read broad contacts 20–30% low).
 const CALIBRATION_BALLS_MM: [f64; 2] = [6.0, 25.0];
 /// Version of the self-calibration recipe; raise it when the recipe changes so cached
-/// models from an older one are not reused.
-const CALIBRATION_VERSION: u32 = 4;
+/// models from an older one are not reused (5: the key chosen by [`calibration_input`]).
+const CALIBRATION_VERSION: u32 = 5;
+
+/// The self-calibrated LUT's key, chosen on its presses' measured pixel noise:
+/// - `relative` at ordinary noise, so that the cameras' vignetting (10–22% darker at the
+///   middle of a side, up to a third at the corners) does not read a contact at the pad's
+///   edge 10–20% shallower than at its centre (docs/control.md, "Against ground truth");
+/// - `diff` for presses noisy enough to be read through a blur
+///   ([`calibrate::BLUR_ABOVE_NOISE`]): undoing the vignetting also scales up the noise
+///   where the pad is darker, and at 5× the nominal noise a finger's force read with the
+///   relative key scattered 2.5× as much (σ 0.18 against 0.07 N over a hold), enough to
+///   move a steady hold; there the difference key's bias is the lesser error.
+fn calibration_input(datasets: &[&PressDataset]) -> anyhow::Result<Input> {
+    let noise = calibrate::pixel_noise(datasets)?;
+    Ok(if noise > calibrate::BLUR_ABOVE_NOISE {
+        Input::Diff
+    } else {
+        Input::Relative
+    })
+}
 /// No-contact frames averaged into each sensor's reference.
 const REFERENCE_FRAMES: u64 = 12;
 
@@ -324,7 +342,13 @@ fn sensor_model(
         datasets.push(simcam::collect(cam, &balls, presses, &tmp, |_| {})?);
     }
     let refs: Vec<&PressDataset> = datasets.iter().collect();
-    let model = calibrate::train_lut_on(&refs, Input::Diff, gelgrip_plugins::lut::DEFAULT_BINS);
+    let model = calibration_input(&refs).and_then(|input| {
+        Ok(calibrate::train_lut_on(
+            &refs,
+            input,
+            gelgrip_plugins::lut::DEFAULT_BINS,
+        )?)
+    });
     // The images are read while training; the temporary datasets go afterwards.
     for ds in &datasets {
         let _ = std::fs::remove_dir_all(&ds.dir);

@@ -5,7 +5,7 @@ use std::path::Path;
 use std::sync::Arc;
 
 use crate::image::RgbImage;
-use crate::lut::{Input, LutModel};
+use crate::lut::{Input, LutModel, relative_key};
 use crate::mlp::{INPUTS, MlpError, MlpModel, MlpNet};
 use crate::model_file::ModelFile;
 
@@ -164,6 +164,9 @@ pub fn frame_key(img: &RgbImage, background: &RgbImage, p: usize, input: Input) 
     let v = |c: usize| f32::from(img.data[p * 3 + c]);
     match input {
         Input::Diff => [0, 1, 2].map(|c| v(c) - f32::from(background.data[p * 3 + c])),
+        Input::Relative => {
+            [0, 1, 2].map(|c| relative_key(v(c), f32::from(background.data[p * 3 + c])))
+        }
         Input::Raw => [v(0), v(1), v(2)],
     }
 }
@@ -171,7 +174,7 @@ pub fn frame_key(img: &RgbImage, background: &RgbImage, p: usize, input: Input) 
 /// The key a pixel has when nothing touches it: zero difference, or the background colour.
 pub fn background_key(background: &RgbImage, p: usize, input: Input) -> [f32; 3] {
     match input {
-        Input::Diff => [0.0; 3],
+        Input::Diff | Input::Relative => [0.0; 3],
         Input::Raw => [0, 1, 2].map(|c| f32::from(background.data[p * 3 + c])),
     }
 }

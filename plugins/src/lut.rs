@@ -1,6 +1,7 @@
 //! Gradient model `lut`: binned colour → mean (Gx, Gy), the classic GelSight baseline.
 //!
-//! The key is the difference colour (frame − reference, each channel in −128…127) or, with
+//! The key is the difference colour (frame − reference, each channel in −128…127), with
+//! `input = relative` that difference relative to the reference ([`relative_key`]), or, with
 //! `input = raw`, the raw colour (0…255), cut into `bins` bins per channel. Training
 //! averages the labelled gradients that fall in each bin. Empty bins take the value of the
 //! nearest filled bin (multi-source breadth-first fill over the 6-neighbour grid), so every
@@ -18,29 +19,63 @@ use crate::model_file::{self, ModelFile, ModelFileError};
 /// What the model's colour key is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Input {
-    /// Frame minus reference.
+    /// Frame minus reference, grey levels.
     Diff,
+    /// Frame minus reference relative to the reference ([`relative_key`]): a gain that
+    /// varies across the pad (vignetting, LED falloff) scales frame and reference alike
+    /// and cancels, so one table reads a slope the same at the centre and at the edge.
+    Relative,
     /// The raw frame.
     Raw,
 }
 
 impl Input {
-    /// `diff` or `raw`.
+    /// The names a model file's `input` takes.
+    pub const NAMES: [&'static str; 3] = ["diff", "relative", "raw"];
+
+    /// `diff`, `relative` or `raw`.
     pub fn as_str(self) -> &'static str {
         match self {
             Input::Diff => "diff",
+            Input::Relative => "relative",
             Input::Raw => "raw",
         }
     }
 
-    /// Parse `diff` or `raw`.
+    /// Parse `diff`, `relative` or `raw`.
     pub fn parse(s: &str) -> Option<Self> {
         match s {
             "diff" => Some(Input::Diff),
+            "relative" => Some(Input::Relative),
             "raw" => Some(Input::Raw),
             _ => None,
         }
     }
+
+    /// Whether the key is a difference from the reference (zero where nothing touches),
+    /// as opposed to a raw colour.
+    pub fn is_difference(self) -> bool {
+        self != Input::Raw
+    }
+}
+
+/// Grey level a reference channel is taken as at least, in [`relative_key`]: a channel
+/// darker than that (a black or failed LED) would turn its noise into large keys.
+pub const RELATIVE_FLOOR: f32 = 16.0;
+
+/// The `relative` key of one channel: `(frame − reference) · 128 / max(reference,`
+/// [`RELATIVE_FLOOR`]`)`, the difference as a share of the reference, in units of a
+/// mid-grey reference's grey levels (so its range and binning are the difference's).
+#[inline]
+pub fn relative_key(frame: f32, reference: f32) -> f32 {
+    (frame - reference) * relative_gain(reference)
+}
+
+/// [`relative_key`]'s multiplier for a reference value: `128 / max(reference,`
+/// [`RELATIVE_FLOOR`]`)` (a pipeline keeps it per pixel, so a key costs no division).
+#[inline]
+pub fn relative_gain(reference: f32) -> f32 {
+    128.0 / reference.max(RELATIVE_FLOOR)
 }
 
 /// Default bins per channel: 4 grey levels per bin of the difference.
@@ -84,7 +119,7 @@ pub struct LutTrainer {
 #[inline]
 fn bin_of(v: f32, input: Input, bins: usize) -> usize {
     let unit = match input {
-        Input::Diff => (v + 128.0) / 256.0,
+        Input::Diff | Input::Relative => (v + 128.0) / 256.0,
         Input::Raw => v / 256.0,
     };
     let b = (unit * bins as f32) as isize; // NaN → 0
@@ -174,7 +209,7 @@ impl LutTrainer {
 pub fn bin_centre(i: usize, input: Input, bins: usize) -> f32 {
     let unit = (i as f32 + 0.5) / bins as f32;
     match input {
-        Input::Diff => unit * 256.0 - 128.0,
+        Input::Diff | Input::Relative => unit * 256.0 - 128.0,
         Input::Raw => unit * 256.0,
     }
 }
@@ -288,7 +323,7 @@ impl LutModel {
         let p = p.to_string();
         file.expect_key(&p, "kind", &["lut"])?;
         let input =
-            Input::parse(file.expect_key(&p, "input", &["diff", "raw"])?).unwrap_or(Input::Diff);
+            Input::parse(file.expect_key(&p, "input", &Input::NAMES)?).unwrap_or(Input::Diff);
         let num = |key: &str| -> Result<usize, ModelFileError> {
             let v = file.expect_key(&p, key, &[])?;
             v.parse().map_err(|_| ModelFileError::Metadata {

@@ -17,7 +17,7 @@ use crate::config::SensorStages;
 use crate::contact::{self, BLOCK_PX, ContactSummary, NoiseModel};
 use crate::decode::{DecodeError, JpegStage};
 use crate::gradient::{GradientModel, MlpMode};
-use crate::lut::Input;
+use crate::lut::{Input, relative_gain};
 use crate::mlp::INPUTS;
 use crate::poisson::{PoissonPlan, Solver};
 use crate::undistort::Remap;
@@ -124,6 +124,9 @@ pub struct SensorPipeline {
     rgb: Vec<u8>,
     rgb_undistorted: Vec<u8>,
     reference: Option<Vec<f32>>,
+    /// `input = relative` only: each reference value's [`relative_gain`], so that a key
+    /// costs no division.
+    reference_gain: Vec<f32>,
     blocks: Vec<f32>,
     /// Blocks within one block of an active block: gradients outside them are set to 0.
     near_active: Vec<bool>,
@@ -180,6 +183,7 @@ impl SensorPipeline {
             rgb: vec![0; w * h * 3],
             rgb_undistorted: vec![0; w * h * 3],
             reference: None,
+            reference_gain: Vec::new(),
             blocks: vec![0.0; bw * bh],
             near_active: vec![true; bw * bh],
             gx: vec![0.0; w * h],
@@ -270,6 +274,7 @@ impl SensorPipeline {
         let n = no_contact.len().max(1) as f32;
         sum.iter_mut().for_each(|s| *s /= n);
         self.reference = Some(sum);
+        self.refresh_reference_gain();
         self.predict_background()?;
         let mut pixel_activity = Vec::new();
         let (mut activity, mut depth) = (Vec::new(), Vec::new());
@@ -317,7 +322,7 @@ impl SensorPipeline {
         let mut f = Vec::with_capacity(w * h * INPUTS);
         for p in 0..w * h {
             let key = match model.input {
-                Input::Diff => [0.0; 3],
+                Input::Diff | Input::Relative => [0.0; 3],
                 Input::Raw => [reference[p * 3], reference[p * 3 + 1], reference[p * 3 + 2]],
             };
             f.extend_from_slice(&model.features(key, (p % w) * s, (p / w) * s));
@@ -431,6 +436,10 @@ impl SensorPipeline {
         let input = self.choice.model.input();
         let key = |p: usize| match input {
             Input::Diff => [0, 1, 2].map(|c| f32::from(self.rgb[p * 3 + c]) - reference[p * 3 + c]),
+            Input::Relative => [0, 1, 2].map(|c| {
+                let i = p * 3 + c;
+                (f32::from(self.rgb[i]) - reference[i]) * self.reference_gain[i]
+            }),
             Input::Raw => [0, 1, 2].map(|c| f32::from(self.rgb[p * 3 + c])),
         };
         let near = |x: usize, y: usize| self.near_active[(y / BLOCK_PX) * bw + x / BLOCK_PX];
@@ -628,6 +637,17 @@ impl SensorPipeline {
             for (r, v) in reference.iter_mut().zip(&self.rgb) {
                 *r += a * (f32::from(*v) - *r);
             }
+        }
+        self.refresh_reference_gain();
+    }
+
+    /// [`relative_gain`] of every reference value (`input = relative` only).
+    fn refresh_reference_gain(&mut self) {
+        self.reference_gain.clear();
+        if let (Input::Relative, Some(reference)) = (self.choice.model.input(), &self.reference) {
+            // relative_key(f, r) = (f − r) · relative_gain(r): the same key, bit for bit.
+            self.reference_gain
+                .extend(reference.iter().map(|r| relative_gain(*r)));
         }
     }
 

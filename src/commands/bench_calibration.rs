@@ -184,7 +184,7 @@ pub fn run(args: BenchCalibrationArgs) -> anyhow::Result<u8> {
                 if fit == Fit::Offset {
                     match source.input {
                         Input::Raw => off_raw = Some(r.offset_rgb),
-                        Input::Diff => off_diff = Some(r.offset_rgb),
+                        Input::Diff | Input::Relative => off_diff = Some(r.offset_rgb),
                     }
                 }
                 models.push(GradientModel::mlp(m, MlpMode::Dense)?);

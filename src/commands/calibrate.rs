@@ -122,11 +122,8 @@ struct ValidationJson {
 }
 
 fn train(args: TrainArgs) -> anyhow::Result<u8> {
-    let input = if args.input == "raw" {
-        Input::Raw
-    } else {
-        Input::Diff
-    };
+    // clap allows only the names Input parses.
+    let input = Input::parse(&args.input).unwrap_or(Input::Diff);
     let ds = PressDataset::load(&args.data)?;
     let split = calibrate::split_index(ds.presses.len());
     // MLP: rows trained on, and the validation rows with the curve's summary.
@@ -534,8 +531,10 @@ pub struct TrainArgs {
     /// Model kind.
     #[arg(long, value_enum, default_value = "lut")]
     pub model: ModelKind,
-    /// Colour key: the difference image or the raw frame.
-    #[arg(long, default_value = "diff", value_parser = ["diff", "raw"])]
+    /// Colour key: the difference image (`diff`), the difference relative to the
+    /// background (`relative`: a gain varying across the pad, vignetting or LED falloff,
+    /// cancels) or the raw frame.
+    #[arg(long, default_value = "diff", value_parser = Input::NAMES)]
     pub input: String,
     /// LUT bins per channel.
     #[arg(long, default_value = "64", value_parser = clap::value_parser!(u16).range(2..=256))]

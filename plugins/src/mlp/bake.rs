@@ -8,7 +8,7 @@
 //! colour at each pixel, which a colour table cannot know.
 
 use super::{INPUTS, MlpError, MlpModel};
-use crate::lut::{Input, LutModel, bin_centre, tile_centre};
+use crate::lut::{LutModel, bin_centre, tile_centre};
 
 /// Bake settings.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -33,10 +33,11 @@ const ROWS: usize = 64 * 1024;
 
 /// Bake `model` (a difference-input MLP) into a LUT.
 pub fn bake(model: &MlpModel, opts: BakeOptions) -> Result<LutModel, MlpError> {
-    if model.input != Input::Diff {
+    if !model.input.is_difference() {
         return Err(MlpError::NoData(
-            "only a difference-input (`input = diff`) MLP can be baked into a LUT: a raw-input \
-             model subtracts each pixel's background colour, which a colour table cannot know"
+            "only a difference-input (`input = diff` or `relative`) MLP can be baked into a \
+             LUT: a raw-input model subtracts each pixel's background colour, which a colour \
+             table cannot know"
                 .into(),
         ));
     }
@@ -61,7 +62,7 @@ pub fn bake(model: &MlpModel, opts: BakeOptions) -> Result<LutModel, MlpError> {
             };
             for i in 0..cube {
                 let (r, g, b) = (i / (bins * bins), (i / bins) % bins, i % bins);
-                let rgb = [r, g, b].map(|c| bin_centre(c, Input::Diff, bins));
+                let rgb = [r, g, b].map(|c| bin_centre(c, model.input, bins));
                 features.extend_from_slice(&model.features(rgb, x, y));
                 if features.len() == ROWS * INPUTS {
                     flush(&mut features, &mut table)?;
@@ -71,7 +72,7 @@ pub fn bake(model: &MlpModel, opts: BakeOptions) -> Result<LutModel, MlpError> {
         }
     }
     LutModel::from_table(
-        Input::Diff,
+        model.input,
         bins,
         (model.width, model.height),
         [tx, ty],

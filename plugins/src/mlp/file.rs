@@ -43,7 +43,7 @@ impl MlpModel {
     pub fn from_file(file: &ModelFile, p: &str) -> Result<Self, ModelFileError> {
         file.expect_key(p, "kind", &["mlp"])?;
         let input =
-            Input::parse(file.expect_key(p, "input", &["diff", "raw"])?).unwrap_or(Input::Diff);
+            Input::parse(file.expect_key(p, "input", &Input::NAMES)?).unwrap_or(Input::Diff);
         let num = |key: &str| -> Result<usize, ModelFileError> {
             let v = file.expect_key(p, key, &[])?;
             v.parse()

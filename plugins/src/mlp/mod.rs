@@ -88,7 +88,7 @@ impl MlpModel {
     #[inline]
     pub fn features(&self, rgb: [f32; 3], x: usize, y: usize) -> [f32; INPUTS] {
         let centre = match self.input {
-            Input::Diff => 0.0,
+            Input::Diff | Input::Relative => 0.0,
             Input::Raw => 128.0,
         };
         let k = |c: usize| {

@@ -98,7 +98,7 @@ pub fn transfer(
     let n = press.keys.len();
     let dev = Device::Cpu;
     let centre = match model.input {
-        Input::Diff => 0.0,
+        Input::Diff | Input::Relative => 0.0,
         Input::Raw => 128.0,
     };
     let scaled = |keys: &[[f32; 3]]| -> candle_core::Result<Tensor> {

@@ -144,3 +144,89 @@ fn reference_never_drifts_during_contact() {
         assert!(s.in_contact, "contact faded: the reference absorbed it");
     }
 }
+
+/// A LUT whose key maps linearly to gx: red up, green down (0.01 per 5 key units).
+fn ridge_lut(input: Input) -> Arc<LutModel> {
+    let mut t = LutTrainer::new(input, 64);
+    for k in 0..=16 {
+        t.add([5.0 * k as f32, 0.0, 0.0], 0.01 * k as f32, 0.0);
+        t.add([0.0, 5.0 * k as f32, 0.0], -0.01 * k as f32, 0.0);
+    }
+    Arc::new(t.finish(160, 96))
+}
+
+/// The volume a press reads: a ridge 16 px square, its left half 40 grey levels redder
+/// (rising along x) and its right half 40 greener (falling), 4 px from the right edge of
+/// a pad darkened by lens vignetting `v` (`1 − v·r²`, r = 1 at the corners) in both the
+/// frame and the reference, as a camera's lens does.
+fn vignetted_press_volume(input: Input, v: f64) -> f64 {
+    let (w, h, x0) = (160, 96, 140);
+    let vignette = |x: usize, y: usize| {
+        let (dx, dy) = (x as f64 / 80.0 - 1.0, y as f64 / 80.0 - 0.6);
+        1.0 - v * (dx * dx + dy * dy) / 1.36
+    };
+    let image = |press: bool| -> Vec<u8> {
+        (0..w * h * 3)
+            .map(|k| {
+                let (x, y, c) = ((k / 3) % w, (k / 3) / w, k % 3);
+                let inside = press && (x0..x0 + 16).contains(&x) && (40..56).contains(&y);
+                let lit = if x < x0 + 8 { 0 } else { 1 };
+                let base = 150.0 + if inside && c == lit { 40.0 } else { 0.0 };
+                (base * vignette(x, y)).round() as u8
+            })
+            .collect()
+    };
+    let choice = StageChoice {
+        stages: SensorStages {
+            decode_scale: 1,
+            undistort: None,
+            reference_alpha: 0.0,
+            model: None,
+            mlp: None,
+            solver: Some(Solver::Dct),
+            stiffness_n_per_mm3: 0.08,
+        },
+        model: GradientModel::Lut(ridge_lut(input)),
+    };
+    let mut p = SensorPipeline::new(choice, w, h, 0.05);
+    let flat = image(false);
+    p.calibrate_rgb(&[&flat, &flat]).expect("calibrates");
+    let s = p
+        .process_rgb(&image(true), Needs::DEPTH)
+        .expect("processes");
+    s.volume_mm3.expect("depth was asked for")
+}
+
+#[test]
+fn a_relative_key_reads_a_press_at_the_vignetted_edge_as_without_vignetting() {
+    // The press sits where vignetting of 0.35 darkens the pad by about a fifth.
+    let ratio = |input| vignetted_press_volume(input, 0.35) / vignetted_press_volume(input, 0.0);
+    let relative = ratio(Input::Relative);
+    let diff = ratio(Input::Diff);
+    assert!(
+        (relative - 1.0).abs() < 0.03,
+        "relative key: volume with vignetting over without {relative:.3}"
+    );
+    // The difference key reads the darker pad's smaller difference as a shallower slope.
+    assert!(
+        diff < 0.9,
+        "difference key: volume with vignetting over without {diff:.3}"
+    );
+}
+
+#[test]
+fn a_relative_key_is_the_difference_as_a_share_of_the_reference() {
+    use crate::lut::{RELATIVE_FLOOR, relative_key};
+    // A gain on frame and reference alike cancels.
+    assert_eq!(relative_key(190.0, 150.0), relative_key(95.0, 75.0));
+    assert!((relative_key(160.0, 128.0) - 32.0).abs() < 1e-6);
+    // A black reference channel does not blow its noise up.
+    assert_eq!(relative_key(3.0, 0.0), 3.0 * 128.0 / RELATIVE_FLOOR);
+    for (f, r) in [(255.0, 0.0), (0.0, 255.0), (f32::NAN, 10.0)] {
+        let k = relative_key(f, r);
+        assert!(
+            k.is_nan() || k.abs() <= 128.0 * 255.0 / RELATIVE_FLOOR,
+            "{k}"
+        );
+    }
+}
