@@ -756,15 +756,25 @@ fn interior_border_mean(
     (x0, y0, w, h): (usize, usize, usize, usize),
     (width, height): (usize, usize),
 ) -> Option<f32> {
-    let sides = [x0 > 0, x0 + w < width, y0 > 0, y0 + h < height];
+    let [left, right, top, bottom] = [x0 > 0, x0 + w < width, y0 > 0, y0 + h < height];
     let (mut sum, mut n) = (0.0f64, 0usize);
-    for y in 0..h {
-        for x in 0..w {
-            let on = [x == 0, x + 1 == w, y == 0, y + 1 == h];
-            if on.iter().zip(&sides).any(|(o, s)| *o && *s) {
-                sum += f64::from(d[y * w + x]);
-                n += 1;
+    // Only the border is visited, in row-major order (the sum is that of every pixel on an
+    // inside side, each once).
+    for (y, row) in d.chunks_exact(w.max(1)).take(h).enumerate() {
+        if (y == 0 && top) || (y + 1 == h && bottom) {
+            for v in row {
+                sum += f64::from(*v);
             }
+            n += row.len();
+            continue;
+        }
+        if left || (right && w == 1) {
+            sum += f64::from(row[0]);
+            n += 1;
+        }
+        if right && w > 1 {
+            sum += f64::from(row[w - 1]);
+            n += 1;
         }
     }
     (n > 0).then(|| (sum / n as f64) as f32)
