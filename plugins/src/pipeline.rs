@@ -128,6 +128,8 @@ pub struct SensorPipeline {
     /// costs no division.
     reference_gain: Vec<f32>,
     blocks: Vec<f32>,
+    /// Working space of the block activity: one band of blocks' sums per channel.
+    block_sums: Vec<[f32; 3]>,
     /// Blocks within one block of an active block: gradients outside them are set to 0.
     near_active: Vec<bool>,
     gx: Vec<f32>,
@@ -185,6 +187,7 @@ impl SensorPipeline {
             reference: None,
             reference_gain: Vec::new(),
             blocks: vec![0.0; bw * bh],
+            block_sums: Vec::with_capacity(bw),
             near_active: vec![true; bw * bh],
             gx: vec![0.0; w * h],
             gy: vec![0.0; w * h],
@@ -349,21 +352,29 @@ impl SensorPipeline {
         let Some(reference) = &self.reference else {
             return;
         };
+        // A band of blocks at a time, row by row: each block's sums take its pixels in the
+        // same order as block by block (rows, then columns), but the band's blocks
+        // accumulate side by side instead of one long chain of additions after another.
+        let sums = &mut self.block_sums;
+        sums.resize(bw, [0.0; 3]);
         for by in 0..h.div_ceil(BLOCK_PX) {
-            for bx in 0..bw {
-                let mut sum = [0.0f32; 3];
-                let (xs, xe) = (bx * BLOCK_PX, ((bx + 1) * BLOCK_PX).min(w));
-                let ys = by * BLOCK_PX..((by + 1) * BLOCK_PX).min(h);
-                let n = ((xe - xs) * ys.len()) as f32;
-                for y in ys {
-                    let row = &self.rgb[(y * w + xs) * 3..(y * w + xe) * 3];
-                    let refs = &reference[(y * w + xs) * 3..(y * w + xe) * 3];
-                    for (px, rf) in row.chunks_exact(3).zip(refs.chunks_exact(3)) {
+            sums.fill([0.0; 3]);
+            let ys = by * BLOCK_PX..((by + 1) * BLOCK_PX).min(h);
+            for y in ys.clone() {
+                let row = &self.rgb[y * w * 3..(y + 1) * w * 3];
+                let refs = &reference[y * w * 3..(y + 1) * w * 3];
+                let runs = row.chunks(BLOCK_PX * 3).zip(refs.chunks(BLOCK_PX * 3));
+                for (sum, (run, run_refs)) in sums.iter_mut().zip(runs) {
+                    for (px, rf) in run.chunks_exact(3).zip(run_refs.chunks_exact(3)) {
                         sum[0] += f32::from(px[0]) - rf[0];
                         sum[1] += f32::from(px[1]) - rf[1];
                         sum[2] += f32::from(px[2]) - rf[2];
                     }
                 }
+            }
+            for (bx, sum) in sums.iter().enumerate() {
+                let xe = ((bx + 1) * BLOCK_PX).min(w);
+                let n = ((xe - bx * BLOCK_PX) * ys.len()) as f32;
                 self.blocks[by * bw + bx] = sum.iter().map(|s| (s / n.max(1.0)).abs()).sum();
             }
         }
