@@ -48,6 +48,9 @@ const CALIBRATION_BALLS_MM: [f64; 2] = [6.0, 25.0];
 /// models from an older one are not reused (5: the key chosen by [`calibration_input`]).
 const CALIBRATION_VERSION: u32 = 5;
 
+/// No-contact frames averaged into each sensor's reference.
+const REFERENCE_FRAMES: u64 = 12;
+
 /// The self-calibrated LUT's key, chosen on its presses' measured pixel noise:
 /// - `relative` at ordinary noise, so that the cameras' vignetting (10–22% darker at the
 ///   middle of a side, up to a third at the corners) does not read a contact at the pad's
@@ -65,8 +68,6 @@ fn calibration_input(datasets: &[&PressDataset]) -> anyhow::Result<Input> {
         Input::Relative
     })
 }
-/// No-contact frames averaged into each sensor's reference.
-const REFERENCE_FRAMES: u64 = 12;
 
 /// Where automatic calibrations are cached: `$GELGRIP_CACHE_DIR`, else
 /// `$XDG_CACHE_HOME/gelgrip`, else `~/.cache/gelgrip`, else the system temp dir.

@@ -57,6 +57,12 @@ impl Input {
     pub fn is_difference(self) -> bool {
         self != Input::Raw
     }
+
+    /// The key of an untouched, mid-grey pixel: 0 for a difference, 128 for a raw colour
+    /// (what a network's inputs are centred on).
+    pub fn centre(self) -> f32 {
+        if self.is_difference() { 0.0 } else { 128.0 }
+    }
 }
 
 /// Grey level a reference channel is taken as at least, in [`relative_key`]: a channel

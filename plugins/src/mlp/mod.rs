@@ -87,10 +87,7 @@ impl MlpModel {
     /// The network input for key colour `rgb` at pixel `(x, y)`.
     #[inline]
     pub fn features(&self, rgb: [f32; 3], x: usize, y: usize) -> [f32; INPUTS] {
-        let centre = match self.input {
-            Input::Diff | Input::Relative => 0.0,
-            Input::Raw => 128.0,
-        };
+        let centre = self.input.centre();
         let k = |c: usize| {
             let v = rgb[c] * self.gain_rgb[c] + self.offset_rgb[c];
             // A NaN key (never from u8 frames) must not reach the network.

@@ -15,7 +15,6 @@ use candle_nn::{AdamW, Optimizer, ParamsAdamW};
 
 use super::net::FastTanh;
 use super::{KEY_SCALE, MlpError, MlpModel};
-use crate::lut::Input;
 
 /// What the transfer fits.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -97,10 +96,7 @@ pub fn transfer(
     let press = &press;
     let n = press.keys.len();
     let dev = Device::Cpu;
-    let centre = match model.input {
-        Input::Diff | Input::Relative => 0.0,
-        Input::Raw => 128.0,
-    };
+    let centre = model.input.centre();
     let scaled = |keys: &[[f32; 3]]| -> candle_core::Result<Tensor> {
         let v: Vec<f32> = keys.iter().flat_map(|k| k.map(|c| c / KEY_SCALE)).collect();
         Tensor::from_vec(v, (n, 3), &dev)
