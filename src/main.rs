@@ -29,6 +29,11 @@ fn exit_code_for(err: &anyhow::Error) -> u8 {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     init_logging();
+    // One pool worker per CPU, each on its own: the last frame's halves start at once.
+    match gelgrip_plugins::halves::pin_global_pool() {
+        Ok(cpus) => tracing::debug!(?cpus, "pool workers pinned"),
+        Err(e) => tracing::warn!(error = %e, "pool workers not pinned"),
+    }
     let runtime = match tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()

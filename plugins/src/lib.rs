@@ -13,6 +13,7 @@ pub mod contact;
 pub mod dataset;
 pub mod decode;
 pub mod gradient;
+pub mod halves;
 pub mod image;
 pub mod lut;
 pub mod mlp;

@@ -17,6 +17,7 @@ use crate::config::SensorStages;
 use crate::contact::{self, BLOCK_PX, ContactSummary, NoiseModel};
 use crate::decode::{DecodeError, JpegStage};
 use crate::gradient::{GradientModel, MlpMode};
+use crate::halves::{first_half, run_halves, worth_splitting};
 use crate::lut::{Input, relative_gain};
 use crate::mlp::INPUTS;
 use crate::poisson::{PoissonPlan, Solver};
@@ -128,8 +129,9 @@ pub struct SensorPipeline {
     /// costs no division.
     reference_gain: Vec<f32>,
     blocks: Vec<f32>,
-    /// Working space of the block activity: one band of blocks' sums per channel.
-    block_sums: Vec<[f32; 3]>,
+    /// Working space of the block activity, per half (`halves`): one band of blocks' sums
+    /// per channel.
+    block_sums: [Vec<[f32; 3]>; 2],
     /// Blocks within one block of an active block: gradients outside them are set to 0.
     near_active: Vec<bool>,
     gx: Vec<f32>,
@@ -187,7 +189,7 @@ impl SensorPipeline {
             reference: None,
             reference_gain: Vec::new(),
             blocks: vec![0.0; bw * bh],
-            block_sums: Vec::with_capacity(bw),
+            block_sums: [Vec::with_capacity(bw), Vec::with_capacity(bw)],
             near_active: vec![true; bw * bh],
             gx: vec![0.0; w * h],
             gy: vec![0.0; w * h],
@@ -355,29 +357,42 @@ impl SensorPipeline {
         // A band of blocks at a time, row by row: each block's sums take its pixels in the
         // same order as block by block (rows, then columns), but the band's blocks
         // accumulate side by side instead of one long chain of additions after another.
-        let sums = &mut self.block_sums;
-        sums.resize(bw, [0.0; 3]);
-        for by in 0..h.div_ceil(BLOCK_PX) {
-            sums.fill([0.0; 3]);
-            let ys = by * BLOCK_PX..((by + 1) * BLOCK_PX).min(h);
-            for y in ys.clone() {
-                let row = &self.rgb[y * w * 3..(y + 1) * w * 3];
-                let refs = &reference[y * w * 3..(y + 1) * w * 3];
-                let runs = row.chunks(BLOCK_PX * 3).zip(refs.chunks(BLOCK_PX * 3));
-                for (sum, (run, run_refs)) in sums.iter_mut().zip(runs) {
-                    for (px, rf) in run.chunks_exact(3).zip(run_refs.chunks_exact(3)) {
-                        sum[0] += f32::from(px[0]) - rf[0];
-                        sum[1] += f32::from(px[1]) - rf[1];
-                        sum[2] += f32::from(px[2]) - rf[2];
+        // The bands in two halves (`halves`).
+        let rgb = &self.rgb;
+        let bands_from = |first: usize, blocks: &mut [f32], sums: &mut Vec<[f32; 3]>| {
+            sums.resize(bw, [0.0; 3]);
+            for (by, band) in (first..).zip(blocks.chunks_exact_mut(bw)) {
+                sums.fill([0.0; 3]);
+                let ys = by * BLOCK_PX..((by + 1) * BLOCK_PX).min(h);
+                for y in ys.clone() {
+                    let row = &rgb[y * w * 3..(y + 1) * w * 3];
+                    let refs = &reference[y * w * 3..(y + 1) * w * 3];
+                    let runs = row.chunks(BLOCK_PX * 3).zip(refs.chunks(BLOCK_PX * 3));
+                    for (sum, (run, run_refs)) in sums.iter_mut().zip(runs) {
+                        for (px, rf) in run.chunks_exact(3).zip(run_refs.chunks_exact(3)) {
+                            sum[0] += f32::from(px[0]) - rf[0];
+                            sum[1] += f32::from(px[1]) - rf[1];
+                            sum[2] += f32::from(px[2]) - rf[2];
+                        }
                     }
                 }
+                for (bx, (sum, block)) in sums.iter().zip(band.iter_mut()).enumerate() {
+                    let xe = ((bx + 1) * BLOCK_PX).min(w);
+                    let n = ((xe - bx * BLOCK_PX) * ys.len()) as f32;
+                    *block = sum.iter().map(|s| (s / n.max(1.0)).abs()).sum();
+                }
             }
-            for (bx, sum) in sums.iter().enumerate() {
-                let xe = ((bx + 1) * BLOCK_PX).min(w);
-                let n = ((xe - bx * BLOCK_PX) * ys.len()) as f32;
-                self.blocks[by * bw + bx] = sum.iter().map(|s| (s / n.max(1.0)).abs()).sum();
-            }
-        }
+        };
+        let bands = h.div_ceil(BLOCK_PX);
+        let split = worth_splitting(w * h);
+        let mid = first_half(bands, 1, split);
+        let (blocks_a, blocks_b) = self.blocks[..bands * bw].split_at_mut(mid * bw);
+        let [sums_a, sums_b] = &mut self.block_sums;
+        run_halves(
+            split,
+            || bands_from(0, blocks_a, sums_a),
+            || bands_from(mid, blocks_b, sums_b),
+        );
     }
 
     /// Bounding box `(x, y, w, h)` of active blocks plus the margin, rounded up.
@@ -459,29 +474,39 @@ impl SensorPipeline {
         match &self.choice.model {
             GradientModel::Lut(lut) => {
                 // Row by row, one block's run of pixels at a time: a run away from every
-                // active block is zero at once.
-                let rows = self.gx[..w * h]
-                    .chunks_exact_mut(w)
-                    .zip(self.gy[..w * h].chunks_exact_mut(w));
-                for (y, (gx_row, gy_row)) in rows.enumerate() {
-                    let fy = y0 + y;
-                    let mut x = 0;
-                    while x < w {
-                        let fx = x0 + x;
-                        let run = (BLOCK_PX - fx % BLOCK_PX).min(w - x);
-                        let (gx_run, gy_run) = (&mut gx_row[x..x + run], &mut gy_row[x..x + run]);
-                        if near(fx, fy) {
-                            for (k, (gx, gy)) in gx_run.iter_mut().zip(gy_run).enumerate() {
-                                let p = fy * width + fx + k;
-                                [*gx, *gy] = lut.predict_at(key(p), (fx + k) * s, fy * s);
+                // active block is zero at once. The rows in two halves (`halves`).
+                let rows_from = |first: usize, gx: &mut [f32], gy: &mut [f32]| {
+                    let rows = gx.chunks_exact_mut(w).zip(gy.chunks_exact_mut(w));
+                    for (y, (gx_row, gy_row)) in (first..).zip(rows) {
+                        let fy = y0 + y;
+                        let mut x = 0;
+                        while x < w {
+                            let fx = x0 + x;
+                            let run = (BLOCK_PX - fx % BLOCK_PX).min(w - x);
+                            let gx_run = &mut gx_row[x..x + run];
+                            let gy_run = &mut gy_row[x..x + run];
+                            if near(fx, fy) {
+                                for (k, (gx, gy)) in gx_run.iter_mut().zip(gy_run).enumerate() {
+                                    let p = fy * width + fx + k;
+                                    [*gx, *gy] = lut.predict_at(key(p), (fx + k) * s, fy * s);
+                                }
+                            } else {
+                                gx_run.fill(0.0);
+                                gy_run.fill(0.0);
                             }
-                        } else {
-                            gx_run.fill(0.0);
-                            gy_run.fill(0.0);
+                            x += run;
                         }
-                        x += run;
                     }
-                }
+                };
+                let split = worth_splitting(w * h);
+                let mid = first_half(h, 1, split);
+                let (gx_a, gx_b) = self.gx[..w * h].split_at_mut(mid * w);
+                let (gy_a, gy_b) = self.gy[..w * h].split_at_mut(mid * w);
+                run_halves(
+                    split,
+                    || rows_from(0, gx_a, gy_a),
+                    || rows_from(mid, gx_b, gy_b),
+                );
             }
             GradientModel::Mlp { model, net, mode } => {
                 self.features.clear();

@@ -19,7 +19,8 @@
 //! `N/2`) but two rows per complex FFT through rustfft (rustdct's own FFT, re-exported):
 //! about half of rustdct's time on a depth window (0.94 → 0.50 ms for 272 × 240 in f32).
 //! The DCT's spectrum stays transposed between the forward and inverse column passes, so a
-//! solve transposes twice, not four times. Plans and buffers live in a [`PoissonPlan`]
+//! solve transposes twice, not four times. On a large window each pass runs in two halves
+//! of its rows side by side ([`crate::halves`]), with the same results. Plans and buffers live in a [`PoissonPlan`]
 //! built once per size, so a solve allocates nothing once its buffers have grown.
 
 use std::sync::Arc;
@@ -27,7 +28,8 @@ use std::sync::Arc;
 use rustdct::num_traits::Float;
 use rustdct::{DctNum, DctPlanner, Dst1};
 
-use row_dct::RowDct;
+use crate::halves::{first_half, run_halves, worth_splitting};
+use row_dct::{RowBuffers, RowDct};
 
 mod row_dct;
 
@@ -68,10 +70,15 @@ enum Transforms<T: Real> {
         rows: Arc<dyn Dst1<T>>,
         cols: Arc<dyn Dst1<T>>,
     },
-    Dct {
-        rows: RowDct<T>,
-        cols: RowDct<T>,
-    },
+    Dct(Box<DctPasses<T>>),
+}
+
+/// The DCT solve's row and column transforms, with each half's buffers (`halves`).
+struct DctPasses<T: Real> {
+    rows: RowDct<T>,
+    cols: RowDct<T>,
+    row_buffers: [RowBuffers<T>; 2],
+    col_buffers: [RowBuffers<T>; 2],
 }
 
 /// A solver planned for one image size, with its buffers.
@@ -142,10 +149,13 @@ impl<T: Real> PoissonPlan<T> {
                         }
                     })
                     .collect();
-                let tr = Transforms::Dct {
-                    rows: RowDct::new(w),
-                    cols: RowDct::new(h),
-                };
+                let (rows, cols) = (RowDct::new(w), RowDct::new(h));
+                let tr = Transforms::Dct(Box::new(DctPasses {
+                    row_buffers: [rows.buffers(), rows.buffers()],
+                    col_buffers: [cols.buffers(), cols.buffers()],
+                    rows,
+                    cols,
+                }));
                 (h, w, tr, eigen)
             }
         };
@@ -237,55 +247,107 @@ impl<T: Real> PoissonPlan<T> {
 
     fn solve_dct(&mut self, gx: &[T], gy: &[T], z: &mut [T]) {
         let (h, w) = (self.height, self.width);
-        let g = |v: &T| if v.is_finite() { *v } else { T::zero() };
-        // The divergence, by backward differences with g[−1] = 0 and gx's last column and
-        // gy's last row taken as 0.
-        for (i, out) in self.work.chunks_exact_mut(w).take(h).enumerate() {
-            let row = &gx[i * w..(i + 1) * w];
-            let mut prev = T::zero();
-            for (o, v) in out[..w - 1].iter_mut().zip(&row[..w - 1]) {
-                let c = g(v);
-                *o = c - prev;
-                prev = c;
-            }
-            out[w - 1] = T::zero() - prev;
-            if i + 1 < h {
-                for (o, v) in out.iter_mut().zip(&gy[i * w..(i + 1) * w]) {
-                    *o = *o + g(v);
-                }
-            }
-            if i > 0 {
-                for (o, v) in out.iter_mut().zip(&gy[(i - 1) * w..i * w]) {
-                    *o = *o - g(v);
-                }
-            }
-        }
-        let Transforms::Dct { rows, cols } = &mut self.transforms else {
+        let Transforms::Dct(passes) = &mut self.transforms else {
             return;
         };
-        // Forward: rows, then columns (transposed, so the spectrum is `[k_x][k_y]`);
-        // divide; inverse: columns in that order, transpose back, rows.
-        rows.dct2_rows(&mut self.work);
-        transpose(&self.work, &mut self.transposed, h, w);
-        cols.dct2_rows(&mut self.transposed);
-        for (v, e) in self.transposed.iter_mut().zip(&self.eigen) {
-            *v = *v * *e;
+        let DctPasses {
+            rows,
+            cols,
+            row_buffers: [row_a, row_b],
+            col_buffers: [col_a, col_b],
+        } = &mut **passes;
+        let (rows, cols) = (&*rows, &*cols);
+        // Each pass in two halves of its rows (`halves`), split at an even row: the
+        // transforms pair rows, and each half pairs them as one pass over all would.
+        let split = worth_splitting(h * w);
+        // Forward over rows: the divergence and each row's DCT-II.
+        let mid_y = first_half(h, 2, split);
+        let (work_a, work_b) = self.work[..h * w].split_at_mut(mid_y * w);
+        let forward = |first: usize, part: &mut [T], buf: &mut RowBuffers<T>| {
+            divergence(gx, gy, (h, w), first, part);
+            rows.dct2_rows(buf, part);
+        };
+        run_halves(
+            split,
+            || forward(0, work_a, row_a),
+            || forward(mid_y, work_b, row_b),
+        );
+        // Columns, transposed (the spectrum is `[k_x][k_y]`): DCT-II, the inverse
+        // eigenvalues, DCT-III.
+        let work = &self.work[..h * w];
+        let mid_x = first_half(w, 2, split);
+        let (spec_a, spec_b) = self.transposed[..h * w].split_at_mut(mid_x * h);
+        let (eigen_a, eigen_b) = self.eigen.split_at(mid_x * h);
+        let columns = |first: usize, part: &mut [T], eigen: &[T], buf: &mut RowBuffers<T>| {
+            transpose_rows(work, part, (h, w), first);
+            cols.dct2_rows(buf, part);
+            for (v, e) in part.iter_mut().zip(eigen) {
+                *v = *v * *e;
+            }
+            cols.dct3_rows(buf, part);
+        };
+        run_halves(
+            split,
+            || columns(0, spec_a, eigen_a, col_a),
+            || columns(mid_x, spec_b, eigen_b, col_b),
+        );
+        // Back over rows: transposed back into `z`, each row's DCT-III.
+        let spectrum = &self.transposed[..h * w];
+        let (z_a, z_b) = z[..h * w].split_at_mut(mid_y * w);
+        let inverse = |first: usize, part: &mut [T], buf: &mut RowBuffers<T>| {
+            transpose_rows(spectrum, part, (w, h), first);
+            rows.dct3_rows(buf, part);
+        };
+        run_halves(
+            split,
+            || inverse(0, z_a, row_a),
+            || inverse(mid_y, z_b, row_b),
+        );
+    }
+}
+
+/// Rows `first..` of the divergence of `gx`, `gy` (`h × w`) into `out` (whole rows), by
+/// backward differences with `g[−1] = 0` and `gx`'s last column and `gy`'s last row taken
+/// as 0. Non-finite gradients count as 0.
+fn divergence<T: Real>(gx: &[T], gy: &[T], (h, w): (usize, usize), first: usize, out: &mut [T]) {
+    let g = |v: &T| if v.is_finite() { *v } else { T::zero() };
+    for (out, i) in out.chunks_exact_mut(w).zip(first..h) {
+        let row = &gx[i * w..(i + 1) * w];
+        let mut prev = T::zero();
+        for (o, v) in out[..w - 1].iter_mut().zip(&row[..w - 1]) {
+            let c = g(v);
+            *o = c - prev;
+            prev = c;
         }
-        cols.dct3_rows(&mut self.transposed);
-        transpose(&self.transposed, &mut self.work, w, h);
-        rows.dct3_rows(&mut self.work);
-        z[..h * w].copy_from_slice(&self.work[..h * w]);
+        out[w - 1] = T::zero() - prev;
+        if i + 1 < h {
+            for (o, v) in out.iter_mut().zip(&gy[i * w..(i + 1) * w]) {
+                *o = *o + g(v);
+            }
+        }
+        if i > 0 {
+            for (o, v) in out.iter_mut().zip(&gy[(i - 1) * w..i * w]) {
+                *o = *o - g(v);
+            }
+        }
     }
 }
 
 /// `dst[c][r] = src[r][c]` for a `rows × cols` source.
 fn transpose<T: Copy>(src: &[T], dst: &mut [T], rows: usize, cols: usize) {
+    transpose_rows(src, dst, (rows, cols), 0);
+}
+
+/// Rows `first..` of the transpose of `src` (`rows × cols`) into `dst` (whole rows of
+/// `rows`): `dst[c − first][r] = src[r][c]`.
+fn transpose_rows<T: Copy>(src: &[T], dst: &mut [T], (rows, cols): (usize, usize), first: usize) {
     const B: usize = 16;
+    let end = (first + dst.len() / rows.max(1)).min(cols);
     for r0 in (0..rows).step_by(B) {
-        for c0 in (0..cols).step_by(B) {
+        for c0 in (first..end).step_by(B) {
             for r in r0..(r0 + B).min(rows) {
-                for c in c0..(c0 + B).min(cols) {
-                    dst[c * rows + r] = src[r * cols + c];
+                for c in c0..(c0 + B).min(end) {
+                    dst[(c - first) * rows + r] = src[r * cols + c];
                 }
             }
         }

@@ -8,8 +8,9 @@
 //! is given the set the gate emitted: a sensor whose slot holds the result of that very
 //! frame takes it; one whose frame is queued or not yet seen is processed then: on the
 //! caller's thread when it is the only one (as a rule the set's last frame: no hand-off to
-//! the pool and back on the critical path), else the sensors in parallel, as
-//! [`super::process_set`]. A result is only ever handed out for the frame
+//! the pool and back on the critical path; its stages split in two with a worker kept
+//! polling meanwhile, [`crate::halves`]), else the sensors in
+//! parallel, as [`super::process_set`]. A result is only ever handed out for the frame
 //! it was computed from, so the work done for a set the gate refused never reaches the
 //! caller: it is overwritten by the sensor's next frame, and dropped as soon as a newer set
 //! is processed.
@@ -31,6 +32,7 @@ use std::sync::{Arc, Mutex, MutexGuard, PoisonError, TryLockError};
 use bytes::Bytes;
 
 use crate::contact::ContactSummary;
+use crate::halves::keep_a_worker_awake;
 use crate::pipeline::{Needs, PipelineError, SensorPipeline};
 
 /// One sensor's frame: its trigger sequence and its JPEG bytes.
@@ -223,6 +225,9 @@ impl StreamingSensors {
                 }
             };
             if pending <= 1 {
+                // One frame on this thread, its stages in two halves while a worker polls
+                // for the other halves (`halves`).
+                let _awake = (pending == 1).then(keep_a_worker_awake);
                 slots
                     .iter_mut()
                     .zip(frames)

@@ -276,3 +276,47 @@ fn the_interior_border_mean_is_the_mean_of_the_inside_sides() {
         }
     }
 }
+
+/// A large press processed with its stages in two halves gives the one-pass readings and
+/// depth bit for bit.
+#[test]
+fn a_frame_in_halves_reads_as_in_one_pass() {
+    let (w, h) = (320, 240);
+    let reference = jpeg(w, h, |x, y, c| (60 + (x + 2 * y + 30 * c) % 40) as u8);
+    let press = jpeg(w, h, |x, y, c| {
+        let (dx, dy) = (x as f64 - 170.0, y as f64 - 120.0);
+        let bump = (110.0 - (dx * dx + dy * dy).sqrt()).max(0.0) * [0.9, 0.5, 0.2][c];
+        (60.0 + ((x + 2 * y + 30 * c) % 40) as f64 + bump).min(255.0) as u8
+    });
+    let run = |split: bool| {
+        let process = || {
+            let mut p = pipeline(w, h, Some(Solver::Dct));
+            p.calibrate(&[&reference, &reference]).expect("calibrates");
+            let s = p
+                .process(
+                    &press,
+                    Needs {
+                        gradients: true,
+                        depth: true,
+                    },
+                )
+                .expect("processes");
+            let (depth, window) = p.last_depth_mm();
+            let bits: Vec<u32> = depth.iter().map(|d| d.to_bits()).collect();
+            (format!("{s:?}"), window, bits)
+        };
+        if split {
+            crate::halves::with_stages_split(process)
+        } else {
+            // Inside the pool a stage is never split.
+            rayon::scope(|_| process())
+        }
+    };
+    let (one, two) = (run(false), run(true));
+    assert!(
+        one.1.2 * one.1.3 >= crate::halves::SPLIT_MIN_PX,
+        "window {:?}",
+        one.1
+    );
+    assert_eq!(one, two);
+}

@@ -20,14 +20,18 @@ use rustdct::rustfft::{Fft, FftPlanner};
 
 use super::{Real, t};
 
-/// Row transforms of one length, with their buffers (a transform allocates nothing once
-/// its buffers have grown to the grid's size).
+/// Row transforms of one length (shared by the threads that transform a grid's rows).
 pub(super) struct RowDct<T: Real> {
     len: usize,
     forward: Arc<dyn Fft<T>>,
     inverse: Arc<dyn Fft<T>>,
     /// `e^{-iπk/2N}` for `k` in `0..N`.
     twiddles: Vec<Complex<T>>,
+}
+
+/// One thread's buffers for [`RowDct`]'s transforms (they allocate nothing once these
+/// have grown to the rows' size).
+pub(super) struct RowBuffers<T: Real> {
     pairs: Vec<Complex<T>>,
     scratch: Vec<Complex<T>>,
 }
@@ -46,14 +50,21 @@ impl<T: Real> RowDct<T> {
                 Complex::new(t(a.cos()), t(-a.sin()))
             })
             .collect();
-        let scratch_len = forward
-            .get_inplace_scratch_len()
-            .max(inverse.get_inplace_scratch_len());
         Self {
             len,
             forward,
             inverse,
             twiddles,
+        }
+    }
+
+    /// Buffers for one thread's share of the rows.
+    pub(super) fn buffers(&self) -> RowBuffers<T> {
+        let scratch_len = self
+            .forward
+            .get_inplace_scratch_len()
+            .max(self.inverse.get_inplace_scratch_len());
+        RowBuffers {
             pairs: Vec::new(),
             scratch: vec![Complex::new(T::zero(), T::zero()); scratch_len],
         }
@@ -62,14 +73,13 @@ impl<T: Real> RowDct<T> {
     /// Makhoul's reordering of rows `2p` and `2p + 1` of `data` (`rows` rows) into pair
     /// `p`'s real and imaginary parts (the second zero if missing), for every pair: the
     /// even samples forward, then the odd ones backward.
-    fn pack_reordered(&mut self, data: &[T], rows: usize) {
+    fn pack_reordered(&self, pairs: &mut Vec<Complex<T>>, data: &[T], rows: usize) {
         let n = self.len;
-        self.pairs.clear();
-        self.pairs
-            .resize(rows.div_ceil(2) * n, Complex::new(T::zero(), T::zero()));
+        pairs.clear();
+        pairs.resize(rows.div_ceil(2) * n, Complex::new(T::zero(), T::zero()));
         for (rows_ab, z) in data[..rows * n]
             .chunks(2 * n)
-            .zip(self.pairs.chunks_exact_mut(n))
+            .zip(pairs.chunks_exact_mut(n))
         {
             let (a, b) = rows_ab.split_at(n);
             let (front, back) = z.split_at_mut(n.div_ceil(2));
@@ -94,19 +104,19 @@ impl<T: Real> RowDct<T> {
     }
 
     /// DCT-II of every row of `data` (`rows × len`, row-major), in place.
-    pub(super) fn dct2_rows(&mut self, data: &mut [T]) {
+    pub(super) fn dct2_rows(&self, buf: &mut RowBuffers<T>, data: &mut [T]) {
         let n = self.len;
         let rows = data.len() / n;
         if rows == 0 {
             return;
         }
-        self.pack_reordered(data, rows);
+        self.pack_reordered(&mut buf.pairs, data, rows);
         self.forward
-            .process_with_scratch(&mut self.pairs, &mut self.scratch);
+            .process_with_scratch(&mut buf.pairs, &mut buf.scratch);
         let half = t::<T>(0.5);
         for (pair, z) in data[..rows * n]
             .chunks_mut(2 * n)
-            .zip(self.pairs.chunks_exact(n))
+            .zip(buf.pairs.chunks_exact(n))
         {
             let (a, b) = pair.split_at_mut(n);
             // The two rows' spectra: Va = (Z[k] + conj Z[N−k]) / 2 and
@@ -136,21 +146,21 @@ impl<T: Real> RowDct<T> {
     }
 
     /// DCT-III of every row of `data` (`rows × len`, row-major), in place.
-    pub(super) fn dct3_rows(&mut self, data: &mut [T]) {
+    pub(super) fn dct3_rows(&self, buf: &mut RowBuffers<T>, data: &mut [T]) {
         let n = self.len;
         let rows = data.len() / n;
         if rows == 0 {
             return;
         }
-        self.pairs.clear();
-        self.pairs
-            .resize(rows.div_ceil(2) * n, Complex::new(T::zero(), T::zero()));
+        let pairs = &mut buf.pairs;
+        pairs.clear();
+        pairs.resize(rows.div_ceil(2) * n, Complex::new(T::zero(), T::zero()));
         // V[k] = conj(w_k)·(X[k] − i·X[N−k]) (X[N] = 0) is the spectrum of the reordered
         // inverse; two rows' spectra are packed as Z = Va + i·Vb.
         let spectrum = |w: &Complex<T>, p: T, q: T| (w.re * p - w.im * q, -w.im * p - w.re * q);
         for (pair, z) in data[..rows * n]
             .chunks(2 * n)
-            .zip(self.pairs.chunks_exact_mut(n))
+            .zip(pairs.chunks_exact_mut(n))
         {
             let (a, b) = pair.split_at(n);
             let w0 = &self.twiddles[0];
@@ -176,13 +186,12 @@ impl<T: Real> RowDct<T> {
                 }
             }
         }
-        self.inverse
-            .process_with_scratch(&mut self.pairs, &mut self.scratch);
+        self.inverse.process_with_scratch(pairs, &mut buf.scratch);
         let half = t::<T>(0.5);
         // Undo the reordering: even samples from the front, odd ones from the back.
         for (pair, z) in data[..rows * n]
             .chunks_mut(2 * n)
-            .zip(self.pairs.chunks_exact(n))
+            .zip(pairs.chunks_exact(n))
         {
             let (a, b) = pair.split_at_mut(n);
             let (front, back) = z.split_at(n.div_ceil(2));

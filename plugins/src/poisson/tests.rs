@@ -146,7 +146,8 @@ fn paired_row_transforms_equal_rustdcts() {
     let lengths = (1..=64).chain([112, 176, 192, 208, 240, 272, 304, 320]);
     for n in lengths {
         let reference = planner.plan_dct2(n);
-        let mut dct = RowDct::<f64>::new(n);
+        let dct = RowDct::<f64>::new(n);
+        let mut buf = dct.buffers();
         for rows in [1, 2, 3, 4] {
             let x: Vec<f64> = (0..rows * n).map(|_| rng.random_range(-1.0..1.0)).collect();
             for inverse in [false, true] {
@@ -160,9 +161,9 @@ fn paired_row_transforms_equal_rustdcts() {
                 }
                 let mut got = x.clone();
                 if inverse {
-                    dct.dct3_rows(&mut got);
+                    dct.dct3_rows(&mut buf, &mut got);
                 } else {
-                    dct.dct2_rows(&mut got);
+                    dct.dct2_rows(&mut buf, &mut got);
                 }
                 let err = max_err(&got, &expected);
                 assert!(
@@ -171,5 +172,30 @@ fn paired_row_transforms_equal_rustdcts() {
                 );
             }
         }
+    }
+}
+
+/// Solved in two halves per pass (odd and even sizes, large enough to split), the depth
+/// equals the one-pass solve's bit for bit: the halves pair the rows as one pass does.
+#[test]
+fn a_solve_in_halves_equals_the_one_pass_solve_bit_for_bit() {
+    use crate::halves::{with_stages_split, worth_splitting};
+    let mut rng = Pcg64Mcg::seed_from_u64(11);
+    for (h, w) in [(240, 272), (241, 271), (128, 130), (131, 128)] {
+        assert!(with_stages_split(|| worth_splitting(h * w)) || rayon::current_num_threads() < 2);
+        let gx: Vec<f32> = (0..h * w).map(|_| rng.random_range(-2.0..2.0)).collect();
+        let gy: Vec<f32> = (0..h * w).map(|_| rng.random_range(-2.0..2.0)).collect();
+        let solve = |split: bool| {
+            let mut z = vec![0f32; h * w];
+            let mut plan = PoissonPlan::new(Solver::Dct, h, w);
+            if split {
+                with_stages_split(|| plan.solve(&gx, &gy, &mut z));
+            } else {
+                // Inside the pool a stage is never split.
+                rayon::scope(|_| plan.solve(&gx, &gy, &mut z));
+            }
+            z.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+        };
+        assert_eq!(solve(false), solve(true), "{h} × {w}");
     }
 }
