@@ -136,11 +136,19 @@ impl<T: Real> PoissonPlan<T> {
                 (m, n, tr, eigen)
             }
             Solver::Dct => {
-                let sin2 = |k: usize, len: usize| (pi * k as f64 / (2 * len) as f64).sin().powi(2);
+                // sin²(πk/2N) per axis, once per coefficient (not per cell: a plan is
+                // made on the critical path when a window of a new size first appears).
+                let sin2 = |len: usize| -> Vec<f64> {
+                    (0..len)
+                        .map(|k| (pi * k as f64 / (2 * len) as f64).sin().powi(2))
+                        .collect()
+                };
+                let (sx, sy) = (sin2(w), sin2(h));
                 // The inverse eigenvalues times the transforms' normalisation, 4/(HW).
                 let scale = 4.0 / (h * w) as f64;
-                let eigen = (0..w)
-                    .flat_map(|kx| (0..h).map(move |ky| -4.0 * (sin2(kx, w) + sin2(ky, h))))
+                let eigen = sx
+                    .iter()
+                    .flat_map(|x| sy.iter().map(move |y| -4.0 * (x + y)))
                     .map(|e| {
                         if e == 0.0 {
                             T::zero()
