@@ -130,8 +130,10 @@ pub struct SensorPipeline {
     reference_gain: Vec<f32>,
     blocks: Vec<f32>,
     /// Working space of the block activity, per half (`halves`): one band of blocks' sums
-    /// per channel.
-    block_sums: [Vec<[f32; 3]>; 2],
+    /// of the frame per channel (exact: integers).
+    block_sums: [Vec<[u32; 3]>; 2],
+    /// Per block and channel, the sum of the reference's values (kept with the reference).
+    reference_block_sums: Vec<[f64; 3]>,
     /// Blocks within one block of an active block: gradients outside them are set to 0.
     near_active: Vec<bool>,
     gx: Vec<f32>,
@@ -190,6 +192,7 @@ impl SensorPipeline {
             reference_gain: Vec::new(),
             blocks: vec![0.0; bw * bh],
             block_sums: [Vec::with_capacity(bw), Vec::with_capacity(bw)],
+            reference_block_sums: Vec::new(),
             near_active: vec![true; bw * bh],
             gx: vec![0.0; w * h],
             gy: vec![0.0; w * h],
@@ -280,6 +283,7 @@ impl SensorPipeline {
         sum.iter_mut().for_each(|s| *s /= n);
         self.reference = Some(sum);
         self.refresh_reference_gain();
+        self.refresh_reference_block_sums();
         self.predict_background()?;
         let mut pixel_activity = Vec::new();
         let (mut activity, mut depth) = (Vec::new(), Vec::new());
@@ -347,39 +351,38 @@ impl SensorPipeline {
     }
 
     /// Per 8×8 block: the sum over channels of |mean(frame − reference)|, in one pass over
-    /// the frame (the full difference image is never materialised).
+    /// the frame (the full difference image is never materialised): the frame's block sums
+    /// (exact, in integers) less the reference's, which are kept with the reference.
     fn block_activity(&mut self) {
         let (w, h) = (self.width, self.height);
         let bw = w.div_ceil(BLOCK_PX);
-        let Some(reference) = &self.reference else {
+        if self.reference.is_none() {
             return;
-        };
-        // A band of blocks at a time, row by row: each block's sums take its pixels in the
-        // same order as block by block (rows, then columns), but the band's blocks
-        // accumulate side by side instead of one long chain of additions after another.
-        // The bands in two halves (`halves`).
-        let rgb = &self.rgb;
-        let bands_from = |first: usize, blocks: &mut [f32], sums: &mut Vec<[f32; 3]>| {
-            sums.resize(bw, [0.0; 3]);
+        }
+        // A band of blocks at a time, row by row, the band's blocks side by side. The bands
+        // in two halves (`halves`).
+        let (rgb, reference) = (&self.rgb, &self.reference_block_sums);
+        let bands_from = |first: usize, blocks: &mut [f32], sums: &mut Vec<[u32; 3]>| {
+            sums.resize(bw, [0; 3]);
             for (by, band) in (first..).zip(blocks.chunks_exact_mut(bw)) {
-                sums.fill([0.0; 3]);
+                sums.fill([0; 3]);
                 let ys = by * BLOCK_PX..((by + 1) * BLOCK_PX).min(h);
                 for y in ys.clone() {
                     let row = &rgb[y * w * 3..(y + 1) * w * 3];
-                    let refs = &reference[y * w * 3..(y + 1) * w * 3];
-                    let runs = row.chunks(BLOCK_PX * 3).zip(refs.chunks(BLOCK_PX * 3));
-                    for (sum, (run, run_refs)) in sums.iter_mut().zip(runs) {
-                        for (px, rf) in run.chunks_exact(3).zip(run_refs.chunks_exact(3)) {
-                            sum[0] += f32::from(px[0]) - rf[0];
-                            sum[1] += f32::from(px[1]) - rf[1];
-                            sum[2] += f32::from(px[2]) - rf[2];
+                    for (sum, run) in sums.iter_mut().zip(row.chunks(BLOCK_PX * 3)) {
+                        for px in run.chunks_exact(3) {
+                            sum[0] += u32::from(px[0]);
+                            sum[1] += u32::from(px[1]);
+                            sum[2] += u32::from(px[2]);
                         }
                     }
                 }
-                for (bx, (sum, block)) in sums.iter().zip(band.iter_mut()).enumerate() {
+                let refs = &reference[by * bw..(by + 1) * bw];
+                for (bx, ((sum, rf), block)) in sums.iter().zip(refs).zip(band).enumerate() {
                     let xe = ((bx + 1) * BLOCK_PX).min(w);
-                    let n = ((xe - bx * BLOCK_PX) * ys.len()) as f32;
-                    *block = sum.iter().map(|s| (s / n.max(1.0)).abs()).sum();
+                    let n = ((xe - bx * BLOCK_PX) * ys.len()).max(1) as f64;
+                    let mean_abs = |c: usize| ((f64::from(sum[c]) - rf[c]) / n).abs();
+                    *block = (mean_abs(0) + mean_abs(1) + mean_abs(2)) as f32;
                 }
             }
         };
@@ -393,6 +396,27 @@ impl SensorPipeline {
             || bands_from(0, blocks_a, sums_a),
             || bands_from(mid, blocks_b, sums_b),
         );
+    }
+
+    /// The reference's sums per block and channel, for [`Self::block_activity`].
+    fn refresh_reference_block_sums(&mut self) {
+        let (w, h) = (self.width, self.height);
+        let (bw, bh) = (w.div_ceil(BLOCK_PX), h.div_ceil(BLOCK_PX));
+        self.reference_block_sums.clear();
+        self.reference_block_sums.resize(bw * bh, [0.0; 3]);
+        let Some(reference) = &self.reference else {
+            return;
+        };
+        for (y, row) in reference.chunks_exact(w * 3).take(h).enumerate() {
+            let band = &mut self.reference_block_sums[(y / BLOCK_PX) * bw..];
+            for (sum, run) in band.iter_mut().zip(row.chunks(BLOCK_PX * 3)) {
+                for px in run.chunks_exact(3) {
+                    sum[0] += f64::from(px[0]);
+                    sum[1] += f64::from(px[1]);
+                    sum[2] += f64::from(px[2]);
+                }
+            }
+        }
     }
 
     /// Bounding box `(x, y, w, h)` of active blocks plus the margin, rounded up.
@@ -675,6 +699,7 @@ impl SensorPipeline {
             }
         }
         self.refresh_reference_gain();
+        self.refresh_reference_block_sums();
     }
 
     /// [`relative_gain`] of every reference value (`input = relative` only).

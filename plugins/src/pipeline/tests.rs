@@ -320,3 +320,53 @@ fn a_frame_in_halves_reads_as_in_one_pass() {
     );
     assert_eq!(one, two);
 }
+
+/// The block activity from the frame's exact block sums less the reference's kept sums
+/// equals |mean(frame − reference)| per channel, summed, computed pixel by pixel, on noise,
+/// black and saturated frames (a 100 × 70 image: partial blocks at the edges), also after
+/// the reference drifted.
+#[test]
+fn block_activity_is_the_mean_difference_per_block() {
+    let (w, h) = (100, 70);
+    let mut rng = Pcg64Mcg::seed_from_u64(5);
+    let noise: Vec<u8> = (0..w * h * 3).map(|_| rng.random()).collect();
+    let reference = jpeg(w, h, |x, y, c| (40 + (3 * x + y + 50 * c) % 120) as u8);
+    let frames = [
+        jpeg(w, h, |x, y, c| noise[(y * w + x) * 3 + c]),
+        jpeg(w, h, |_, _, _| 0),
+        jpeg(w, h, |_, _, _| 255),
+        reference.clone(),
+    ];
+    let mut p = pipeline(w, h, Some(Solver::Dct));
+    p.calibrate(&[&reference, &frames[0]]).expect("calibrates");
+    for frame in frames.iter().chain(frames.iter()) {
+        let needs = Needs {
+            depth: false,
+            gradients: false,
+        };
+        // The activity is measured against the reference before the frame (a quiet frame
+        // then moves it: the pipeline's reference drifts).
+        let reference = p.reference.clone().expect("a reference");
+        p.process(frame, needs).expect("processes");
+        let bw = w.div_ceil(BLOCK_PX);
+        for (k, got) in p.blocks.iter().enumerate() {
+            let (bx, by) = (k % bw, k / bw);
+            let mut sum = [0.0f64; 3];
+            let mut n = 0.0;
+            for y in by * BLOCK_PX..((by + 1) * BLOCK_PX).min(h) {
+                for x in bx * BLOCK_PX..((bx + 1) * BLOCK_PX).min(w) {
+                    for (c, s) in sum.iter_mut().enumerate() {
+                        let i = (y * w + x) * 3 + c;
+                        *s += f64::from(p.rgb[i]) - f64::from(reference[i]);
+                    }
+                    n += 1.0;
+                }
+            }
+            let want: f64 = sum.iter().map(|s| (s / n).abs()).sum();
+            assert!(
+                (f64::from(*got) - want).abs() <= 1e-4 * want.max(1.0),
+                "block {k}: {got} against {want}"
+            );
+        }
+    }
+}
