@@ -154,7 +154,9 @@ pub fn keep_a_worker_awake() -> AwakeWorker {
     let flag = Arc::clone(&stop);
     let caller_cpu = current_cpu();
     rayon::spawn_broadcast(move |_| {
-        if caller_cpu.is_some() && current_cpu() == caller_cpu {
+        // Let go already (a broadcast that waited behind other work), or on the caller's
+        // CPU: nothing to do.
+        if flag.load(Ordering::Acquire) || (caller_cpu.is_some() && current_cpu() == caller_cpu) {
             return;
         }
         let since = Instant::now();
