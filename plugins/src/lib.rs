@@ -3,7 +3,8 @@
 //!
 //! - [`pipeline`]: the stages wired per sensor, with their buffers;
 //! - [`decode`], [`undistort`], [`lut`], [`mlp`], [`poisson`], [`contact`]: the stages
-//!   ([`gradient`] holds whichever gradient model a sensor uses);
+//!   ([`gradient`] holds whichever gradient model a sensor uses); [`halves`] splits a
+//!   frame's row-wise stages over two cores for the frame on the critical path;
 //! - [`dataset`], [`image`], [`model_file`]: the press dataset and model file formats;
 //! - [`npy`]: NumPy `.npy` gradients and depth maps.
 

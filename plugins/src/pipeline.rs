@@ -282,8 +282,7 @@ impl SensorPipeline {
         let n = no_contact.len().max(1) as f32;
         sum.iter_mut().for_each(|s| *s /= n);
         self.reference = Some(sum);
-        self.refresh_reference_gain();
-        self.refresh_reference_block_sums();
+        self.reference_changed();
         self.predict_background()?;
         let mut pixel_activity = Vec::new();
         let (mut activity, mut depth) = (Vec::new(), Vec::new());
@@ -698,6 +697,11 @@ impl SensorPipeline {
                 *r += a * (f32::from(*v) - *r);
             }
         }
+        self.reference_changed();
+    }
+
+    /// Refresh what is kept with the reference: its gains and its block sums.
+    fn reference_changed(&mut self) {
         self.refresh_reference_gain();
         self.refresh_reference_block_sums();
     }

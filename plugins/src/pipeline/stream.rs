@@ -9,9 +9,9 @@
 //! frame takes it; one whose frame is queued or not yet seen is processed then: on the
 //! caller's thread when it is the only one (as a rule the set's last frame: no hand-off to
 //! the pool and back on the critical path; its stages split in two with a worker kept
-//! polling meanwhile, [`crate::halves`]), else the sensors in
-//! parallel, as [`super::process_set`]. A result is only ever handed out for the frame
-//! it was computed from, so the work done for a set the gate refused never reaches the
+//! polling meanwhile, [`crate::halves`]), else the sensors in parallel, as
+//! [`super::process_set`]. A result is only ever handed out for the frame it was computed
+//! from, so the work done for a set the gate refused never reaches the
 //! caller: it is overwritten by the sensor's next frame, and dropped as soon as a newer set
 //! is processed.
 //!
