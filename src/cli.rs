@@ -1,7 +1,7 @@
 //! Command-line arguments (clap). Conventions follow CONTRACTS.md: `--json` puts exactly one
 //! JSON value on stdout, logs go to stderr.
 
-use clap::{Parser, Subcommand, ValueEnum};
+use clap::{Parser, Subcommand};
 
 /// Control application for a tactile three-finger gripper.
 #[derive(Debug, Parser)]
@@ -70,8 +70,6 @@ pub enum EmulateCommand {
     Hub(EmulateHubArgs),
 }
 
-pub use gelgrip::UsageError;
-
 /// `gelgrip calibrate …`.
 #[derive(Debug, Subcommand)]
 pub enum CalibrateCommand {
@@ -121,99 +119,10 @@ pub enum BenchCommand {
     Tradeoff(BenchTradeoffArgs),
 }
 
-/// Time source.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum ClockArg {
-    /// Wall-clock time.
-    Real,
-    /// Deterministic virtual time, as fast as the host can.
-    Virtual,
-}
-
-/// Trigger mode filter.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum TriggerArg {
-    /// One I2C transfer per board.
-    Sequential,
-    /// One I2C general call.
-    Broadcast,
-}
-
-pub(crate) fn parse_force_n(s: &str) -> Result<f64, String> {
-    let v: f64 = s
-        .parse()
-        .map_err(|_| format!("`{s}` is not a force in N"))?;
-    if v.is_finite() && v > 0.0 && v <= 200.0 {
-        Ok(v)
-    } else {
-        Err(format!("{v} N is outside (0, 200]"))
-    }
-}
-
-/// `s` as a number within `range`, or a message naming `what` it should be and its `unit`.
-pub(crate) fn parse_within(
-    s: &str,
-    what: &str,
-    unit: &str,
-    range: std::ops::RangeInclusive<f64>,
-) -> Result<f64, String> {
-    let in_unit = if unit.is_empty() {
-        String::new()
-    } else {
-        format!(" in {unit}")
-    };
-    let v: f64 = s
-        .parse()
-        .map_err(|_| format!("`{s}` is not {what}{in_unit}"))?;
-    if range.contains(&v) {
-        Ok(v)
-    } else {
-        Err(format!(
-            "{v} {unit} is outside {}..={} {unit}",
-            range.start(),
-            range.end()
-        ))
-    }
-}
-
-pub(crate) fn parse_current_ma(s: &str) -> Result<f64, String> {
-    parse_within(s, "a current", "mA", 0.0..=3209.0)
-        .map_err(|e| format!("{e} (the XM430's current range)"))
-}
-
-pub(crate) fn parse_duration(s: &str) -> Result<f64, String> {
-    let v: f64 = s
-        .parse()
-        .map_err(|_| format!("`{s}` is not a number of seconds"))?;
-    if v.is_finite() && v > 0.0 && v <= 1e7 {
-        Ok(v)
-    } else {
-        Err(format!("`{s}`: expected seconds in (0, 1e7]"))
-    }
-}
-
-impl From<ClockArg> for gelgrip_controller::clock::ClockKind {
-    fn from(arg: ClockArg) -> Self {
-        match arg {
-            ClockArg::Real => Self::Real,
-            ClockArg::Virtual => Self::Virtual,
-        }
-    }
-}
-
 // Each command's arguments live beside the command; re-exported here for the parser.
-pub use crate::commands::bench_bus::BenchBusArgs;
-pub use crate::commands::bench_calibration::BenchCalibrationArgs;
-pub use crate::commands::bench_dashboard::BenchDashboardArgs;
-pub use crate::commands::bench_grasp::BenchGraspArgs;
-pub use crate::commands::bench_pipeline::BenchPipelineArgs;
-pub use crate::commands::bench_soak::BenchSoakArgs;
-pub use crate::commands::bench_sync::BenchSyncArgs;
-pub use crate::commands::bench_tradeoff::BenchTradeoffArgs;
 pub use crate::commands::calibrate::BakeArgs;
 pub use crate::commands::calibrate::CollectArgs;
 pub use crate::commands::calibrate::EvalArgs;
-pub use crate::commands::calibrate::ModelKind;
 pub use crate::commands::calibrate::TrainArgs;
 pub use crate::commands::calibrate::TransferArgs;
 pub use crate::commands::calibrate_force::ForceArgs;
@@ -222,10 +131,21 @@ pub use crate::commands::check_config::CheckConfigArgs;
 pub use crate::commands::depth::DepthArgs;
 pub use crate::commands::emulate::EmulateServosArgs;
 pub use crate::commands::emulate_hub::EmulateHubArgs;
-pub use crate::commands::emulate_hub::UsbArg;
-pub use crate::commands::plot::PlotArgs;
 pub use crate::commands::record_export::RecordExportArgs;
 pub use crate::commands::record_info::RecordInfoArgs;
 pub use crate::commands::replay::ReplayArgs;
 pub use crate::commands::run::RunArgs;
 pub use crate::commands::servo::ServoArgs;
+pub use gelgrip_bench::args::{
+    ClockArg, DEFAULT_EPOCHS, ModelKind, UsageError, UsbArg, parse_current_ma, parse_duration,
+    parse_within,
+};
+pub use gelgrip_bench::bus::BenchBusArgs;
+pub use gelgrip_bench::calibration::BenchCalibrationArgs;
+pub use gelgrip_bench::dashboard::BenchDashboardArgs;
+pub use gelgrip_bench::grasp::BenchGraspArgs;
+pub use gelgrip_bench::pipeline::BenchPipelineArgs;
+pub use gelgrip_bench::soak::BenchSoakArgs;
+pub use gelgrip_bench::sync::BenchSyncArgs;
+pub use gelgrip_bench::task_log_plot::PlotArgs;
+pub use gelgrip_bench::tradeoff::BenchTradeoffArgs;

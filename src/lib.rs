@@ -5,30 +5,22 @@
 //! write.
 //!
 //! What is here: the configuration loading and the transport registry ([`wiring`]), the
-//! tactile pipelines as the runtime's sensing port ([`tactile`]), the simulator as its
-//! ground truth ([`sim_truth`]), the observers (the dashboard feed, the task CSV, the
-//! recorder: [`observers`]), the dashboard's control requests ([`loop_control`]) and the
-//! `run --json` report ([`output`]).
+//! run's sensing built from a config with the simulator's cached self-calibration
+//! ([`tactile`]), the task CSV ([`task_log`]), the dashboard's control requests
+//! ([`loop_control`]), and the run put together from its adapters ([`session`]: the
+//! plugins' sensing, the simulator's ground truth, the web crate's dashboard feed, the
+//! recorder's observer) with its `run --json` report ([`output`]).
 
-pub mod bench_config;
 pub mod catalog;
 pub mod embedded;
-mod error;
 pub mod loop_control;
-pub mod observers;
 pub mod output;
-pub mod plot;
-pub mod press_requests;
-pub mod progress;
 pub mod replay;
-pub mod ros;
-pub mod scene_report;
+pub mod rig;
 pub mod scripts;
-pub mod sensor_models;
 pub mod session;
-pub mod sim_truth;
-pub mod simcam;
 pub mod tactile;
+pub mod task_log;
 pub mod wiring;
 
-pub use error::UsageError;
+pub use gelgrip_bench::args::UsageError;

@@ -16,8 +16,8 @@ use gelgrip_sim::world::SharedWorld;
 use gelgrip_web::live::{SensorFaultView, SimView};
 
 use crate::catalog::{self, Kind};
-use crate::observers::dashboard::SharedSimView;
 use crate::scripts::load_script;
+use gelgrip_web::feed::SharedSimView;
 /// A finger within this of its open position counts as open, degrees.
 const OPEN_DEG: f64 = 5.0;
 

@@ -26,6 +26,22 @@ fn exit_code_for(err: &anyhow::Error) -> u8 {
     if wiring::is_config_error(err) { 2 } else { 1 }
 }
 
+/// A bench, with this program's composition root as its rig.
+async fn run_bench(command: BenchCommand) -> anyhow::Result<u8> {
+    use gelgrip_bench as bench;
+    let rig = &gelgrip::rig::ProgramRig;
+    match command {
+        BenchCommand::Bus(args) => bench::bus::run(rig, args).await,
+        BenchCommand::Pipeline(args) => bench::pipeline::run(rig, args),
+        BenchCommand::Grasp(args) => bench::grasp::run(rig, args).await,
+        BenchCommand::Sync(args) => bench::sync::run(rig, args).await,
+        BenchCommand::Calibration(args) => bench::calibration::run(rig, args),
+        BenchCommand::Tradeoff(args) => bench::tradeoff::run(rig, args),
+        BenchCommand::Soak(args) => bench::soak::run(rig, args).await,
+        BenchCommand::Dashboard(args) => bench::dashboard::run(args).await,
+    }
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     init_logging();
@@ -48,24 +64,13 @@ fn main() -> ExitCode {
         match cli.command.unwrap_or(Command::Run(cli.run)) {
             Command::Run(args) => commands::run::run(args).await,
             Command::CheckConfig(args) => commands::check_config::run(args),
-            Command::Bench(BenchCommand::Bus(args)) => commands::bench_bus::run(args).await,
-            Command::Bench(BenchCommand::Pipeline(args)) => commands::bench_pipeline::run(args),
-            Command::Bench(BenchCommand::Grasp(args)) => commands::bench_grasp::run(args).await,
-            Command::Bench(BenchCommand::Sync(args)) => commands::bench_sync::run(args).await,
-            Command::Bench(BenchCommand::Calibration(args)) => {
-                commands::bench_calibration::run(args)
-            }
-            Command::Bench(BenchCommand::Tradeoff(args)) => commands::bench_tradeoff::run(args),
-            Command::Bench(BenchCommand::Soak(args)) => commands::bench_soak::run(args).await,
-            Command::Bench(BenchCommand::Dashboard(args)) => {
-                commands::bench_dashboard::run(args).await
-            }
+            Command::Bench(bench) => run_bench(bench).await,
             Command::Calibrate(cmd) => commands::calibrate::run(cmd).await,
             Command::Depth(args) => commands::depth::run(args),
             Command::Emulate(EmulateCommand::Servos(args)) => commands::emulate::run(args).await,
             Command::Emulate(EmulateCommand::Hub(args)) => commands::emulate_hub::run(args).await,
             Command::Servo(args) => commands::servo::run(args),
-            Command::Plot(args) => commands::plot::run(args),
+            Command::Plot(args) => gelgrip_bench::task_log_plot::run(args),
             Command::Replay(args) => commands::replay::run(args).await,
             Command::Record(cli::RecordCommand::Info(args)) => commands::record_info::run(args),
             Command::Record(cli::RecordCommand::Export(args)) => {

@@ -3,38 +3,8 @@
 
 use serde::Serialize;
 
-use gelgrip_controller::gate::{GateStats, ReasonCounts};
+use gelgrip_controller::gate::{ExcludedSensor, GateStats, ReasonCounts};
 use gelgrip_controller::runtime::outcome::EndReason;
-
-/// One servo's last state in `run --json`.
-#[derive(Debug, Serialize)]
-pub struct ServoReport {
-    /// Position, degrees.
-    pub position_deg: f64,
-    /// Velocity (Present Velocity), rpm.
-    pub velocity_rpm: f64,
-    /// Current, mA.
-    pub current_ma: f64,
-    /// Temperature, °C.
-    pub temperature_c: f64,
-    /// Hardware Error Status bits.
-    pub hardware_error: u8,
-    /// Moving.
-    pub moving: bool,
-}
-
-impl From<&gelgrip_controller::actuator::ServoState> for ServoReport {
-    fn from(s: &gelgrip_controller::actuator::ServoState) -> Self {
-        Self {
-            position_deg: s.position_deg,
-            velocity_rpm: s.velocity_rpm,
-            current_ma: s.current_ma,
-            temperature_c: s.temperature_c,
-            hardware_error: s.hardware_error,
-            moving: s.moving,
-        }
-    }
-}
 
 /// `run --json`.
 #[derive(Debug, Serialize)]
@@ -82,10 +52,10 @@ pub struct RunReport {
     pub crushed: Option<bool>,
     /// What happened in the scene.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub scene: Option<crate::scene_report::SceneReport>,
+    pub scene: Option<gelgrip_sim::scene_report::SceneReport>,
     /// The servos' last states, in finger order.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub servos: Option<Vec<ServoReport>>,
+    pub servos: Option<Vec<gelgrip_controller::actuator::ServoState>>,
     /// The dashboard's URL (when it was served).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub dashboard_url: Option<String>,
@@ -197,15 +167,4 @@ pub fn counts_text(c: &ReasonCounts) -> String {
 /// Latency quantile in ms.
 pub fn latency_ms(stats: &GateStats, q: f64) -> Option<f64> {
     stats.latency_us_quantile(q).map(|us| us as f64 / 1e3)
-}
-
-/// A sensor the gate excluded from the sets.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct ExcludedSensor {
-    /// Its id (`f1.middle`).
-    pub sensor: String,
-    /// What it kept failing (a drop reason's key: `out_of_window`, `late`, …).
-    pub reason: String,
-    /// Run time of the exclusion, s.
-    pub since_s: f64,
 }

@@ -29,8 +29,8 @@ use gelgrip_record::format::{Meta, Record};
 use gelgrip_record::reader::Recording;
 use gelgrip_record::replay::{ReplayHub, Speed, prediction_for_limits};
 
-use crate::tactile::Tactile;
 use crate::wiring;
+use gelgrip_plugins::sensing::Tactile;
 
 /// How fast `replay` goes.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -72,7 +72,7 @@ fn open_pipelines(which: Pipelines<'_>, recorded: &AppConfig) -> anyhow::Result<
             )));
         }
     }
-    configs.iter().map(Tactile::open).collect()
+    configs.iter().map(crate::tactile::open).collect()
 }
 
 /// The replayed gate's decisions (set, outcome) and the hub events counted.
@@ -378,7 +378,7 @@ impl ReplayedGate {
 /// replayed as fast as it goes, with the limits it was recorded under.
 pub fn replay_at_max(recording: &Recording) -> anyhow::Result<(AppConfig, Tactile, ReplayedGate)> {
     let (config, max_spread_us, max_age_us) = recorded_config(recording)?;
-    let tactile = Tactile::open(&config)?;
+    let tactile = crate::tactile::open(&config)?;
     let replayed = ReplayedGate::open(
         recording,
         &config,

@@ -3,8 +3,6 @@
 //! into a [`Runtime`]; and, when it ends, the `run --json` report. `gelgrip run`, the
 //! benches and the examples all run the gripper through this, in process.
 
-use std::net::SocketAddr;
-use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 
 use gelgrip_controller::acquire::Acquisition;
@@ -14,7 +12,7 @@ use gelgrip_controller::hub::HubDescription;
 use gelgrip_controller::runtime::commanded::CommandedGripper;
 use gelgrip_controller::runtime::driver::Driver;
 use gelgrip_controller::runtime::fixed_close::FixedClose;
-use gelgrip_controller::runtime::gentle_grasp::{GentleGrasp, GraspOptions};
+use gelgrip_controller::runtime::gentle_grasp::GentleGrasp;
 use gelgrip_controller::runtime::outcome::EndReason;
 use gelgrip_controller::runtime::plant::Plant;
 use gelgrip_controller::runtime::ports::GroundTruth;
@@ -24,76 +22,19 @@ use tokio::sync::mpsc;
 
 use crate::UsageError;
 use crate::loop_control::LoopControl;
-use crate::observers::dashboard::Dashboard;
-use crate::observers::recording::RunRecorder;
-use crate::observers::task_log::TaskLog;
-use crate::output::{ExcludedSensor, RunReport, ServoReport, latency_ms};
-use crate::scene_report::SceneReport;
+use crate::output::{RunReport, latency_ms};
 use crate::scripts::load_script;
-use crate::sim_truth::SimTruth;
-use crate::tactile::Tactile;
+use crate::task_log::TaskLog;
+use gelgrip_controller::gate::ExcludedSensor;
+use gelgrip_record::observer::RunRecorder;
+use gelgrip_web::feed::{Dashboard, FeedSetup};
+
 use crate::wiring;
 use gelgrip_controller::gate::GateStats;
+use gelgrip_sim::scene_report::SceneReport;
+use gelgrip_sim::truth::SimTruth;
 
-/// How to run: `gelgrip run`'s options, without the command line.
-#[derive(Debug, Clone)]
-pub struct RunOptions {
-    /// The config file (`None`: the embedded simulated gripper).
-    pub config: Option<PathBuf>,
-    /// A scene instead of the config's (simulated hub only).
-    pub scene: Option<PathBuf>,
-    /// An embedded scene's name (`configs/scenes/NAME.toml`) to use when neither `scene`
-    /// nor the config names one (simulated hub only), its object held in place until
-    /// grasped (the table never drops away): the dashboard run of the default config opens
-    /// on the tennis ball.
-    pub default_scene: Option<String>,
-    /// Real or virtual time.
-    pub clock: ClockKind,
-    /// `gentle-grasp`, a task script's name or file, or none (the grasp API drives).
-    pub task: Option<String>,
-    /// The gentle grasp's options.
-    pub grasp: GraspOptions,
-    /// The task CSV.
-    pub log: Option<PathBuf>,
-    /// Record into this directory.
-    pub record: Option<PathBuf>,
-    /// No dashboard.
-    pub headless: bool,
-    /// Without a task, drive the fingers through the grasp API even when headless (what a
-    /// program that embeds the runtime wants; with a dashboard it always does).
-    pub grasp_api: bool,
-    /// The dashboard's address (else the config's).
-    pub http: Option<SocketAddr>,
-    /// The fixed programme's closing current (headless on a scene, no task), mA.
-    pub close_current_ma: f64,
-    /// Run this long after the set-up, s (on the run's clock).
-    pub duration_s: Option<f64>,
-}
-
-impl Default for RunOptions {
-    fn default() -> Self {
-        Self {
-            config: None,
-            scene: None,
-            default_scene: None,
-            clock: ClockKind::Real,
-            task: None,
-            grasp: GraspOptions {
-                target_force_n: 1.5,
-                speed_deg_s: 15.0,
-                timeout_s: 20.0,
-                hold_s: 0.0,
-            },
-            log: None,
-            record: None,
-            headless: false,
-            grasp_api: false,
-            http: None,
-            close_current_ma: 800.0,
-            duration_s: None,
-        }
-    }
-}
+pub use gelgrip_controller::runtime::options::RunOptions;
 
 /// A run, set up and ready.
 pub struct Session {
@@ -133,7 +74,7 @@ fn driver(
     });
     let plant = Plant::open(
         config.layout.clone(),
-        Box::new(Tactile::open(config)?),
+        Box::new(crate::tactile::open(config)?),
         bus,
         truth,
     )?;
@@ -189,7 +130,7 @@ impl Session {
                 load_script(script, &config)?;
             }
         }
-        let clock = wiring::make_clock(options.clock);
+        let clock = options.clock.new_clock();
         let world = wiring::open_world(
             &config,
             options.scene.as_deref(),
@@ -232,7 +173,7 @@ impl Session {
         // model files the dashboard still serves the cameras, sync and servos.
         let unmodelled = crate::tactile::sensors_without_model(&config)?;
         // A run that publishes to ROS 2 drives through the grasp API too (readings, servos).
-        let ros_on = crate::ros::config::RosConfig::from_section(&config.ros)?.enabled;
+        let ros_on = gelgrip_ros_bridge::config::RosConfig::from_section(&config.ros)?.enabled;
         let grasp_api = (!options.headless || options.grasp_api || ros_on) && unmodelled.is_empty();
         if !options.headless && options.task.is_none() && !unmodelled.is_empty() {
             tracing::warn!(
@@ -295,7 +236,11 @@ impl Session {
                 bind,
                 runtime.gripper(),
                 Some(requests),
-                description.transport.clone(),
+                FeedSetup {
+                    transport: description.transport.clone(),
+                    calibration: crate::tactile::calibration_text(&config),
+                    tasks: crate::catalog::names(crate::catalog::Kind::Task),
+                },
                 sim_view,
             )
             .await?;
@@ -410,9 +355,7 @@ impl Session {
             object: scene.as_ref().map(|s| s.object.clone()),
             crushed: scene.as_ref().map(|s| s.crushed),
             scene,
-            servos: summary
-                .servos
-                .map(|s| s.iter().map(ServoReport::from).collect()),
+            servos: summary.servos.map(|s| s.to_vec()),
             dashboard_url: self.dashboard_url.clone(),
             task: summary.task,
         }

@@ -1,42 +1,34 @@
-//! The live tactile pipelines of a run: one `SensorPipeline` per sensor, built from the
+//! The run's sensing built from a config: one `SensorPipeline` per sensor, from the
 //! `[pipeline]` section, with each sensor's gradient model either from its configured
 //! `model` file or, on the simulator, calibrated from simulated presses of a 6 mm and a
 //! 25 mm ball on that very sensor (as `calibrate collect` + `calibrate train` would) and
 //! cached on disk, keyed by the recipe's version, the seed, the sensor (its id and its
 //! position in the layout, which draws its unit variation), resolution, pixel size, JPEG
-//! quality and camera noise, so later runs start at once.
+//! quality and camera noise, so later runs start at once. The pipelines run behind the
+//! runtime's sensing port as [`gelgrip_plugins::sensing::Tactile`].
 //!
 //! On a hardware hub (`hub.transport` other than `sim`) every sensor needs a model file,
-//! and the references come from the first live sets, untouched ([`Tactile::open`]).
-//!
-//! Each frame is worked on as it arrives ([`Tactile::frame_arrived`], streaming: see
-//! [`gelgrip_plugins::pipeline::stream`]), before the gate decides on its set; each gated
-//! set goes through [`Tactile::process`], which takes what was worked on ahead for its very
-//! frames and processes the rest, the sensors in parallel, and comes out as the
-//! controller's per-sensor readings (`None` for a sensor whose frame failed).
+//! and the references come from the first live sets, untouched ([`open`]).
 
 use std::path::PathBuf;
 
 use anyhow::Context;
 
 use gelgrip_controller::config::AppConfig;
-use gelgrip_controller::frame::{FrameSet, ReceivedFrame};
-use gelgrip_controller::fusion::SensorReading;
-use gelgrip_controller::runtime::ports::{DepthWindow, Sensing};
 use gelgrip_plugins::calibrate;
 use gelgrip_plugins::config::PipelineConfig;
-use gelgrip_plugins::contact::ContactSummary;
 use gelgrip_plugins::dataset::PressDataset;
 use gelgrip_plugins::gradient::{GradientModel, MlpMode};
 use gelgrip_plugins::lut::Input;
 use gelgrip_plugins::lut::LutModel;
-use gelgrip_plugins::pipeline::stream::{FrameKey, StreamingSensors};
-use gelgrip_plugins::pipeline::{Needs, SensorPipeline, StageChoice};
+use gelgrip_plugins::pipeline::{SensorPipeline, StageChoice};
+use gelgrip_plugins::sensing::{REFERENCE_FRAMES, Tactile};
 
 use gelgrip_sim::config::SimConfig;
 use gelgrip_sim::pool::SensorCamera;
 
-use crate::simcam;
+use gelgrip_plugins::calibrate::collect::{BallPresses, collect};
+use gelgrip_sim::press_camera::sensor_camera;
 
 /// Simulated presses per sensor for an automatic calibration, shared between the balls.
 const CALIBRATION_PRESSES: usize = 50;
@@ -47,9 +39,6 @@ const CALIBRATION_BALLS_MM: [f64; 2] = [6.0, 25.0];
 /// Version of the self-calibration recipe; raise it when the recipe changes so cached
 /// models from an older one are not reused (5: the key chosen by [`calibration_input`]).
 const CALIBRATION_VERSION: u32 = 5;
-
-/// No-contact frames averaged into each sensor's reference.
-const REFERENCE_FRAMES: u64 = 12;
 
 /// The self-calibrated LUT's key, chosen on its presses' measured pixel noise:
 /// - `relative` at ordinary noise, so that the cameras' vignetting (10–22% darker at the
@@ -84,203 +73,23 @@ pub fn cache_dir() -> PathBuf {
     std::env::temp_dir().join("gelgrip-cache")
 }
 
-/// Every sensor's pipeline.
-pub struct Tactile {
-    pipes: StreamingSensors,
-    geometry: Vec<(f64, f64, f64)>,
-    results: Vec<Result<ContactSummary, gelgrip_plugins::pipeline::PipelineError>>,
-    /// On a hardware hub, each sensor's untouched frames gathered so far for its reference
-    /// (`None` once referenced, and on the simulator).
-    pending_reference: Option<Vec<Vec<Vec<u8>>>>,
-}
-
-impl Tactile {
-    /// Build the pipelines for `config`. On the simulator each is calibrated at once
-    /// (model files optional); on a hardware hub every sensor needs a model file, and the
-    /// references are the first [`REFERENCE_FRAMES`] sets [`Tactile::process`] receives (the
-    /// gripper starts open, nothing touching): until then every reading is `None`, which
-    /// holds the fingers.
-    pub fn open(config: &AppConfig) -> anyhow::Result<Self> {
-        let pipeline = PipelineConfig::from_section(&config.pipeline, &config.layout)?;
-        let live = config.hub.transport != "sim";
-        let mut pipes = Vec::new();
-        let mut geometry = Vec::new();
-        for (i, spec) in config.layout.sensors.iter().enumerate() {
-            let pipe = if live {
-                unreferenced_pipeline(config, &pipeline, i)?
+/// The run's sensing for `config`: each sensor's pipeline with its model. On the simulator
+/// each is referenced at once (model files optional: a missing one is calibrated on
+/// simulated presses, cached); on a hardware hub every sensor needs a model file, and the
+/// references are taken from the first live sets ([`Tactile::new`]).
+pub fn open(config: &AppConfig) -> anyhow::Result<Tactile> {
+    let pipeline = PipelineConfig::from_section(&config.pipeline, &config.layout)?;
+    let live = config.hub.transport != "sim";
+    let pipes = (0..config.layout.sensors.len())
+        .map(|i| {
+            if live {
+                unreferenced_pipeline(config, &pipeline, i)
             } else {
-                sensor_pipeline(config, &pipeline, i)?.0
-            };
-            let (w, h) = (spec.resolution.width_px, spec.resolution.height_px);
-            geometry.push((f64::from(w), f64::from(h), spec.mm_per_px));
-            pipes.push(pipe);
-        }
-        let n = pipes.len();
-        Ok(Self {
-            pipes: StreamingSensors::new(pipes, Needs::DEPTH),
-            geometry,
-            results: (0..n).map(|_| Ok(ContactSummary::default())).collect(),
-            pending_reference: live.then(|| vec![Vec::new(); n]),
+                Ok(sensor_pipeline(config, &pipeline, i)?.0)
+            }
         })
-    }
-
-    /// Sets still to gather for the live references (0 on the simulator and once taken).
-    pub fn reference_sets_missing(&self) -> usize {
-        self.pending_reference.as_ref().map_or(0, |p| {
-            (REFERENCE_FRAMES as usize).saturating_sub(p.first().map_or(0, Vec::len))
-        })
-    }
-
-    /// Take `set` toward the live references (a run does this before its loop, so the
-    /// one-time reference does not stall the loop; a replay, in [`Tactile::process`]).
-    pub fn offer_reference(&mut self, set: &FrameSet) {
-        let mut frames: Vec<&[u8]> = Vec::with_capacity(self.pipes.len());
-        for (i, f) in set.frames.iter().enumerate() {
-            if usize::from(f.frame.sensor.0) == i {
-                frames.push(f.frame.jpeg.as_ref());
-            }
-        }
-        if frames.len() == self.pipes.len() {
-            self.gather_reference(&frames);
-        }
-    }
-
-    /// Gather `frames` toward the live references; true while still gathering.
-    fn gather_reference(&mut self, frames: &[&[u8]]) -> bool {
-        let Some(pending) = self.pending_reference.as_mut() else {
-            return false;
-        };
-        for (kept, frame) in pending.iter_mut().zip(frames) {
-            kept.push(frame.to_vec());
-        }
-        if pending.first().map_or(0, Vec::len) < REFERENCE_FRAMES as usize {
-            return true;
-        }
-        // The sensors in parallel, as in process_set.
-        let pipes = &self.pipes;
-        std::thread::scope(|scope| {
-            for (i, kept) in pending.iter().enumerate() {
-                scope.spawn(move || {
-                    let quiet: Vec<&[u8]> = kept.iter().map(Vec::as_slice).collect();
-                    let done = pipes.with_pipe_mut(i, |pipe| pipe.calibrate(&quiet));
-                    if let Some(Err(e)) = done {
-                        tracing::error!(
-                            sensor = i,
-                            "reference from live frames failed: {e}; its finger holds"
-                        );
-                    }
-                });
-            }
-        });
-        tracing::info!(
-            sets = REFERENCE_FRAMES,
-            "sensors referenced on live untouched frames"
-        );
-        self.pending_reference = None;
-        true
-    }
-
-    /// Sensor `i`'s last reconstructed depth window (mm, row-major), where it lies in the
-    /// processed frame, and the depth above which a pixel counts as contact, mm.
-    /// `None` while the pipeline's buffers hold a frame worked on ahead of its set.
-    pub fn depth_window(&self, i: usize) -> Option<DepthWindow> {
-        self.pipes
-            .with_committed_pipe(i, |pipe| {
-                let (depth, (x0, y0, w, h)) = pipe.last_depth_mm();
-                if w == 0 || h == 0 {
-                    return None;
-                }
-                let threshold = pipe.noise().map_or(0.05, |n| n.depth_threshold_mm);
-                Some(DepthWindow {
-                    depth_mm: depth.to_vec(),
-                    width: w,
-                    height: h,
-                    origin_px: (x0, y0),
-                    frame_px: pipe.size(),
-                    contact_mm: threshold,
-                })
-            })
-            .flatten()
-    }
-
-    /// A frame has arrived, before the gate decides on its set: work on it now (nothing
-    /// while the live references are still being gathered).
-    pub fn frame_arrived(&self, frame: &ReceivedFrame) {
-        if self.pending_reference.is_some() {
-            return;
-        }
-        self.pipes.arrive(
-            usize::from(frame.frame.sensor.0),
-            FrameKey {
-                trigger_seq: frame.frame.trigger_seq,
-                jpeg: frame.frame.jpeg.clone(),
-            },
-        );
-    }
-
-    /// Process one gated set into per-sensor readings: `None` for a sensor whose pipeline
-    /// failed, and for one the gate left out of the set (excluded).
-    pub fn process(&mut self, set: &FrameSet) -> Vec<Option<SensorReading>> {
-        let n = self.pipes.len();
-        let mut by_sensor: Vec<Option<FrameKey>> = vec![None; n];
-        for f in &set.frames {
-            if let Some(slot) = by_sensor.get_mut(usize::from(f.frame.sensor.0)) {
-                *slot = Some(FrameKey {
-                    trigger_seq: f.frame.trigger_seq,
-                    jpeg: f.frame.jpeg.clone(),
-                });
-            }
-        }
-        if self.pending_reference.is_some() {
-            if by_sensor.iter().all(Option::is_some) {
-                let frames: Vec<&[u8]> = by_sensor.iter().flatten().map(|k| &k.jpeg[..]).collect();
-                self.gather_reference(&frames);
-            }
-            return vec![None; n];
-        }
-        self.pipes.process(&by_sensor, &mut self.results);
-        self.results
-            .iter()
-            .zip(&self.geometry)
-            .zip(&by_sensor)
-            .map(|((r, (w, h, mm)), frame)| {
-                frame.as_ref()?;
-                let s = r.as_ref().ok()?;
-                Some(SensorReading {
-                    in_contact: s.in_contact,
-                    area_mm2: s.area_mm2,
-                    max_depth_mm: s.max_depth_mm.unwrap_or(0.0),
-                    volume_mm3: s.volume_mm3.unwrap_or(0.0),
-                    force_n: s.force_n.unwrap_or(0.0),
-                    centroid_mm: s
-                        .centroid_px
-                        .map(|(x, y)| ((x - w / 2.0) * mm, (y - h / 2.0) * mm)),
-                })
-            })
-            .collect()
-    }
-}
-
-impl Sensing for Tactile {
-    fn process(&mut self, set: &FrameSet) -> Vec<Option<SensorReading>> {
-        Tactile::process(self, set)
-    }
-
-    fn frame_arrived(&mut self, frame: &ReceivedFrame) {
-        Tactile::frame_arrived(self, frame);
-    }
-
-    fn reference_sets_missing(&self) -> usize {
-        Tactile::reference_sets_missing(self)
-    }
-
-    fn offer_reference(&mut self, set: &FrameSet) {
-        Tactile::offer_reference(self, set);
-    }
-
-    fn depth_window(&self, index: usize) -> Option<DepthWindow> {
-        Tactile::depth_window(self, index)
-    }
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    Ok(Tactile::new(pipes, &config.layout, live))
 }
 
 /// The cache file of sensor `id`'s calibration on camera `cam` under `sim`.
@@ -334,13 +143,12 @@ fn sensor_model(
             "gelgrip-autocal-{}-{id}-{ball_mm}mm",
             std::process::id()
         ));
-        let balls = SimConfig {
+        let balls = BallPresses {
             ball_diameter_mm: ball_mm,
+            presses: CALIBRATION_PRESSES / CALIBRATION_BALLS_MM.len(),
             seed: sim.seed ^ k as u64,
-            ..sim.clone()
         };
-        let presses = CALIBRATION_PRESSES / CALIBRATION_BALLS_MM.len();
-        datasets.push(simcam::collect(cam, &balls, presses, &tmp, |_| {})?);
+        datasets.push(collect(cam, balls, &tmp, |_| {})?);
     }
     let refs: Vec<&PressDataset> = datasets.iter().collect();
     let model = calibration_input(&refs).and_then(|input| {
@@ -385,7 +193,7 @@ pub fn sensor_pipeline(
         .map(|s| s.id.to_string())
         .context("sensor index out of range")?;
     let stages = pipeline.sensors[index].clone();
-    let (cam, sim) = simcam::camera(config, &id).with_context(|| {
+    let (cam, sim) = sensor_camera(config, &id).with_context(|| {
         format!(
             "sensor {id}: live tactile processing needs the simulated hub for its reference frames"
         )
@@ -413,7 +221,7 @@ pub fn sensor_pipeline(
         cam.height,
         cam.mm_per_px,
     );
-    let quiet = simcam::no_contact_frames(&cam, 7_000_000, REFERENCE_FRAMES)?;
+    let quiet = cam.untouched_frames(7_000_000, REFERENCE_FRAMES)?;
     let quiet: Vec<&[u8]> = quiet.iter().map(Vec::as_slice).collect();
     pipe.calibrate(&quiet)
         .with_context(|| format!("sensor {id}: reference frames"))?;
@@ -468,6 +276,23 @@ pub fn unreferenced_pipeline(
         spec.resolution.height_px as usize,
         spec.mm_per_px,
     ))
+}
+
+/// How the sensors are calibrated, as the pipelines decide it ([`open`]): a
+/// sensor with a `model` file uses it; the others self-calibrate on simulated presses.
+pub fn calibration_text(config: &AppConfig) -> String {
+    let sensors = config.layout.sensors.len();
+    let from_files = PipelineConfig::from_section(&config.pipeline, &config.layout)
+        .map_or(0, |p| {
+            p.sensors.iter().filter(|s| s.model.is_some()).count()
+        });
+    match from_files {
+        0 => "self-calibrated LUT per sensor (simulated presses, cached)".into(),
+        n if n == sensors => "model files per sensor ([pipeline] model)".into(),
+        n => format!(
+            "{n} of {sensors} sensors from model files, the others self-calibrated on simulated presses"
+        ),
+    }
 }
 
 #[cfg(test)]

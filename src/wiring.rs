@@ -11,7 +11,7 @@ use gelgrip_cdc::factory::CdcFactory;
 use gelgrip_ch347::factory::Ch347Factory;
 use gelgrip_controller::acquire::{Acquisition, make_gate};
 use gelgrip_controller::actuator::ServoBus;
-use gelgrip_controller::clock::{Clock, ClockKind, RealClock, VirtualClock};
+use gelgrip_controller::clock::Clock;
 use gelgrip_controller::config::{
     AppConfig, CapturingFiles, ConfigError, DiskFiles, FileSource, MemoryFiles,
 };
@@ -41,7 +41,7 @@ pub fn registry() -> TransportRegistry {
 /// The CH347 factory, its emulator's boards showing `world` (else the built-in presses).
 fn ch347(world: Option<SharedWorld>) -> Ch347Factory {
     Ch347Factory::new(Some(thread_cpu_ns)).with_cameras(Arc::new(
-        crate::press_requests::RequestedPresses::new(SimCameraSource::new(world)),
+        gelgrip_sim::press_requests::RequestedPresses::new(SimCameraSource::new(world)),
     ))
 }
 
@@ -180,7 +180,7 @@ pub fn load_config_from_memory(
 fn check_loaded(config: AppConfig) -> anyhow::Result<AppConfig> {
     gelgrip_plugins::config::PipelineConfig::from_section(&config.pipeline, &config.layout)?;
     gelgrip_record::writer::RecorderOptions::from_section(&config.record)?;
-    crate::ros::config::RosConfig::from_section(&config.ros)?;
+    gelgrip_ros_bridge::config::RosConfig::from_section(&config.ros)?;
     servo_faults(&config)?;
     check_servo_count(&config)?;
     Ok(config)
@@ -209,14 +209,6 @@ fn servo_faults(
 ) -> Result<Vec<gelgrip_sim::servo_fault_plan::ScheduledFault>, ConfigError> {
     let check = gelgrip_controller::config::FieldCheck::new(config.file.clone());
     gelgrip_sim::servo_fault_plan::parse(&check, &config.servos.sim, &config.servos.ids)
-}
-
-/// A new clock of `kind`.
-pub fn make_clock(kind: ClockKind) -> Arc<dyn Clock> {
-    match kind {
-        ClockKind::Real => Arc::new(RealClock::new()),
-        ClockKind::Virtual => VirtualClock::new(),
-    }
 }
 
 /// This thread's CPU time in ns (0 if the OS cannot tell).
@@ -256,5 +248,11 @@ pub fn is_config_error(err: &anyhow::Error) -> bool {
         e.downcast_ref::<ConfigError>().is_some()
             || e.downcast_ref::<crate::UsageError>().is_some()
             || matches!(e.downcast_ref::<OpenError>(), Some(OpenError::Config(_)))
+            || e.downcast_ref::<gelgrip_ros_bridge::BridgeError>()
+                .is_some_and(gelgrip_ros_bridge::BridgeError::is_usage)
+            || matches!(
+                e.downcast_ref::<gelgrip_web::feed::ServeError>(),
+                Some(gelgrip_web::feed::ServeError::OpenWithoutToken { .. })
+            )
     })
 }

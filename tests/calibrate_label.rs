@@ -10,10 +10,12 @@ use std::process::{Command, Output};
 
 use common::press_hub::{PressHub, collect_command};
 use common::{gelgrip, json, ok, s, scratch};
-use gelgrip::{simcam, wiring};
+use gelgrip::wiring;
+use gelgrip_plugins::calibrate::collect::decode_frame;
 use gelgrip_plugins::calibrate::label::detect;
 use gelgrip_plugins::dataset::PressDataset;
 use gelgrip_plugins::image::RgbImage;
+use gelgrip_sim::press_camera::sensor_camera;
 use gelgrip_sim::scene::HeightMap;
 use rand::{Rng, SeedableRng};
 
@@ -22,11 +24,11 @@ use rand::{Rng, SeedableRng};
 #[test]
 fn simulator_presses_are_labelled_to_a_pixel() {
     let config = wiring::load_config(None, &wiring::registry()).expect("default config");
-    let (cam, _) = simcam::camera(&config, "f1.tip").expect("camera");
+    let (cam, _) = sensor_camera(&config, "f1.tip").expect("camera");
     let n = 10u64;
     let mut sum = vec![0u32; cam.width * cam.height * 3];
-    for jpeg in simcam::no_contact_frames(&cam, 1_000_000, n).expect("frames") {
-        let img = simcam::decode(&cam, &jpeg).expect("decode");
+    for jpeg in cam.untouched_frames(1_000_000, n).expect("frames") {
+        let img = decode_frame(&cam, &jpeg).expect("decode");
         sum.iter_mut()
             .zip(&img.data)
             .for_each(|(s, v)| *s += u32::from(*v));
@@ -61,7 +63,7 @@ fn simulator_presses_are_labelled_to_a_pixel() {
                 depth,
             );
             let jpeg = cam.jpeg(&map, 2_000_000 + i).expect("render");
-            let img = simcam::decode(&cam, &jpeg).expect("decode");
+            let img = decode_frame(&cam, &jpeg).expect("decode");
             total += 1;
             let line = format!(
                 "ball {ball_mm} mm, {depth:.2} mm deep: truth ({cx:.2}, {cy:.2}) r {a_px:.2}"

@@ -66,7 +66,7 @@ fn client(port: u16, ns: &str, scenario: &str) -> Child {
     let mut child = Command::new(python())
         .arg(format!("{ROOT}/tests/python/ros_commands_client.py"))
         .arg(port.to_string())
-        .arg(format!("{ROOT}/ros/tests/upstream"))
+        .arg(format!("{ROOT}/ros/wire/tests/upstream"))
         .arg(ns)
         .arg(scenario)
         .stdout(Stdio::piped())
@@ -98,7 +98,7 @@ fn gelgrip(dir: &Path, config: &Path, secs: &str, args: &[&str]) -> Child {
             "GELGRIP_CACHE_DIR",
             Path::new(env!("CARGO_TARGET_TMPDIR")).join("gelgrip-cache"),
         )
-        .env("RUST_LOG", "warn,gelgrip::ros=info")
+        .env("RUST_LOG", "warn,gelgrip_ros_bridge=info")
         .env("NO_COLOR", "1")
         .current_dir(dir)
         .stdout(Stdio::piped())

@@ -1,6 +1,8 @@
 //! The camera port: where emulated sensor boards (the CH347 chip emulator's, the CDC hub
 //! emulator's) get their images. The simulator implements it, so an emulated hub serves the
-//! same frames the simulated hub does, through the real wire protocols.
+//! same frames the simulated hub does, through the real wire protocols. And the press
+//! camera port ([`PressCamera`]): where a calibration collects its ball presses from (the
+//! simulator implements it too, so the calibration's plugins do not depend on it).
 
 use bytes::Bytes;
 
@@ -77,4 +79,35 @@ pub trait CameraSource: Send + Sync + std::fmt::Debug {
         section: &crate::config::BackendSection,
         layout: &crate::layout::HandLayout,
     ) -> Result<(Box<dyn BoardCameras>, Option<f64>), String>;
+}
+
+/// A frame a [`PressCamera`] could not give, with the camera's own error.
+#[derive(Debug, thiserror::Error)]
+#[error("capturing frame {nth}: {detail}")]
+pub struct CaptureError {
+    /// The frame asked for.
+    pub nth: u64,
+    /// What went wrong.
+    pub detail: String,
+}
+
+/// A sensor's camera that can be shown a ball pressed into its gel: what a calibration
+/// collects its presses from. Frames are numbered (`nth`), so the same number gives the
+/// same frame (noise included) on a deterministic camera.
+pub trait PressCamera {
+    /// Image width and height, px.
+    fn size_px(&self) -> (usize, usize);
+    /// Pixel size on the gel, mm.
+    fn mm_per_px(&self) -> f64;
+    /// Frame `nth` with nothing touching the gel, JPEG.
+    fn untouched_jpeg(&self, nth: u64) -> Result<Vec<u8>, CaptureError>;
+    /// Frame `nth` with a ball of `diameter_mm` pressed `depth_mm` deep at `centre_px`,
+    /// JPEG.
+    fn ball_press_jpeg(
+        &self,
+        centre_px: (f64, f64),
+        diameter_mm: f64,
+        depth_mm: f64,
+        nth: u64,
+    ) -> Result<Vec<u8>, CaptureError>;
 }

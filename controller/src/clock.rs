@@ -18,6 +18,16 @@ pub enum ClockKind {
     Virtual,
 }
 
+impl ClockKind {
+    /// A new clock of this kind, starting now (real) or at zero (virtual).
+    pub fn new_clock(self) -> Arc<dyn Clock> {
+        match self {
+            Self::Real => Arc::new(RealClock::new()),
+            Self::Virtual => VirtualClock::new(),
+        }
+    }
+}
+
 /// A source of host time that can also wait.
 #[async_trait]
 pub trait Clock: Send + Sync + Debug {

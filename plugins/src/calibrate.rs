@@ -4,6 +4,7 @@
 
 use thiserror::Error;
 
+pub mod collect;
 pub mod label;
 pub mod sheet;
 pub mod window;

@@ -6,7 +6,8 @@
 //!   ([`gradient`] holds whichever gradient model a sensor uses); [`halves`] splits a
 //!   frame's row-wise stages over two cores for the frame on the critical path;
 //! - [`dataset`], [`image`], [`model_file`]: the press dataset and model file formats;
-//! - [`npy`]: NumPy `.npy` gradients and depth maps.
+//! - [`npy`]: NumPy `.npy` gradients and depth maps;
+//! - [`sensing`]: the pipelines of every sensor as the runtime's `Sensing` port.
 
 pub mod calibrate;
 pub mod config;
@@ -22,4 +23,5 @@ pub mod model_file;
 pub mod npy;
 pub mod pipeline;
 pub mod poisson;
+pub mod sensing;
 pub mod undistort;

@@ -18,8 +18,11 @@ use gelgrip_plugins::mlp::train::{InputNorm, Loss, TrainOptions};
 use gelgrip_plugins::mlp::transfer::{Fit, transfer};
 use gelgrip_plugins::poisson::Solver;
 
-use crate::cli::{CalibrateCommand, UsageError};
-use gelgrip::{progress, simcam, wiring};
+use crate::cli::{CalibrateCommand, DEFAULT_EPOCHS, ModelKind, UsageError};
+use gelgrip::wiring;
+use gelgrip_bench::progress;
+use gelgrip_plugins::calibrate::collect::{BallPresses, collect as collect_presses};
+use gelgrip_sim::press_camera::sensor_camera;
 
 /// Run a calibrate subcommand; returns the exit code.
 pub async fn run(cmd: CalibrateCommand) -> anyhow::Result<u8> {
@@ -47,7 +50,7 @@ async fn collect(args: CollectArgs) -> anyhow::Result<u8> {
         ))
         .into());
     }
-    let (cam, mut sim) = simcam::camera(&config, &args.sensor)?;
+    let (cam, mut sim) = sensor_camera(&config, &args.sensor)?;
     if let Some(mm) = args
         .mm_per_px
         .filter(|mm| (mm - cam.mm_per_px).abs() > 1e-12)
@@ -69,7 +72,12 @@ async fn collect(args: CollectArgs) -> anyhow::Result<u8> {
     );
     let presses = args.presses as usize;
     let every = (presses / 10).max(1);
-    let ds = simcam::collect(&cam, &sim, presses, &args.out, |i| {
+    let balls = BallPresses {
+        ball_diameter_mm: sim.ball_diameter_mm,
+        presses,
+        seed: sim.seed,
+    };
+    let ds = collect_presses(&cam, balls, &args.out, |i| {
         if i % every == 0 || i == presses {
             eprintln!("  {i}/{} presses", args.presses);
         }
@@ -474,15 +482,6 @@ pub struct CollectArgs {
     pub headless: bool,
 }
 
-/// Gradient model kinds.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum ModelKind {
-    /// Binned colour → mean gradient.
-    Lut,
-    /// Multi-layer perceptron: RGB + x, y → (Gx, Gy), three tanh hidden layers.
-    Mlp,
-}
-
 /// MLP training losses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum LossKind {
@@ -577,10 +576,6 @@ pub struct TrainArgs {
     #[arg(long)]
     pub json: bool,
 }
-
-/// Default MLP training epochs, an upper bound: early stopping ends most runs sooner
-/// (10–20 s for 50 realistic presses at 320×240 on 2 shared cores; docs/calibration.md).
-pub const DEFAULT_EPOCHS: u32 = gelgrip_plugins::mlp::train::DEFAULT_EPOCHS as u32;
 
 fn parse_dropout(s: &str) -> Result<f64, String> {
     parse_within(s, "a dropout probability", "", 0.0..=0.9)

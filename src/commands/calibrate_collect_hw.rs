@@ -40,11 +40,12 @@ use gelgrip_plugins::dataset::{DatasetInfo, Press, PressDataset, write_presses_c
 use gelgrip_plugins::image::RgbImage;
 use gelgrip_web::calibrate::{CollectStatus, CollectView, Decision, LabelView, Phase};
 
-use crate::cli::{ClockArg, CollectArgs, UsageError};
+use crate::cli::{CollectArgs, UsageError};
 use crate::commands::calibrate_collect_view::ViewServer;
 use crate::commands::calibrate_force_hw::stdin_lines;
 use crate::commands::calibrate_label::label_one;
 use gelgrip::wiring;
+use gelgrip_controller::clock::ClockKind;
 
 /// Frames averaged into the background.
 pub const BACKGROUND_FRAMES: usize = 10;
@@ -116,7 +117,7 @@ pub async fn collect(args: &CollectArgs, config: &AppConfig) -> anyhow::Result<u
         let bind = args.http.unwrap_or(config.http.bind);
         Some(ViewServer::start(config, bind, view.clone()).await?)
     };
-    let clock = wiring::make_clock(ClockArg::Real.into());
+    let clock = ClockKind::Real.new_clock();
     let acq = wiring::open_acquisition(config, &wiring::registry(), clock.clone())
         .await
         .with_context(|| format!("opening the {} hub", config.hub.transport))?;

@@ -12,9 +12,9 @@ use anyhow::Context;
 use tokio::sync::oneshot;
 use tokio::task::JoinHandle;
 
-use gelgrip::observers::dashboard::check_bind;
 use gelgrip_controller::config::AppConfig;
 use gelgrip_web::calibrate::CollectView;
+use gelgrip_web::feed::check_bind;
 
 /// Longest wait for the open requests when the session ends.
 const DRAIN: Duration = Duration::from_secs(2);

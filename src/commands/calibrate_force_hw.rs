@@ -24,9 +24,10 @@ use gelgrip_controller::fusion::weight_force_n;
 use gelgrip_plugins::config::PipelineConfig;
 use gelgrip_plugins::pipeline::Needs;
 
-use crate::cli::{ClockArg, ForceArgs};
+use crate::cli::ForceArgs;
 use crate::commands::calibrate_force::{Pair, WORST_CASE_FROM_N};
 use gelgrip::wiring;
+use gelgrip_controller::clock::ClockKind;
 
 /// The report's group name for the weights.
 pub const KNOWN_WEIGHTS: &str = "known weights";
@@ -82,7 +83,7 @@ pub async fn weigh(
     let id = args.sensor.as_str();
     let mut pipe = gelgrip::tactile::unreferenced_pipeline(config, pipeline, index)?;
     let registry = wiring::registry();
-    let clock = wiring::make_clock(ClockArg::Real.into());
+    let clock = ClockKind::Real.new_clock();
     let mut acq = wiring::open_acquisition(config, &registry, clock.clone())
         .await
         .with_context(|| format!("opening the {} hub", config.hub.transport))?;

@@ -17,7 +17,7 @@
 //! symlink PATH is created, then one JSON line `{"link", "pty", "usb", "sensors"}` goes to
 //! stdout. The link is removed on SIGINT or SIGTERM.
 
-use clap::{Args, ValueEnum};
+use clap::Args;
 use std::path::Path;
 use std::path::PathBuf;
 
@@ -30,8 +30,9 @@ use gelgrip_sim::board_cameras::SimCameras;
 use gelgrip_sim::config::SimConfig;
 use gelgrip_sim::weights::{WeightControl, weighted_cameras};
 
-use crate::cli::UsageError;
-use gelgrip::{press_requests, wiring};
+use crate::cli::{UsageError, UsbArg};
+use gelgrip::wiring;
+use gelgrip_sim::press_requests;
 
 /// Run the command; returns the exit code.
 pub async fn run(args: EmulateHubArgs) -> anyhow::Result<u8> {
@@ -108,15 +109,6 @@ fn serve_weights(layout: &HandLayout, control: &WeightControl, ball_mm: f64) {
         control,
         ball_mm,
     );
-}
-
-/// USB speed of an emulated hub's link.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum UsbArg {
-    /// Full speed, about 1 MB/s: less than 7 sensors × 20 KB × 34 Hz, so the link limits the rate.
-    Fs,
-    /// High speed, about 40 MB/s.
-    Hs,
 }
 
 /// `gelgrip emulate hub`.

@@ -10,15 +10,15 @@
 use std::io::BufWriter;
 use std::path::Path;
 
+use super::mcap_out::McapOut;
 use anyhow::Context;
 use gelgrip::replay::replay_at_max;
-use gelgrip::ros::config::RosConfig;
-use gelgrip::ros::feed::{DiagnosticsInput, Feed, ServoSample, drop_counts};
-use gelgrip::ros::mcap_out::McapOut;
 use gelgrip_controller::actuator::hardware_error_names;
 use gelgrip_record::format::{Meta, Record};
 use gelgrip_record::reader::Recording;
-use gelgrip_ros::msgs::Time;
+use gelgrip_ros_bridge::config::RosConfig;
+use gelgrip_ros_bridge::feed::{DiagnosticsInput, Feed, ServoSample, drop_counts};
+use gelgrip_ros_wire::msgs::Time;
 
 /// One recorded servo read: host µs, the servos, and their fault names.
 type ServoRead = (u64, Vec<ServoSample>, Vec<Vec<String>>);

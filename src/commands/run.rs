@@ -4,13 +4,13 @@
 
 use crate::cli::{ClockArg, parse_current_ma, parse_duration, parse_within};
 use clap::Args;
-use gelgrip::observers::ros::RosPublisher;
 use gelgrip::session::{RunOptions, Session};
 use gelgrip_controller::actuator::XM430_W350;
 use gelgrip_controller::clock::ClockKind;
 use gelgrip_controller::grasp::MAX_TIMEOUT_S;
 use gelgrip_controller::runtime::RuntimeEvent;
 use gelgrip_controller::runtime::gentle_grasp::GraspOptions;
+use gelgrip_ros_bridge::publisher::RosPublisher;
 use std::path::PathBuf;
 use tokio::sync::mpsc;
 
@@ -108,7 +108,7 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
     let mut session = Session::open(&options).await?;
     let ros = RosPublisher::for_run(session.config(), args.ros, args.ros_namespace.as_deref())?;
     if let Some(publisher) = ros {
-        let commands = gelgrip::ros::command::RosCommands::for_run(
+        let commands = gelgrip_ros_bridge::command::RosCommands::for_run(
             session.config(),
             &publisher,
             session.runtime.gripper(),
@@ -234,7 +234,7 @@ fn parse_task_timeout_s(s: &str) -> Result<f64, String> {
 }
 
 fn parse_ros_namespace(s: &str) -> Result<String, String> {
-    gelgrip_ros::names::check_namespace(s).map_err(|e| e.to_string())?;
+    gelgrip_ros_wire::names::check_namespace(s).map_err(|e| e.to_string())?;
     Ok(s.to_string())
 }
 

@@ -9,7 +9,7 @@ SCENARIO (`commands`: the six cases and the bad inputs against one gelgrip run; 
 checks nothing answers) and prints one JSON summary line.
 
 Requests are CDR built by rosbags' serializer (types registered from UPSTREAM_DIR as
-ros/tests/rosbags_actions.py does) and carry rmw_zenoh's 33-byte attachment (sequence
+ros/wire/tests/rosbags_actions.py does) and carry rmw_zenoh's 33-byte attachment (sequence
 number, source timestamp, GID); each service key is
 `0/<service>/<DDS type>/<RIHS01 hash>`, the hash read from gelgrip's liveliness token and
 checked against rosbags'.
@@ -26,7 +26,7 @@ import uuid
 import numpy as np
 import zenoh
 
-sys.path.insert(0, os.path.join(os.path.dirname(__file__), "../../ros/tests"))
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), "../../ros/wire/tests"))
 from rosbags_actions_types import command_store  # noqa: E402
 
 port, upstream, ns, scenario = int(sys.argv[1]), sys.argv[2], sys.argv[3], sys.argv[4]

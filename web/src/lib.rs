@@ -11,11 +11,15 @@
 //! <token>`, or the session cookie the login sets); command endpoints are rate-limited,
 //! except e-stop, which is never delayed.
 //!
+//! [`feed::Dashboard`] serves the app from a run and publishes into it as the runtime's
+//! observer.
+//!
 //! [`calibrate::app`] serves the calibration view of `calibrate collect` on a hub instead,
 //! with the same token scheme.
 
 pub mod calibrate;
 pub mod control;
+pub mod feed;
 mod grasps;
 pub mod history;
 mod limits;

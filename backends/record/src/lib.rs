@@ -7,11 +7,14 @@
 //!   full queue drops with a count and a reason;
 //! - [`reader`]: reads a recording's segments in order, checking every CRC, and reports a
 //!   torn tail (a crash mid-write) instead of failing;
+//! - [`observer`]: `run --record DIR`'s side of the run loop: the acquisition's tap and the
+//!   per-set state snapshots, as the runtime's observer;
 //! - [`replay`]: [`replay::ReplayHub`], a `HubTransport` that feeds a recording's hub
 //!   events back through the gate at their recorded times.
 
 pub mod factory;
 pub mod format;
+pub mod observer;
 pub mod reader;
 pub mod replay;
 pub mod writer;

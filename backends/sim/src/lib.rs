@@ -16,6 +16,10 @@
 //!   [`contact`] (gel indentation and force), [`motor`] (the XM430 model), [`world`] (all of
 //!   it stepped in simulated time, with a [`world_log`]) and [`servo_bus`] (the simulated
 //!   `ServoBus`).
+//! - beside the controller's ports: [`press_camera`] (a sensor's camera as the
+//!   calibration's `PressCamera`), [`truth`] (the world as its `GroundTruth`), [`scene_report`]
+//!   (the `scene` object of `run --json`) and [`press_requests`] (`emulate hub --presses`:
+//!   presses and weights asked for on a pipe, answered as JSON lines).
 
 pub mod board_cameras;
 pub mod board_clock;
@@ -28,13 +32,17 @@ pub mod motor;
 pub mod object;
 pub mod optics;
 pub mod pool;
+pub mod press_camera;
+pub mod press_requests;
 pub mod scene;
 pub mod scene_frames;
+pub mod scene_report;
 pub mod scene_spec;
 pub mod servo_bus;
 pub mod servo_fault_plan;
 pub mod shapes;
 pub mod timeline;
+pub mod truth;
 pub mod unit;
 pub mod weights;
 pub mod world;

@@ -28,7 +28,7 @@ pub mod window;
 pub use approximate::ApproximateGate;
 pub use counts::{Reason, ReasonCounts};
 pub use latest::LatestGate;
-pub use stats::{Exclusion, GateStats, Outcome, SetDecision};
+pub use stats::{ExcludedSensor, Exclusion, GateStats, Outcome, SetDecision};
 pub use trigger::TriggerGate;
 
 use crate::frame::FrameSet;

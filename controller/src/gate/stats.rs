@@ -51,6 +51,18 @@ pub struct Exclusion {
     pub since_host_us: u64,
 }
 
+/// An [`Exclusion`] as a run reports it (`run --json`'s `excluded_sensors`): the sensor by
+/// its id, the reason by its key, the time in seconds of the run.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ExcludedSensor {
+    /// Its id (`f1.middle`).
+    pub sensor: String,
+    /// What it kept failing (a drop reason's key: `out_of_window`, `late`, …).
+    pub reason: String,
+    /// Run time of the exclusion, s.
+    pub since_s: f64,
+}
+
 /// What the gate decided about one set.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct SetDecision {

@@ -22,6 +22,7 @@ pub mod driver;
 pub mod fixed_close;
 pub mod gentle_grasp;
 pub mod latency;
+pub mod options;
 pub mod outcome;
 pub mod plant;
 pub mod ports;
