@@ -36,7 +36,9 @@ use serde::{Deserialize, Serialize};
 use crate::actuator::{FingerGoal, ServoState};
 use crate::fusion::FusedSet;
 
+mod finger;
 pub mod limits;
+use finger::{FingerCtl, FingerInput, StepContext, Transition};
 pub use limits::{GraspLimits, MAX_TIMEOUT_S};
 
 /// Per-finger phase.
@@ -273,40 +275,6 @@ pub struct ControlOutput {
 /// Contact area (mm²) and centroid (sensor, x mm, y mm) that slip is measured against.
 type SlipReference = (f64, Option<(usize, f64, f64)>);
 
-#[derive(Debug, Clone, PartialEq)]
-struct FingerCtl {
-    phase: Phase,
-    active: bool,
-    goal_deg: f64,
-    current_ma: f64,
-    integral_ma: f64,
-    feedforward_ma: f64,
-    profile_rpm: f64,
-    contact_since_s: Option<f64>,
-    /// Sets in a row that showed the contact since it began.
-    contact_sets: u32,
-    /// The largest regulated force since the approach began, N.
-    peak_n: f64,
-    /// The force averaged over `Tuning::slow_hold_span_s`, N.
-    slow_force_n: f64,
-    target_n: f64,
-    stable_since_s: Option<f64>,
-    stall_ref: Option<(f64, f64)>,
-    /// Contact area and centroid that slip is measured against (armed once the whole
-    /// grasp holds, since until then the other fingers move the object on purpose).
-    slip_ref: Option<SlipReference>,
-    slip_seen: u32,
-    /// Since when (s), and at what force (N), the goal current has been pinned at the
-    /// limit while squeezing.
-    cap_ref: Option<(f64, f64)>,
-    /// The current limit allowed no more force: the finger holds what it reached.
-    force_limited: bool,
-    status: FingerStatus,
-    /// The last three fused forces, newest last, N.
-    recent_n: [f64; 3],
-    force_n: f64,
-}
-
 /// The controller.
 #[derive(Debug, Clone, PartialEq)]
 pub struct GraspController {
@@ -368,28 +336,9 @@ impl GraspController {
     ) -> Self {
         let target = finite_or(request.target_force_n, 0.0).max(0.0);
         let fingers = (0..close_deg.len())
-            .map(|f| FingerCtl {
-                phase: Phase::Open,
-                active: request.fingers.contains(&f),
-                goal_deg: open_deg.get(f).copied().unwrap_or(0.0),
-                current_ma: 0.0,
-                integral_ma: 0.0,
-                feedforward_ma: 0.0,
-                profile_rpm: 0.0,
-                contact_since_s: None,
-                contact_sets: 0,
-                peak_n: 0.0,
-                slow_force_n: 0.0,
-                target_n: target,
-                stable_since_s: None,
-                stall_ref: None,
-                slip_ref: None,
-                slip_seen: 0,
-                cap_ref: None,
-                force_limited: false,
-                status: FingerStatus::AtGoal,
-                recent_n: [0.0; 3],
-                force_n: 0.0,
+            .map(|f| {
+                let open = open_deg.get(f).copied().unwrap_or(0.0);
+                FingerCtl::new(request.fingers.contains(&f), open, target)
             })
             .collect();
         Self {
@@ -458,257 +407,26 @@ impl GraspController {
         let start = *self.started_s.get_or_insert(t_s);
         let dt = (t_s - self.last_s.unwrap_or(t_s)).clamp(0.0, 0.5);
         self.last_s = Some(t_s);
-        let limit = self.limit();
-        let t = self.tuning.clone();
-        let RateScaling {
-            gain_scale: rate_scale,
-            weight,
-            slow_weight,
-            use_median,
-        } = self.track_set_rate(t_s, set.is_some());
-        let speed = finite_or(self.request.speed_deg_s, 0.0).max(0.0) * rate_scale;
-        let settled = self.settled();
-        for f in 0..self.fingers.len() {
-            let present = servos
-                .get(f)
-                .map_or(self.fingers[f].goal_deg, |s| s.position_deg);
-            let close = self.close_deg[f];
+        let rate = self.track_set_rate(t_s, set.is_some());
+        let k = StepContext {
+            t_s,
+            dt,
+            limit_ma: self.limit(),
+            speed_deg_s: finite_or(self.request.speed_deg_s, 0.0).max(0.0) * rate.gain_scale,
+            rate,
+            settled: self.settled(),
+            tuning: &self.tuning,
+        };
+        for (f, c) in self.fingers.iter_mut().enumerate() {
+            let servo = servos.get(f);
+            let now = FingerInput {
+                present_deg: servo.map_or(c.goal_deg, |s| s.position_deg),
+                close_deg: self.close_deg[f],
+                open_deg: self.open_deg.get(f).copied().unwrap_or(0.0),
+                servo,
+            };
             let fused = set.and_then(|s| s.fingers.get(f)).copied();
-            let c = &mut self.fingers[f];
-            if !c.active || matches!(c.phase, Phase::Fault) {
-                continue;
-            }
-            // Only the grasp's first step starts the approach: a finger that a release
-            // opened stays open.
-            if c.phase == Phase::Open && first_step {
-                c.phase = Phase::Approach;
-                c.goal_deg = present;
-                c.status = FingerStatus::Moving;
-            }
-            let Some(fused) = fused else {
-                continue; // no new set: keep the last goals
-            };
-            if fused.stale {
-                c.goal_deg = present; // hold, never guess
-                continue;
-            }
-            // Regulate on a short average of the median of the last three sets: a one-set
-            // outlier of the pipeline never moves the finger.
-            c.recent_n = [c.recent_n[1], c.recent_n[2], finite_or(fused.force_n, 0.0)];
-            let median = if use_median {
-                median3(c.recent_n)
-            } else {
-                c.recent_n[2]
-            };
-            c.force_n = if c.force_n == 0.0 {
-                median
-            } else {
-                c.force_n + (median - c.force_n) * weight
-            };
-            let force_n = c.force_n;
-            c.slow_force_n = if c.slow_force_n == 0.0 {
-                force_n
-            } else {
-                c.slow_force_n + (force_n - c.slow_force_n) * slow_weight
-            };
-            if c.phase == Phase::Approach {
-                c.peak_n = 0.0;
-            } else {
-                c.peak_n = c.peak_n.max(force_n);
-            }
-            match c.phase {
-                Phase::Approach | Phase::Contact => {
-                    let measured = servos
-                        .get(f)
-                        .map_or(0.0, |s| finite_or(s.current_ma.abs(), 0.0));
-                    // A contact that goes away before the squeeze was not one: approach on.
-                    if fused.contact && c.phase == Phase::Approach {
-                        c.phase = Phase::Contact;
-                        c.contact_since_s = Some(t_s);
-                        c.contact_sets = 0;
-                        let margin = t.approach_margin_ma * t.contact_margin_share;
-                        c.current_ma = t
-                            .approach_cap_ma(c.feedforward_ma, margin, limit)
-                            .min(c.current_ma);
-                    } else if !fused.contact && c.phase == Phase::Contact {
-                        c.phase = Phase::Approach;
-                        c.contact_since_s = None;
-                    }
-                    if c.phase == Phase::Contact {
-                        c.contact_sets += 1;
-                    }
-                    if c.phase == Phase::Approach {
-                        // Learn what the return springs take: track the free-motion current,
-                        // and when the cap holds the finger back, raise it by the margin.
-                        let crawling = servos.get(f).is_none_or(|s| {
-                            finite_or(s.velocity_rpm, 0.0).abs() * 6.0 < 0.3 * speed
-                        });
-                        let pinned = measured >= c.current_ma - 2.0 && crawling;
-                        c.feedforward_ma = if pinned {
-                            c.current_ma
-                        } else {
-                            c.feedforward_ma + (measured - c.feedforward_ma) * 0.5
-                        };
-                        c.current_ma =
-                            t.approach_cap_ma(c.feedforward_ma, t.approach_margin_ma, limit);
-                        c.profile_rpm = speed / 6.0;
-                    } else {
-                        c.profile_rpm = speed * t.contact_speed_share / 6.0;
-                    }
-                    c.goal_deg = close;
-                    let in_contact_s = c.contact_since_s.map_or(0.0, |s0| t_s - s0);
-                    // Squeeze once the force is a third of the way there, or once the contact has
-                    // lasted 0.3 s and three sets (at slow set rates 0.3 s is one or two sets,
-                    // too few to tell a touch from a noisy frame).
-                    if c.phase == Phase::Contact
-                        && (force_n >= 0.3 * c.target_n
-                            || (in_contact_s >= 0.3 && c.contact_sets >= 3))
-                    {
-                        c.phase = Phase::Squeeze;
-                        c.integral_ma = 0.0;
-                        c.feedforward_ma = c.feedforward_ma.min(c.current_ma);
-                    } else if !fused.contact {
-                        let (ref_s, ref_deg) = *c.stall_ref.get_or_insert((t_s, present));
-                        if (present - ref_deg).abs() > t.stall_deg {
-                            c.stall_ref = Some((t_s, present));
-                        } else if (t_s - ref_s >= t.stall_s
-                            && c.current_ma >= t.approach_current_ma.min(limit))
-                            || present >= close - 1.0
-                        {
-                            c.phase = Phase::Hold;
-                            c.status = FingerStatus::NoObject;
-                            c.goal_deg = present;
-                        }
-                    }
-                }
-                Phase::Squeeze if !fused.contact && c.peak_n < 0.05 * c.target_n => {
-                    // Squeezing what was never felt (the contact was a noisy frame): three
-                    // sets in a row without contact and the finger approaches again, its
-                    // current back to the approach's, instead of winding up on air.
-                    c.contact_sets = c.contact_sets.min(3).saturating_sub(1);
-                    if c.contact_sets == 0 {
-                        c.phase = Phase::Approach;
-                        c.contact_since_s = None;
-                        c.integral_ma = 0.0;
-                        c.current_ma =
-                            t.approach_cap_ma(c.feedforward_ma, t.approach_margin_ma, limit);
-                    }
-                }
-                Phase::Squeeze | Phase::Hold => {
-                    // While squeezing, `contact_sets` counts down the sets without contact
-                    // that the arm above allows; a set with contact refills it.
-                    if c.phase == Phase::Squeeze {
-                        c.contact_sets = 3;
-                    }
-                    let mut e = c.target_n - force_n;
-                    // Slow set rates: a held finger moves only when its half-second average
-                    // leaves the stable band, and then on that average.
-                    let slow_hold = rate_scale < 1.0
-                        && c.phase == Phase::Hold
-                        && c.status == FingerStatus::ContactClosing;
-                    if slow_hold {
-                        e = c.target_n - c.slow_force_n;
-                    }
-                    let regulate = !(slow_hold && e.abs() <= t.stable_band * c.target_n);
-                    if regulate {
-                        // What the loop acts on: an excess beyond the target counts as the
-                        // target, so one high reading (unfiltered at slow set rates) backs
-                        // the finger off by no more than the whole target would.
-                        let e_ctl = e.max(-c.target_n);
-                        let p = t.kp_ma_per_n * rate_scale * e_ctl;
-                        let ki = t.ki_ma_per_n_s;
-                        let trial = c.feedforward_ma + p + c.integral_ma + ki * e_ctl * dt;
-                        let min = t.min_current_ma.min(limit);
-                        // Anti-windup: integrate only while the output is not pinned in the
-                        // direction the error pushes.
-                        if !((trial >= limit && e > 0.0) || (trial <= min && e < 0.0)) {
-                            c.integral_ma += ki * e_ctl * dt;
-                        }
-                        c.current_ma = (c.feedforward_ma + p + c.integral_ma).clamp(min, limit);
-                        // The goal creeps by the force error: in current-based position mode the
-                        // servo holds a goal it has reached, so the force stops at the target
-                        // instead of running on to the current cap.
-                        let lead = (t.squeeze_deg_per_n * e_ctl)
-                            .clamp(-t.squeeze_lead_deg, t.squeeze_lead_deg);
-                        c.goal_deg = (present + lead).min(close.max(present));
-                    }
-                    let in_band = e.abs() <= t.stable_band * c.target_n.max(1e-6);
-                    // Stall at the cap: the current limit allows no more force. Straining
-                    // there would overload the servo, so the finger holds a little below
-                    // what it reached and says so.
-                    let pinned =
-                        c.phase == Phase::Squeeze && e > 0.0 && c.current_ma >= limit - 1.0;
-                    let (since_s, force0) = if pinned {
-                        *c.cap_ref.get_or_insert((t_s, force_n))
-                    } else {
-                        c.cap_ref = None;
-                        (t_s, force_n)
-                    };
-                    if pinned && force_n > force0 * (1.0 + t.stable_band) {
-                        c.cap_ref = Some((t_s, force_n));
-                    } else if pinned && t_s - since_s >= t.stall_s {
-                        c.target_n = force_n * (1.0 - 2.0 * t.stable_band);
-                        c.force_limited = true;
-                        c.cap_ref = None;
-                        c.phase = Phase::Hold;
-                        c.status = FingerStatus::ContactClosing;
-                        c.slip_ref = None;
-                        c.slip_seen = 0;
-                    } else if c.phase == Phase::Squeeze {
-                        if in_band {
-                            let since = *c.stable_since_s.get_or_insert(t_s);
-                            if t_s - since >= t.stable_s {
-                                c.phase = Phase::Hold;
-                                c.status = FingerStatus::ContactClosing;
-                                c.slip_ref = None;
-                                c.slip_seen = 0;
-                            }
-                        } else {
-                            c.stable_since_s = None;
-                        }
-                    } else if c.status == FingerStatus::ContactClosing && settled {
-                        let Some((area0, centroid0)) = c.slip_ref else {
-                            c.slip_ref = Some((fused.area_mm2, fused.centroid));
-                            continue;
-                        };
-                        let area_drop = fused.area_mm2 < t.slip_area_share * area0;
-                        // A contact that grew by as much as a slip would shrink it is not a slip
-                        // (an object pushed in, or, at high camera noise, a spurious region):
-                        // its centroid moving does not count.
-                        let grew = fused.area_mm2 * t.slip_area_share > area0;
-                        let shifted = !grew
-                            && match (centroid0, fused.centroid) {
-                                (Some((s0, x0, y0)), Some((s1, x1, y1))) => {
-                                    s0 != s1 || (x1 - x0).hypot(y1 - y0) > t.slip_shift_mm
-                                }
-                                (Some(_), None) => true,
-                                _ => false,
-                            };
-                        c.slip_seen = if area_drop || shifted {
-                            c.slip_seen + 1
-                        } else {
-                            0
-                        };
-                        if c.slip_seen >= t.slip_sets {
-                            c.target_n *= t.retighten_factor;
-                            c.phase = Phase::Squeeze;
-                            c.stable_since_s = None;
-                            c.slip_ref = None;
-                            c.slip_seen = 0;
-                        }
-                    }
-                }
-                Phase::Release => {
-                    let open = self.open_deg.get(f).copied().unwrap_or(0.0);
-                    c.goal_deg = open;
-                    c.current_ma = t.approach_current_ma.min(limit);
-                    if present <= open + 2.0 {
-                        c.phase = Phase::Open;
-                        c.status = FingerStatus::AtGoal;
-                    }
-                }
-                Phase::Open | Phase::Fault => {}
-            }
+            c.step(&k, &now, fused, first_step);
         }
         if self.done.is_none() {
             self.done = self.check_done(t_s - start, set);
@@ -821,8 +539,7 @@ impl GraspController {
     pub fn release(&mut self) {
         for c in &mut self.fingers {
             if c.active {
-                c.phase = Phase::Release;
-                c.status = FingerStatus::Moving;
+                c.enter(Transition::Released);
             }
         }
     }
@@ -831,8 +548,7 @@ impl GraspController {
     /// last servo states).
     pub fn stop(&mut self, positions: &[f64]) {
         for (c, p) in self.fingers.iter_mut().zip(positions) {
-            c.goal_deg = *p;
-            c.phase = Phase::Fault;
+            c.enter(Transition::Stopped { present_deg: *p });
         }
     }
 
