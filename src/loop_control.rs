@@ -8,8 +8,7 @@ use std::sync::Arc;
 use gelgrip_controller::clock::Clock;
 use gelgrip_controller::config::AppConfig;
 use gelgrip_controller::runtime::control::{LoopRequest, Refusal, ServoFaultName, SimFaults};
-use gelgrip_controller::runtime::driver::Driver;
-use gelgrip_controller::runtime::ports::ControlHandler;
+use gelgrip_controller::runtime::ports::{ControlHandler, DriverControl};
 use gelgrip_sim::config::SensorFaults;
 use gelgrip_sim::scene_spec::SceneSpec;
 use gelgrip_sim::world::SharedWorld;
@@ -65,7 +64,11 @@ impl LoopControl {
 }
 
 impl ControlHandler for LoopControl {
-    fn handle(&mut self, request: LoopRequest, task: Option<&mut Driver>) -> Result<(), Refusal> {
+    fn handle(
+        &mut self,
+        request: LoopRequest,
+        task: Option<&mut dyn DriverControl>,
+    ) -> Result<(), Refusal> {
         let answer = match request {
             LoopRequest::Task { name } => self.start_task(&name, task),
             LoopRequest::SimFault { sensor, faults } => self.inject(sensor, faults),
@@ -78,33 +81,32 @@ impl ControlHandler for LoopControl {
     }
 }
 
+/// The refusal while task `running` drives the gripper.
+fn busy(running: &str) -> Refusal {
+    Refusal::Busy(format!(
+        "task `{running}` is driving the gripper: stop it first"
+    ))
+}
+
 impl LoopControl {
-    fn start_task(&mut self, name: &str, task: Option<&mut Driver>) -> Result<(), Refusal> {
-        let gripper = match task {
-            None => {
-                return Err(Refusal::Unavailable(
-                    "this run has no finger servos to run a task on".into(),
-                ));
-            }
-            Some(Driver::GentleGrasp(_)) => {
-                return Err(Refusal::Busy(
-                    "task `gentle-grasp` is driving the gripper: stop it first".into(),
-                ));
-            }
-            Some(Driver::Commanded { gripper, .. }) => gripper,
+    fn start_task(
+        &mut self,
+        name: &str,
+        task: Option<&mut dyn DriverControl>,
+    ) -> Result<(), Refusal> {
+        let Some(driver) = task else {
+            return Err(Refusal::Unavailable(
+                "this run has no finger servos to run a task on".into(),
+            ));
         };
-        if let Some(running) = gripper.running_script() {
-            return Err(Refusal::Busy(format!(
-                "task `{running}` is driving the gripper: stop it first"
-            )));
+        if let Some(running) = driver.running_task() {
+            return Err(busy(running));
         }
         let script =
             load_script(name, &self.config).map_err(|e| Refusal::Invalid(e.to_string()))?;
-        gripper.start_script(script).map_err(|running| {
-            Refusal::Busy(format!(
-                "task `{running}` is driving the gripper: stop it first"
-            ))
-        })
+        driver
+            .start_script(script)
+            .map_err(|running| busy(&running))
     }
 
     fn world(&self) -> Result<&SharedWorld, Refusal> {
@@ -172,7 +174,11 @@ impl LoopControl {
         Ok(())
     }
 
-    fn switch_scene(&mut self, name: &str, task: Option<&mut Driver>) -> Result<(), Refusal> {
+    fn switch_scene(
+        &mut self,
+        name: &str,
+        task: Option<&mut dyn DriverControl>,
+    ) -> Result<(), Refusal> {
         let world = self.world()?.clone();
         let spec = if name == "none" {
             None
@@ -191,35 +197,24 @@ impl LoopControl {
             Some(spec)
         };
         // The object appears where the fingers close: they must be open.
-        match task {
-            Some(Driver::GentleGrasp(_)) => {
-                return Err(Refusal::Busy(
-                    "task `gentle-grasp` is driving the gripper: stop it first".into(),
-                ));
+        if let Some(driver) = task {
+            if let Some(running) = driver.running_task() {
+                return Err(busy(running));
             }
-            Some(Driver::Commanded { gripper, .. }) => {
-                if let Some(running) = gripper.running_script() {
-                    return Err(Refusal::Busy(format!(
-                        "task `{running}` is driving the gripper: stop it first"
-                    )));
-                }
-                let closed: Vec<String> = gripper
-                    .plant()
-                    .states()
-                    .iter()
-                    .zip(&self.config.layout.fingers)
-                    .filter(|(s, _)| s.position_deg > OPEN_DEG)
-                    .map(|(s, f)| format!("{} at {:.0}°", f.id, s.position_deg))
-                    .collect();
-                if !closed.is_empty() {
-                    return Err(Refusal::Busy(format!(
-                        "release the gripper first: a scene switches only with every finger \
-                         open (within {OPEN_DEG}°); {}",
-                        closed.join(", ")
-                    )));
-                }
+            let closed: Vec<String> = driver
+                .servo_states()
+                .iter()
+                .zip(&self.config.layout.fingers)
+                .filter(|(s, _)| s.position_deg > OPEN_DEG)
+                .map(|(s, f)| format!("{} at {:.0}°", f.id, s.position_deg))
+                .collect();
+            if !closed.is_empty() {
+                return Err(Refusal::Busy(format!(
+                    "release the gripper first: a scene switches only with every finger \
+                     open (within {OPEN_DEG}°); {}",
+                    closed.join(", ")
+                )));
             }
-            None => {}
         }
         let mut w = world
             .lock()

@@ -14,7 +14,8 @@
 use gelgrip_controller::frame::{FrameSet, ReceivedFrame};
 use gelgrip_controller::fusion::SensorReading;
 use gelgrip_controller::layout::HandLayout;
-use gelgrip_controller::runtime::ports::{DepthWindow, Sensing};
+use gelgrip_controller::runtime::ports::Sensing;
+use gelgrip_controller::runtime::report::{DepthWindow, DepthWindows};
 
 use crate::contact::ContactSummary;
 use crate::pipeline::stream::{FrameKey, StreamingSensors};
@@ -210,7 +211,9 @@ impl Sensing for Tactile {
     fn offer_reference(&mut self, set: &FrameSet) {
         Tactile::offer_reference(self, set);
     }
+}
 
+impl DepthWindows for Tactile {
     fn depth_window(&self, index: usize) -> Option<DepthWindow> {
         Tactile::depth_window(self, index)
     }

@@ -1,7 +1,7 @@
 //! Requests the dashboard makes of the run loop itself, beyond the grasp API: start a task
 //! script, and (on the simulator only) inject sync faults or switch scenes. Each request
 //! travels with a reply channel; the runtime answers at once (through its
-//! [`ControlHandler`](crate::runtime::ports::ControlHandler)), with a [`Refusal`] when it
+//! `ControlHandler` port), with a [`Refusal`] when it
 //! cannot carry the request out.
 
 use serde::Serialize;

@@ -8,10 +8,12 @@ use crate::grasp::Phase;
 use crate::gripper::{GripperHandle, GripperService, ServiceEvent};
 use crate::runtime::RuntimeError;
 use crate::runtime::commanded::CommandedGripper;
-use crate::runtime::gentle_grasp::GentleGrasp;
+use crate::runtime::gentle_grasp::{GentleGrasp, TASK_NAME};
 use crate::runtime::outcome::{EndReason, Fault, ScriptEnd};
 use crate::runtime::plant::Plant;
+use crate::runtime::ports::DriverControl;
 use crate::runtime::task_report::{TaskReport, TaskStatus};
+use crate::task::TaskScript;
 
 /// Whoever drives the fingers in a run.
 #[derive(Debug)]
@@ -158,7 +160,7 @@ impl Driver {
             Self::GentleGrasp(t) => {
                 let stage = t.stage_label();
                 Some(TaskStatus {
-                    name: "gentle-grasp".into(),
+                    name: TASK_NAME.into(),
                     stage: stage.into(),
                     running: stage != "done",
                     outcome: (stage == "done").then(|| t.report().reason),
@@ -197,6 +199,26 @@ impl Driver {
         match self {
             Self::GentleGrasp(t) => t.handle(),
             Self::Commanded { gripper, .. } => gripper.handle(),
+        }
+    }
+}
+
+impl DriverControl for Driver {
+    fn running_task(&self) -> Option<&str> {
+        match self {
+            Self::GentleGrasp(_) => Some(TASK_NAME),
+            Self::Commanded { gripper, .. } => gripper.running_script(),
+        }
+    }
+
+    fn servo_states(&self) -> &[ServoState] {
+        self.plant().states()
+    }
+
+    fn start_script(&mut self, script: TaskScript) -> Result<(), String> {
+        match self {
+            Self::GentleGrasp(_) => Err(TASK_NAME.to_string()),
+            Self::Commanded { gripper, .. } => gripper.start_script(script),
         }
     }
 }

@@ -19,8 +19,12 @@ use crate::gripper::{CommandKind, GripperError, GripperHandle, GripperService, P
 use crate::layout::HandLayout;
 use crate::runtime::RuntimeError;
 use crate::runtime::outcome::EndReason;
-use crate::runtime::plant::{Plant, TaskStep};
+use crate::runtime::plant::Plant;
+use crate::runtime::report::TaskStep;
 use crate::runtime::task_report::TaskReport;
+
+/// The built-in task's name (`run --task gentle-grasp`).
+pub const TASK_NAME: &str = "gentle-grasp";
 
 /// Length of the hold test, s.
 const HOLD_TEST_S: f64 = 1.0;
@@ -116,7 +120,7 @@ impl GentleGrasp {
         let (service, handle) = GripperService::for_hand(layout, current_limit_ma);
         let pending = handle.start_grasp(request)?;
         // Other clients (the dashboard) may stop or e-stop this grasp, never start another.
-        handle.set_busy(Some("gentle-grasp"));
+        handle.set_busy(Some(TASK_NAME));
         Ok(Self {
             service,
             handle,
@@ -335,7 +339,7 @@ impl GentleGrasp {
         let held = self.hold_slip_mm.is_none_or(|s| s < HELD_SLIP_MM);
         let lat = self.plant.latencies();
         TaskReport {
-            task: "gentle-grasp".into(),
+            task: TASK_NAME.into(),
             grasped: outcome.as_ref().is_some_and(|o| o.grasped) && held,
             peak_force_n: self.peak_force_n,
             hold_test_peak_force_n: self.hold_test_peak_force_n,

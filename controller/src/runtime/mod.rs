@@ -45,7 +45,7 @@ use crate::runtime::control::LoopCommand;
 use crate::runtime::driver::Driver;
 use crate::runtime::fixed_close::FixedClose;
 use crate::runtime::outcome::{EndReason, Fault, FaultKind};
-use crate::runtime::ports::{ControlHandler, Observer};
+use crate::runtime::ports::{ControlHandler, DriverControl, Observer};
 use crate::runtime::report::{FingerState, GripperReport, SetReport};
 use crate::runtime::task_report::TaskReport;
 
@@ -353,7 +353,8 @@ impl Runtime {
                 Pass::Tick => None,
                 Pass::Request(Some((request, reply))) => {
                     if let Some((handler, _)) = self.control.as_mut() {
-                        let answer = handler.handle(request, self.driver.as_mut());
+                        let driver = self.driver.as_mut().map(|d| d as &mut dyn DriverControl);
+                        let answer = handler.handle(request, driver);
                         if let Err(refusal) = &answer {
                             tracing::warn!(?refusal, "dashboard request refused");
                         }

@@ -19,6 +19,7 @@ use crate::runtime::RuntimeError;
 use crate::runtime::latency::{Latencies, LoopLatency};
 use crate::runtime::outcome::Fault;
 use crate::runtime::ports::{GroundTruth, Sensing};
+use crate::runtime::report::TaskStep;
 
 /// No gated set for this long stops all motion, ms.
 pub const WATCHDOG_MS: u64 = 500;
@@ -59,23 +60,6 @@ pub struct Sensed {
     pub set_age_ms: f64,
     /// The pipelines' share of the loop, ms.
     pub sensing_ms: f64,
-}
-
-/// What a driver did with one set: a row of the task log.
-#[derive(Debug, Clone, PartialEq)]
-pub struct TaskStep {
-    /// The set's trigger sequence.
-    pub trigger_seq: u32,
-    /// Seconds since the task's start.
-    pub t_s: f64,
-    /// The stage's name.
-    pub stage: String,
-    /// The simulator's force per pad (empty off the simulator), N.
-    pub truth_n: Vec<f64>,
-    /// Each finger's phase.
-    pub phases: Vec<Phase>,
-    /// Each finger's goal.
-    pub goals: Vec<FingerGoal>,
 }
 
 /// The shared hardware side of every driver.

@@ -3,32 +3,16 @@
 //! simulator's ground truth, and what its observers and the dashboard's control requests
 //! get. The root `gelgrip` library implements them; the runtime depends on no adapter.
 
+use crate::actuator::ServoState;
 use crate::frame::{FrameSet, ReceivedFrame};
 use crate::fusion::SensorReading;
 use crate::runtime::control::{LoopRequest, Refusal};
-use crate::runtime::driver::Driver;
-use crate::runtime::report::SetReport;
+use crate::runtime::report::{DepthWindows, SetReport};
+use crate::task::TaskScript;
 
-/// One sensor's last reconstructed depth window, and where it lies in the frame.
-#[derive(Debug, Clone, PartialEq)]
-pub struct DepthWindow {
-    /// Depth, mm, row-major.
-    pub depth_mm: Vec<f32>,
-    /// Width, px.
-    pub width: usize,
-    /// Height, px.
-    pub height: usize,
-    /// The window's top-left corner in the frame `(x, y)`, px.
-    pub origin_px: (usize, usize),
-    /// The frame the pipeline processes `(width, height)`, px (the JPEG's size, divided by
-    /// the pipeline's decode scale); the window lies inside it.
-    pub frame_px: (usize, usize),
-    /// The depth above which a pixel counts as contact, mm.
-    pub contact_mm: f32,
-}
-
-/// Every sensor's tactile pipeline: frames in, contact readings out.
-pub trait Sensing: Send {
+/// Every sensor's tactile pipeline: frames in, contact readings out (and, for the
+/// reports, each sensor's last depth window).
+pub trait Sensing: DepthWindows + Send {
     /// Process one gated set into per-sensor readings (`None` for a sensor whose frame
     /// failed, or while the references are still being gathered).
     fn process(&mut self, set: &FrameSet) -> Vec<Option<SensorReading>>;
@@ -42,8 +26,6 @@ pub trait Sensing: Send {
     fn reference_sets_missing(&self) -> usize;
     /// Take `set` toward the references.
     fn offer_reference(&mut self, set: &FrameSet);
-    /// Sensor `index`'s last depth window (for the dashboard's images).
-    fn depth_window(&self, index: usize) -> Option<DepthWindow>;
 }
 
 /// What a simulator knows and hardware does not: the true pad forces, the object's slip,
@@ -75,9 +57,25 @@ pub trait Observer: Send {
     }
 }
 
+/// The driver as a [`ControlHandler`] reaches it: which task drives the fingers, where
+/// the servos stand, and starting a task script.
+pub trait DriverControl {
+    /// The task that drives the fingers now (`gentle-grasp`, or a script's name), if any.
+    fn running_task(&self) -> Option<&str>;
+    /// The servos' last states, in finger order.
+    fn servo_states(&self) -> &[ServoState];
+    /// Start `script` through the grasp API; refused with the name of the task that
+    /// drives the fingers.
+    fn start_script(&mut self, script: TaskScript) -> Result<(), String>;
+}
+
 /// Carries out the dashboard's requests beyond the grasp API (task scripts, simulator
 /// controls) on the loop's thread, with the driver in reach.
 pub trait ControlHandler: Send {
     /// Carry out `request`, or refuse it with the reason.
-    fn handle(&mut self, request: LoopRequest, driver: Option<&mut Driver>) -> Result<(), Refusal>;
+    fn handle(
+        &mut self,
+        request: LoopRequest,
+        driver: Option<&mut dyn DriverControl>,
+    ) -> Result<(), Refusal>;
 }

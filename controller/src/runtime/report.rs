@@ -10,9 +10,49 @@ use crate::gate::GateStats;
 use crate::grasp::Phase;
 use crate::gripper::ServiceEvent;
 use crate::runtime::latency::Latencies;
-use crate::runtime::plant::TaskStep;
-use crate::runtime::ports::{DepthWindow, Sensing};
 use crate::runtime::task_report::TaskStatus;
+
+/// One sensor's last reconstructed depth window, and where it lies in the frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DepthWindow {
+    /// Depth, mm, row-major.
+    pub depth_mm: Vec<f32>,
+    /// Width, px.
+    pub width: usize,
+    /// Height, px.
+    pub height: usize,
+    /// The window's top-left corner in the frame `(x, y)`, px.
+    pub origin_px: (usize, usize),
+    /// The frame the pipeline processes `(width, height)`, px (the JPEG's size, divided by
+    /// the pipeline's decode scale); the window lies inside it.
+    pub frame_px: (usize, usize),
+    /// The depth above which a pixel counts as contact, mm.
+    pub contact_mm: f32,
+}
+
+/// Where a report's depth windows come from: the run's sensing, which keeps each
+/// sensor's last reconstruction.
+pub trait DepthWindows {
+    /// Sensor `index`'s last depth window (for the dashboard's images).
+    fn depth_window(&self, index: usize) -> Option<DepthWindow>;
+}
+
+/// What a driver did with one set: a row of the task log.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TaskStep {
+    /// The set's trigger sequence.
+    pub trigger_seq: u32,
+    /// Seconds since the task's start.
+    pub t_s: f64,
+    /// The stage's name.
+    pub stage: String,
+    /// The simulator's force per pad (empty off the simulator), N.
+    pub truth_n: Vec<f64>,
+    /// Each finger's phase.
+    pub phases: Vec<Phase>,
+    /// Each finger's goal.
+    pub goals: Vec<FingerGoal>,
+}
 
 /// One finger as the driver sees it.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -73,7 +113,7 @@ pub struct GripperReport<'a> {
     pub step: Option<&'a TaskStep>,
     /// The grasp-API service's commands and steps on this pass (while recording).
     pub controller_events: &'a [ServiceEvent],
-    pub(crate) sensing: &'a dyn Sensing,
+    pub(crate) sensing: &'a dyn DepthWindows,
 }
 
 impl GripperReport<'_> {

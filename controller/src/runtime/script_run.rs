@@ -2,13 +2,13 @@
 //! every gated set goes through the pipelines, is fused, and steps the
 //! [`TaskRunner`](crate::task::TaskRunner), whose goals go to the servos at once. The
 //! script ends when it reaches `done` or aborts; an abort holds every finger where it is.
-//! The [`CommandedGripper`](crate::runtime::commanded::CommandedGripper) hosts it on the
-//! plant it owns.
+//! The commanded gripper (`CommandedGripper`) hosts it on the plant it owns.
 
 use crate::frame::FrameSet;
 use crate::grasp::{Phase, Tuning};
 use crate::runtime::RuntimeError;
-use crate::runtime::plant::{Plant, TaskStep};
+use crate::runtime::plant::Plant;
+use crate::runtime::report::TaskStep;
 use crate::runtime::task_report::TaskReport;
 use crate::task::{TaskRunner, TaskScript};
 

@@ -5,7 +5,7 @@
 
 use gelgrip_controller::actuator::XM430_W350;
 use gelgrip_controller::fusion::SensorReading;
-use gelgrip_controller::runtime::ports::DepthWindow;
+use gelgrip_controller::runtime::report::DepthWindow;
 use gelgrip_ros_wire::catalog;
 use gelgrip_ros_wire::msgs::{
     CompressedImage, DepthImage, DiagnosticArray, DiagnosticStatus, Header, JointState, Level,
