@@ -6,7 +6,7 @@
 use std::sync::{Arc, Mutex};
 
 use gelgrip_controller::acquire::Acquisition;
-use gelgrip_controller::clock::ClockKind;
+use gelgrip_controller::clock::{Clock, ClockKind};
 use gelgrip_controller::config::AppConfig;
 use gelgrip_controller::hub::HubDescription;
 use gelgrip_controller::runtime::commanded::CommandedGripper;
@@ -15,7 +15,7 @@ use gelgrip_controller::runtime::fixed_close::FixedClose;
 use gelgrip_controller::runtime::gentle_grasp::GentleGrasp;
 use gelgrip_controller::runtime::outcome::EndReason;
 use gelgrip_controller::runtime::plant::Plant;
-use gelgrip_controller::runtime::ports::GroundTruth;
+use gelgrip_controller::runtime::ports::{GroundTruth, Sensing};
 use gelgrip_controller::runtime::{Runtime, RuntimeEvent};
 use gelgrip_sim::world::SharedWorld;
 use tokio::sync::mpsc;
@@ -35,6 +35,121 @@ use gelgrip_sim::scene_report::SceneReport;
 use gelgrip_sim::truth::SimTruth;
 
 pub use gelgrip_controller::runtime::options::RunOptions;
+
+/// The task's forces, speeds and timeouts, against what the configured hand can do (exit 2
+/// in the CLI), before the hub and the servos are opened.
+fn check_task(options: &RunOptions, config: &AppConfig) -> anyhow::Result<()> {
+    match options.task.as_deref() {
+        Some("gentle-grasp") if !config.layout.fingers.is_empty() => {
+            let limit = config.servos.current_limit_ma;
+            GentleGrasp::check(&config.layout, limit, &options.grasp)
+                .map_err(|e| UsageError(format!("gentle-grasp: {e}")))?;
+        }
+        Some("gentle-grasp") | None => {}
+        Some(script) => {
+            load_script(script, config)?;
+        }
+    }
+    Ok(())
+}
+
+/// Whether the run drives the fingers through the grasp API when it has no task: with a
+/// dashboard, when asked, or publishing to ROS 2; never while a sensor has no model (the
+/// dashboard's grasp needs every sensor's pipeline; on a hardware hub without model files
+/// the dashboard still serves the cameras, sync and servos).
+fn drives_through_grasp_api(options: &RunOptions, config: &AppConfig) -> anyhow::Result<bool> {
+    let unmodelled = crate::tactile::sensors_without_model(config)?;
+    // A run that publishes to ROS 2 drives through the grasp API too (readings, servos).
+    let ros_on = gelgrip_ros_bridge::config::RosConfig::from_section(&config.ros)?.enabled;
+    if !options.headless && options.task.is_none() && !unmodelled.is_empty() {
+        tracing::warn!(
+            sensors = unmodelled.join(", "),
+            "no gradient model file for these sensors on the {} hub: the dashboard serves \
+             the cameras, sync and servos, without the grasp (docs/pipeline.md)",
+            config.hub.transport
+        );
+    }
+    Ok((!options.headless || options.grasp_api || ros_on) && unmodelled.is_empty())
+}
+
+/// Serve the dashboard of `runtime` (its controls through [`LoopControl`]); its URL.
+async fn serve_dashboard(
+    runtime: &mut Runtime,
+    options: &RunOptions,
+    config: &AppConfig,
+    world: Option<SharedWorld>,
+    clock: Arc<dyn Clock>,
+    description: &HubDescription,
+) -> anyhow::Result<String> {
+    let sim_view = Arc::new(Mutex::new(None));
+    let control = LoopControl::new(config, world, clock, sim_view.clone());
+    let requests = runtime.control(Box::new(control));
+    let bind = options.http.unwrap_or(config.http.bind);
+    let d = Dashboard::start(
+        config,
+        bind,
+        runtime.gripper(),
+        Some(requests),
+        FeedSetup {
+            transport: description.transport.clone(),
+            calibration: crate::tactile::calibration_text(config),
+            tasks: crate::catalog::names(crate::catalog::Kind::Task),
+        },
+        sim_view,
+    )
+    .await?;
+    let url = format!("http://{}/", d.addr);
+    runtime.observe(Box::new(d));
+    Ok(url)
+}
+
+/// Record the run into `dir`: the recorder taps `acq` (every hub event and gate decision).
+fn start_recording(
+    dir: &std::path::Path,
+    config: &AppConfig,
+    config_files: Vec<(String, String)>,
+    acq: Acquisition,
+) -> anyhow::Result<(Acquisition, RunRecorder)> {
+    let description = acq.hub().describe().clone();
+    let r = RunRecorder::start(dir, config, config_files, &description, acq.gate().limits())?;
+    Ok((acq.with_tap(r.tap()), r))
+}
+
+/// The task CSV (`--log`, with the simulator's true forces when `sim_truth`) and the
+/// recorder's per-set snapshots, as observers of `runtime`'s driver.
+fn log_and_record(
+    runtime: &mut Runtime,
+    options: &RunOptions,
+    config: &AppConfig,
+    sim_truth: bool,
+    recorder: Option<&RunRecorder>,
+) -> anyhow::Result<()> {
+    if let Some(path) = &options.log
+        && runtime.driver().is_some()
+    {
+        runtime.observe(Box::new(TaskLog::create(path, &config.layout, sim_truth)?));
+    }
+    if let Some(r) = recorder {
+        if let Some(d) = runtime.driver_mut() {
+            d.log_controller();
+        }
+        runtime.observe(r.snapshots());
+    }
+    Ok(())
+}
+
+/// The hub and gate a run acquires through, in the log.
+fn log_acquiring(acq: &Acquisition) {
+    let description = acq.hub().describe();
+    tracing::info!(
+        transport = description.transport,
+        sensors = description.sensors,
+        trigger = description.trigger.as_str(),
+        max_spread_us = acq.gate().limits().max_spread_us,
+        max_age_us = acq.gate().limits().max_age_us,
+        "acquiring"
+    );
+}
 
 /// A run, set up and ready.
 pub struct Session {
@@ -58,13 +173,14 @@ impl std::fmt::Debug for Session {
 }
 
 /// The driver `options` ask for, on `bus`: the gentle grasp, a task script, the grasp API
-/// (with a dashboard), or none (the fixed programme runs the servos).
+/// (with a dashboard), or none (the fixed programme runs the servos); and the sensing it
+/// senses through.
 fn driver(
     options: &RunOptions,
     config: &AppConfig,
     world: Option<&SharedWorld>,
     bus: Box<dyn gelgrip_controller::actuator::ServoBus>,
-) -> anyhow::Result<Driver> {
+) -> anyhow::Result<(Driver, Box<dyn Sensing>)> {
     let truth = world.map(|w| {
         Box::new(SimTruth::new(
             w.clone(),
@@ -72,14 +188,10 @@ fn driver(
             config.layout.sensors.len(),
         )) as Box<dyn GroundTruth>
     });
-    let plant = Plant::open(
-        config.layout.clone(),
-        Box::new(crate::tactile::open(config)?),
-        bus,
-        truth,
-    )?;
+    let sensing: Box<dyn Sensing> = Box::new(crate::tactile::open(config)?);
+    let plant = Plant::open(config.layout.clone(), bus, truth)?;
     let limit = config.servos.current_limit_ma;
-    Ok(match options.task.as_deref() {
+    let driver = match options.task.as_deref() {
         Some("gentle-grasp") => {
             let task = GentleGrasp::start(plant, limit, &options.grasp)
                 .map_err(|e| UsageError(e.to_string()))?;
@@ -106,7 +218,8 @@ fn driver(
             gripper: Box::new(CommandedGripper::new(plant, limit)),
             script_ends_run: false,
         },
-    })
+    };
+    Ok((driver, sensing))
 }
 
 impl Session {
@@ -117,19 +230,7 @@ impl Session {
         let registry = wiring::registry();
         let (config, config_files) =
             wiring::load_config_with_files(options.config.as_deref(), &registry)?;
-        // The task's forces, speeds and timeouts, against what the configured hand can do
-        // (exit 2 in the CLI), before the hub and the servos are opened.
-        match options.task.as_deref() {
-            Some("gentle-grasp") if !config.layout.fingers.is_empty() => {
-                let limit = config.servos.current_limit_ma;
-                GentleGrasp::check(&config.layout, limit, &options.grasp)
-                    .map_err(|e| UsageError(format!("gentle-grasp: {e}")))?;
-            }
-            Some("gentle-grasp") | None => {}
-            Some(script) => {
-                load_script(script, &config)?;
-            }
-        }
+        check_task(options, &config)?;
         let clock = options.clock.new_clock();
         let world = wiring::open_world(
             &config,
@@ -148,45 +249,20 @@ impl Session {
         let description = acq.hub().describe().clone();
         let recorder = match &options.record {
             Some(dir) => {
-                let r = RunRecorder::start(
-                    dir,
-                    &config,
-                    config_files,
-                    &description,
-                    acq.gate().limits(),
-                )?;
-                acq = acq.with_tap(r.tap());
+                let (tapped, r) = start_recording(dir, &config, config_files, acq)?;
+                acq = tapped;
                 Some(r)
             }
             None => None,
         };
-        tracing::info!(
-            transport = description.transport,
-            sensors = description.sensors,
-            trigger = description.trigger.as_str(),
-            max_spread_us = acq.gate().limits().max_spread_us,
-            max_age_us = acq.gate().limits().max_age_us,
-            "acquiring"
-        );
+        log_acquiring(&acq);
         let bus = wiring::open_servos(&config, world.as_ref(), clock.clone())?;
-        // The dashboard's grasp needs every sensor's pipeline; on a hardware hub without
-        // model files the dashboard still serves the cameras, sync and servos.
-        let unmodelled = crate::tactile::sensors_without_model(&config)?;
-        // A run that publishes to ROS 2 drives through the grasp API too (readings, servos).
-        let ros_on = gelgrip_ros_bridge::config::RosConfig::from_section(&config.ros)?.enabled;
-        let grasp_api = (!options.headless || options.grasp_api || ros_on) && unmodelled.is_empty();
-        if !options.headless && options.task.is_none() && !unmodelled.is_empty() {
-            tracing::warn!(
-                sensors = unmodelled.join(", "),
-                "no gradient model file for these sensors on the {} hub: the dashboard serves \
-                 the cameras, sync and servos, without the grasp (docs/pipeline.md)",
-                config.hub.transport
-            );
-        }
+        let grasp_api = drives_through_grasp_api(options, &config)?;
         let mut runtime = Runtime::new(acq, clock.clone());
         match (options.task.as_deref(), bus) {
             (Some(_), Some(bus)) => {
-                runtime = runtime.with_driver(driver(options, &config, world.as_ref(), bus)?);
+                let (driver, sensing) = driver(options, &config, world.as_ref(), bus)?;
+                runtime = runtime.with_driver(driver, sensing);
             }
             (Some(name), None) => {
                 if name != "gentle-grasp" {
@@ -198,7 +274,8 @@ impl Session {
                 )));
             }
             (None, Some(bus)) if grasp_api => {
-                runtime = runtime.with_driver(driver(options, &config, world.as_ref(), bus)?);
+                let (driver, sensing) = driver(options, &config, world.as_ref(), bus)?;
+                runtime = runtime.with_driver(driver, sensing);
             }
             (None, Some(bus)) => {
                 let fixed = FixedClose::start(
@@ -213,40 +290,24 @@ impl Session {
             }
             (None, None) => {}
         }
-        if let Some(path) = &options.log
-            && runtime.driver().is_some()
-        {
-            let truth = world.is_some() && config.hub.transport == "sim";
-            runtime.observe(Box::new(TaskLog::create(path, &config.layout, truth)?));
-        }
-        if let Some(r) = &recorder {
-            if let Some(d) = runtime.driver_mut() {
-                d.log_controller();
-            }
-            runtime.observe(r.snapshots());
-        }
-        let mut dashboard_url = None;
-        if !options.headless {
-            let sim_view = Arc::new(Mutex::new(None));
-            let control = LoopControl::new(&config, world.clone(), clock.clone(), sim_view.clone());
-            let requests = runtime.control(Box::new(control));
-            let bind = options.http.unwrap_or(config.http.bind);
-            let d = Dashboard::start(
-                &config,
-                bind,
-                runtime.gripper(),
-                Some(requests),
-                FeedSetup {
-                    transport: description.transport.clone(),
-                    calibration: crate::tactile::calibration_text(&config),
-                    tasks: crate::catalog::names(crate::catalog::Kind::Task),
-                },
-                sim_view,
+        let sim_truth = world.is_some() && config.hub.transport == "sim";
+        log_and_record(&mut runtime, options, &config, sim_truth, recorder.as_ref())?;
+        let dashboard_url = if options.headless {
+            None
+        } else {
+            let clock = clock.clone();
+            Some(
+                serve_dashboard(
+                    &mut runtime,
+                    options,
+                    &config,
+                    world.clone(),
+                    clock,
+                    &description,
+                )
+                .await?,
             )
-            .await?;
-            dashboard_url = Some(format!("http://{}/", d.addr));
-            runtime.observe(Box::new(d));
-        }
+        };
         runtime.reference_sensors().await?;
         Ok(Self {
             runtime,

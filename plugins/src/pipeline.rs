@@ -23,6 +23,7 @@ use crate::mlp::INPUTS;
 use crate::poisson::{PoissonPlan, Solver};
 use crate::undistort::Remap;
 
+mod activity;
 pub mod stream;
 
 /// Registered stage names, per slot.
@@ -342,135 +343,6 @@ impl SensorPipeline {
         Ok(())
     }
 
-    fn central_window(&self) -> (usize, usize, usize, usize) {
-        let extra = usize::from(self.choice.stages.solver != Some(Solver::Dct));
-        let w = (8 * WINDOW_QUANTUM_PX + extra).min(self.width);
-        let h = (8 * WINDOW_QUANTUM_PX + extra).min(self.height);
-        ((self.width - w) / 2, (self.height - h) / 2, w, h)
-    }
-
-    /// Per 8×8 block: the sum over channels of |mean(frame − reference)|, in one pass over
-    /// the frame (the full difference image is never materialised): the frame's block sums
-    /// (exact, in integers) less the reference's, which are kept with the reference.
-    fn block_activity(&mut self) {
-        let (w, h) = (self.width, self.height);
-        let bw = w.div_ceil(BLOCK_PX);
-        if self.reference.is_none() {
-            return;
-        }
-        // A band of blocks at a time, row by row, the band's blocks side by side. The bands
-        // in two halves (`halves`).
-        let (rgb, reference) = (&self.rgb, &self.reference_block_sums);
-        let bands_from = |first: usize, blocks: &mut [f32], sums: &mut Vec<[u32; 3]>| {
-            sums.resize(bw, [0; 3]);
-            for (by, band) in (first..).zip(blocks.chunks_exact_mut(bw)) {
-                sums.fill([0; 3]);
-                let ys = by * BLOCK_PX..((by + 1) * BLOCK_PX).min(h);
-                for y in ys.clone() {
-                    let row = &rgb[y * w * 3..(y + 1) * w * 3];
-                    for (sum, run) in sums.iter_mut().zip(row.chunks(BLOCK_PX * 3)) {
-                        for px in run.chunks_exact(3) {
-                            sum[0] += u32::from(px[0]);
-                            sum[1] += u32::from(px[1]);
-                            sum[2] += u32::from(px[2]);
-                        }
-                    }
-                }
-                let refs = &reference[by * bw..(by + 1) * bw];
-                for (bx, ((sum, rf), block)) in sums.iter().zip(refs).zip(band).enumerate() {
-                    let xe = ((bx + 1) * BLOCK_PX).min(w);
-                    let n = ((xe - bx * BLOCK_PX) * ys.len()).max(1) as f64;
-                    let mean_abs = |c: usize| ((f64::from(sum[c]) - rf[c]) / n).abs();
-                    *block = (mean_abs(0) + mean_abs(1) + mean_abs(2)) as f32;
-                }
-            }
-        };
-        let bands = h.div_ceil(BLOCK_PX);
-        let split = worth_splitting(w * h);
-        let mid = first_half(bands, 1, split);
-        let (blocks_a, blocks_b) = self.blocks[..bands * bw].split_at_mut(mid * bw);
-        let [sums_a, sums_b] = &mut self.block_sums;
-        run_halves(
-            split,
-            || bands_from(0, blocks_a, sums_a),
-            || bands_from(mid, blocks_b, sums_b),
-        );
-    }
-
-    /// The reference's sums per block and channel, for [`Self::block_activity`].
-    fn refresh_reference_block_sums(&mut self) {
-        let (w, h) = (self.width, self.height);
-        let (bw, bh) = (w.div_ceil(BLOCK_PX), h.div_ceil(BLOCK_PX));
-        self.reference_block_sums.clear();
-        self.reference_block_sums.resize(bw * bh, [0.0; 3]);
-        let Some(reference) = &self.reference else {
-            return;
-        };
-        for (y, row) in reference.chunks_exact(w * 3).take(h).enumerate() {
-            let band = &mut self.reference_block_sums[(y / BLOCK_PX) * bw..];
-            for (sum, run) in band.iter_mut().zip(row.chunks(BLOCK_PX * 3)) {
-                for px in run.chunks_exact(3) {
-                    sum[0] += f64::from(px[0]);
-                    sum[1] += f64::from(px[1]);
-                    sum[2] += f64::from(px[2]);
-                }
-            }
-        }
-    }
-
-    /// Bounding box `(x, y, w, h)` of active blocks plus the margin, rounded up.
-    fn active_window(&self, threshold: f32) -> Option<(usize, usize, usize, usize)> {
-        let bw = self.width.div_ceil(BLOCK_PX);
-        let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
-        for (k, a) in self.blocks.iter().enumerate() {
-            if *a > threshold {
-                let (bx, by) = (k % bw, k / bw);
-                x0 = x0.min(bx * BLOCK_PX);
-                y0 = y0.min(by * BLOCK_PX);
-                x1 = x1.max((bx + 1) * BLOCK_PX);
-                y1 = y1.max((by + 1) * BLOCK_PX);
-            }
-        }
-        if x0 == usize::MAX {
-            return None;
-        }
-        let extra = usize::from(self.choice.stages.solver != Some(Solver::Dct));
-        let fit = |lo: usize, hi: usize, limit: usize| {
-            let lo = lo.saturating_sub(WINDOW_MARGIN_PX);
-            let hi = (hi + WINDOW_MARGIN_PX).min(limit);
-            let len = (hi - lo).saturating_sub(extra).div_ceil(WINDOW_QUANTUM_PX)
-                * WINDOW_QUANTUM_PX
-                + extra;
-            let len = len.min(limit);
-            (lo.min(limit - len), len)
-        };
-        let (x, w) = fit(x0, x1, self.width);
-        let (y, h) = fit(y0, y1, self.height);
-        Some((x, y, w, h))
-    }
-
-    /// Mark blocks within one block of an active one (all blocks when `threshold` is None).
-    fn mark_near_active(&mut self, threshold: Option<f32>) {
-        let bw = self.width.div_ceil(BLOCK_PX);
-        let bh = self.height.div_ceil(BLOCK_PX);
-        let Some(t) = threshold else {
-            self.near_active.fill(true);
-            return;
-        };
-        self.near_active.fill(false);
-        for by in 0..bh {
-            for bx in 0..bw {
-                if self.blocks[by * bw + bx] > t {
-                    for ny in by.saturating_sub(1)..(by + 2).min(bh) {
-                        for nx in bx.saturating_sub(1)..(bx + 2).min(bw) {
-                            self.near_active[ny * bw + nx] = true;
-                        }
-                    }
-                }
-            }
-        }
-    }
-
     /// Gradients over window `(x0, y0, w, h)` into `gx`, `gy` (window-sized, row-major).
     /// Pixels away from any active block get zero gradient: only the contact is integrated.
     fn window_gradients(
@@ -563,19 +435,26 @@ impl SensorPipeline {
                 let out = net
                     .forward(&self.features)
                     .map_err(|e| PipelineError::Model(e.to_string()))?;
-                for (k, &q) in self.feature_pixels.iter().enumerate() {
-                    let (fx, fy) = (x0 + q % w, y0 + q / w);
-                    let bg = self
-                        .background_prediction
-                        .get(fy * width + fx)
-                        .copied()
-                        .unwrap_or([0.0; 2]);
-                    self.gx[q] = out[2 * k] - bg[0];
-                    self.gy[q] = out[2 * k + 1] - bg[1];
-                }
+                self.place_mlp_output(&out, (x0, y0, w));
             }
         }
         Ok(())
+    }
+
+    /// The network's output for the evaluated pixels (`feature_pixels`) of the window at
+    /// `(x0, y0)`, `w` wide, less the background's prediction, into `gx`, `gy`.
+    fn place_mlp_output(&mut self, out: &[f32], (x0, y0, w): (usize, usize, usize)) {
+        let width = self.width;
+        for (k, &q) in self.feature_pixels.iter().enumerate() {
+            let (fx, fy) = (x0 + q % w, y0 + q / w);
+            let bg = self
+                .background_prediction
+                .get(fy * width + fx)
+                .copied()
+                .unwrap_or([0.0; 2]);
+            self.gx[q] = out[2 * k] - bg[0];
+            self.gy[q] = out[2 * k + 1] - bg[1];
+        }
     }
 
     /// Gradients and depth (px) over window `(x, y, w, h)`; returns the window's depth.

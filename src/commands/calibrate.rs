@@ -14,7 +14,7 @@ use gelgrip_plugins::gradient::{GradientModel, MlpMode};
 use gelgrip_plugins::lut::Input;
 use gelgrip_plugins::mlp::MlpModel;
 use gelgrip_plugins::mlp::bake::{BakeOptions, bake};
-use gelgrip_plugins::mlp::train::{InputNorm, Loss, TrainOptions};
+use gelgrip_plugins::mlp::train::{InputNorm, Loss, TrainOptions, ValidationSummary};
 use gelgrip_plugins::mlp::transfer::{Fit, transfer};
 use gelgrip_plugins::poisson::Solver;
 
@@ -129,107 +129,36 @@ struct ValidationJson {
     patience: usize,
 }
 
+/// A model `calibrate train` trained, with what its report needs.
+struct Trained {
+    model: GradientModel,
+    name: &'static str,
+    hidden: Option<usize>,
+    parameters: Option<usize>,
+    blur_px: Option<usize>,
+    /// The rows trained on.
+    train_rows: std::ops::Range<usize>,
+    /// MLP: the validation rows and the curve's summary.
+    validated: Option<(std::ops::Range<usize>, ValidationSummary)>,
+}
+
 fn train(args: TrainArgs) -> anyhow::Result<u8> {
     // clap allows only the names Input parses.
     let input = Input::parse(&args.input).unwrap_or(Input::Diff);
     let ds = PressDataset::load(&args.data)?;
     let split = calibrate::split_index(ds.presses.len());
-    // MLP: rows trained on, and the validation rows with the curve's summary.
-    let mut train_rows = 0..split;
-    let mut validated = None;
     let started = std::time::Instant::now();
-    let (model, name, hidden, parameters, blur_px) = match args.model {
-        ModelKind::Lut => {
-            eprintln!(
-                "training lut ({} input, {} bins) on {} presses, testing on {}",
-                input.as_str(),
-                args.bins,
-                split,
-                ds.presses.len() - split
-            );
-            let bins = usize::from(args.bins);
-            let blur_px = match args.blur_px {
-                Some(r) => usize::from(r),
-                None => {
-                    let choice = calibrate::blur_choice(&[&ds], input, bins)?;
-                    eprintln!(
-                        "pixel noise {:.1} grey levels (RMS, away from the contact)",
-                        choice.noise
-                    );
-                    if !choice.sweep.is_empty() {
-                        let listed: Vec<String> = choice
-                            .sweep
-                            .iter()
-                            .map(|(r, e)| format!("{r} px: {e:.4}"))
-                            .collect();
-                        eprintln!(
-                            "blur radius, validation error (mean of gx and gy): {}",
-                            listed.join(", ")
-                        );
-                    }
-                    choice.blur_px
-                }
-            };
-            eprintln!("frames read through a box blur of radius {blur_px} px");
-            let lut = calibrate::train_lut_blurred(&[&ds], input, bins, blur_px)?;
-            lut.save(&args.out)?;
-            (GradientModel::lut(lut), "lut", None, None, Some(blur_px))
-        }
-        ModelKind::Mlp => {
-            let opts = TrainOptions {
-                hidden: usize::from(args.hidden),
-                dropout: args.dropout as f32,
-                learning_rate: args.learning_rate,
-                epochs: args.epochs as usize,
-                seed: args.seed,
-                patience: args.patience as usize,
-                loss: args.loss.into(),
-                input_norm: args.input_norm.into(),
-                ..TrainOptions::default()
-            };
-            let rows = calibrate::validation_split_of(&ds)?;
-            eprintln!(
-                "training mlp 5-{h}-{h}-{h}-2 (tanh, dropout {}, {} loss, {} inputs, learning rate {}, {} input) on {} presses, validating on {}, testing on {}, up to {} epochs (patience {})",
-                args.dropout,
-                opts.loss.as_str(),
-                opts.input_norm.as_str(),
-                args.learning_rate,
-                input.as_str(),
-                rows.train.len(),
-                rows.validation.len(),
-                rows.test.len(),
-                args.epochs,
-                args.patience,
-                h = args.hidden
-            );
-            let bar = progress::epochs(args.epochs as u64);
-            let v = calibrate::train_mlp_validated(
-                &[&ds],
-                input,
-                &opts,
-                progress::epoch_reporter(&bar),
-            )?;
-            bar.finish();
-            train_rows = rows.train.clone();
-            validated = Some((rows.validation, v.summary));
-            let mlp = v.model;
-            mlp.save(&args.out)?;
-            let (h, n) = (mlp.hidden, mlp.parameters());
-            (
-                GradientModel::mlp(mlp, MlpMode::Dense)?,
-                "mlp",
-                Some(h),
-                Some(n),
-                None,
-            )
-        }
+    let trained = match args.model {
+        ModelKind::Lut => train_lut(&args, &ds, input, split)?,
+        ModelKind::Mlp => train_mlp(&args, &ds, input)?,
     };
     let train_s = started.elapsed().as_secs_f64();
-    let train = calibrate::evaluate(&model, &ds, train_rows, None)?;
-    let test = calibrate::evaluate(&model, &ds, split..ds.presses.len(), None)?;
-    let validation = match validated {
+    let model = &trained.model;
+    let train = calibrate::evaluate(model, &ds, trained.train_rows.clone(), None)?;
+    let test = calibrate::evaluate(model, &ds, split..ds.presses.len(), None)?;
+    let validation = match trained.validated {
         Some((rows, v)) => {
-            let r = calibrate::evaluate(&model, &ds, rows, None)?;
+            let r = calibrate::evaluate(model, &ds, rows, None)?;
             Some(ValidationJson {
                 presses: r.presses,
                 gx_mae: r.gx_mae,
@@ -244,16 +173,16 @@ fn train(args: TrainArgs) -> anyhow::Result<u8> {
         }
         None => None,
     };
+    let mlp = args.model == ModelKind::Mlp;
     let out = TrainJson {
-        model: name,
+        model: trained.name,
         input: input.as_str(),
-        hidden,
-        parameters,
-        epochs: (args.model == ModelKind::Mlp).then_some(args.epochs),
-        blur_px,
-        loss: (args.model == ModelKind::Mlp).then(|| Loss::from(args.loss).as_str()),
-        input_norm: (args.model == ModelKind::Mlp)
-            .then(|| InputNorm::from(args.input_norm).as_str()),
+        hidden: trained.hidden,
+        parameters: trained.parameters,
+        epochs: mlp.then_some(args.epochs),
+        blur_px: trained.blur_px,
+        loss: mlp.then(|| Loss::from(args.loss).as_str()),
+        input_norm: mlp.then(|| InputNorm::from(args.input_norm).as_str()),
         train_presses: train.presses,
         test_presses: test.presses,
         train_gx_mae: train.gx_mae,
@@ -267,19 +196,123 @@ fn train(args: TrainArgs) -> anyhow::Result<u8> {
         println!("{}", serde_json::to_string(&out)?);
         return Ok(0);
     }
-    match (hidden, parameters) {
+    print_trained(&args, &out, (&train, &test));
+    Ok(0)
+}
+
+/// Train a LUT on the training rows, through the box blur `--blur-px` names or the one
+/// the presses' noise calls for, and save it.
+fn train_lut(
+    args: &TrainArgs,
+    ds: &PressDataset,
+    input: Input,
+    split: usize,
+) -> anyhow::Result<Trained> {
+    eprintln!(
+        "training lut ({} input, {} bins) on {} presses, testing on {}",
+        input.as_str(),
+        args.bins,
+        split,
+        ds.presses.len() - split
+    );
+    let bins = usize::from(args.bins);
+    let blur_px = match args.blur_px {
+        Some(r) => usize::from(r),
+        None => {
+            let choice = calibrate::blur_choice(&[ds], input, bins)?;
+            eprintln!(
+                "pixel noise {:.1} grey levels (RMS, away from the contact)",
+                choice.noise
+            );
+            if !choice.sweep.is_empty() {
+                let listed: Vec<String> = choice
+                    .sweep
+                    .iter()
+                    .map(|(r, e)| format!("{r} px: {e:.4}"))
+                    .collect();
+                eprintln!(
+                    "blur radius, validation error (mean of gx and gy): {}",
+                    listed.join(", ")
+                );
+            }
+            choice.blur_px
+        }
+    };
+    eprintln!("frames read through a box blur of radius {blur_px} px");
+    let lut = calibrate::train_lut_blurred(&[ds], input, bins, blur_px)?;
+    lut.save(&args.out)?;
+    Ok(Trained {
+        model: GradientModel::lut(lut),
+        name: "lut",
+        hidden: None,
+        parameters: None,
+        blur_px: Some(blur_px),
+        train_rows: 0..split,
+        validated: None,
+    })
+}
+
+/// Train an MLP with early stopping on the validation rows, and save it.
+fn train_mlp(args: &TrainArgs, ds: &PressDataset, input: Input) -> anyhow::Result<Trained> {
+    let opts = TrainOptions {
+        hidden: usize::from(args.hidden),
+        dropout: args.dropout as f32,
+        learning_rate: args.learning_rate,
+        epochs: args.epochs as usize,
+        seed: args.seed,
+        patience: args.patience as usize,
+        loss: args.loss.into(),
+        input_norm: args.input_norm.into(),
+        ..TrainOptions::default()
+    };
+    let rows = calibrate::validation_split_of(ds)?;
+    eprintln!(
+        "training mlp 5-{h}-{h}-{h}-2 (tanh, dropout {}, {} loss, {} inputs, learning rate {}, {} input) on {} presses, validating on {}, testing on {}, up to {} epochs (patience {})",
+        args.dropout,
+        opts.loss.as_str(),
+        opts.input_norm.as_str(),
+        args.learning_rate,
+        input.as_str(),
+        rows.train.len(),
+        rows.validation.len(),
+        rows.test.len(),
+        args.epochs,
+        args.patience,
+        h = args.hidden
+    );
+    let bar = progress::epochs(args.epochs as u64);
+    let v = calibrate::train_mlp_validated(&[ds], input, &opts, progress::epoch_reporter(&bar))?;
+    bar.finish();
+    let mlp = v.model;
+    mlp.save(&args.out)?;
+    let (h, n) = (mlp.hidden, mlp.parameters());
+    Ok(Trained {
+        model: GradientModel::mlp(mlp, MlpMode::Dense)?,
+        name: "mlp",
+        hidden: Some(h),
+        parameters: Some(n),
+        blur_px: None,
+        train_rows: rows.train,
+        validated: Some((rows.validation, v.summary)),
+    })
+}
+
+/// `calibrate train`'s report as text.
+fn print_trained(args: &TrainArgs, out: &TrainJson, (train, test): (&EvalReport, &EvalReport)) {
+    match (out.hidden, out.parameters) {
         (Some(h), Some(n)) => println!(
-            "{}: mlp 5-{h}-{h}-{h}-2 ({n} parameters), {} input, {} epochs in {train_s:.1} s",
+            "{}: mlp 5-{h}-{h}-{h}-2 ({n} parameters), {} input, {} epochs in {:.1} s",
             args.out.display(),
-            input.as_str(),
+            out.input,
             out.validation
                 .as_ref()
-                .map_or(args.epochs as usize, |v| v.stopped_at_epoch)
+                .map_or(args.epochs as usize, |v| v.stopped_at_epoch),
+            out.train_s
         ),
         _ => println!(
             "{}: lut, {} input, {} bins",
             args.out.display(),
-            input.as_str(),
+            out.input,
             args.bins
         ),
     }
@@ -311,7 +344,6 @@ fn train(args: TrainArgs) -> anyhow::Result<u8> {
             v.best_epoch, v.stopped_at_epoch, v.train_loss, v.validation_loss
         );
     }
-    Ok(0)
 }
 
 #[derive(Serialize)]

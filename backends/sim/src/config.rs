@@ -171,43 +171,7 @@ impl SimConfig {
             (None, Optics::Nominal) => (DEFAULT_NOISE_SIGMA, [DEFAULT_NOISE_SIGMA; 3]),
             (None, Optics::Realistic(r)) => (r.noise_rgb.iter().sum::<f64>() / 3.0, r.noise_rgb),
         };
-        let mut faults = vec![SensorFaults::default(); layout.sensors.len()];
-        for (i, f) in raw.faults.iter().enumerate() {
-            let field = |k: &str| format!("{}.faults[{i}].{k}", section.prefix);
-            let Some(idx) = layout.index_of(&f.sensor) else {
-                let expected = format!("a sensor of the layout: {}", layout.id_list());
-                return Err(check.invalid(&field("sensor"), &f.sensor, &expected));
-            };
-            faults[idx] = SensorFaults {
-                capture_delay_us: check.range(
-                    &field("capture_delay_us"),
-                    f.capture_delay_us,
-                    0.0,
-                    1e6,
-                )? as u32,
-                delivery_delay_us: check.range(
-                    &field("delivery_delay_us"),
-                    f.delivery_delay_us,
-                    0.0,
-                    1e7,
-                )? as u32,
-                drop_rate: check.range(&field("drop_rate"), f.drop_rate, 0.0, 1.0)?,
-                corrupt_rate: check.range(&field("corrupt_rate"), f.corrupt_rate, 0.0, 1.0)?,
-                dead: f.dead,
-                capture_jitter_us: check.range(
-                    &field("capture_jitter_us"),
-                    f.capture_jitter_us,
-                    0.0,
-                    f64::from(MAX_JITTER_US),
-                )? as u32,
-                clock_drift_ppm: check.range(
-                    &field("clock_drift_ppm"),
-                    f.clock_drift_ppm,
-                    -MAX_CLOCK_DRIFT_PPM,
-                    MAX_CLOCK_DRIFT_PPM,
-                )?,
-            };
-        }
+        let faults = sensor_faults(section, &raw.faults, layout)?;
         Ok(Self {
             seed: raw.seed,
             jpeg_quality: check.range(&p("jpeg_quality"), raw.jpeg_quality as f64, 1.0, 100.0)?
@@ -238,6 +202,53 @@ impl SimConfig {
             scene,
         })
     }
+}
+
+/// The `faults` of the `[hub.sim]` section, one per sensor of `layout` (none where unset).
+fn sensor_faults(
+    section: &BackendSection,
+    raw_faults: &[RawFault],
+    layout: &HandLayout,
+) -> Result<Vec<SensorFaults>, ConfigError> {
+    let check = &section.check;
+    let mut faults = vec![SensorFaults::default(); layout.sensors.len()];
+    for (i, f) in raw_faults.iter().enumerate() {
+        let field = |k: &str| format!("{}.faults[{i}].{k}", section.prefix);
+        let Some(idx) = layout.index_of(&f.sensor) else {
+            let expected = format!("a sensor of the layout: {}", layout.id_list());
+            return Err(check.invalid(&field("sensor"), &f.sensor, &expected));
+        };
+        faults[idx] = SensorFaults {
+            capture_delay_us: check.range(
+                &field("capture_delay_us"),
+                f.capture_delay_us,
+                0.0,
+                1e6,
+            )? as u32,
+            delivery_delay_us: check.range(
+                &field("delivery_delay_us"),
+                f.delivery_delay_us,
+                0.0,
+                1e7,
+            )? as u32,
+            drop_rate: check.range(&field("drop_rate"), f.drop_rate, 0.0, 1.0)?,
+            corrupt_rate: check.range(&field("corrupt_rate"), f.corrupt_rate, 0.0, 1.0)?,
+            dead: f.dead,
+            capture_jitter_us: check.range(
+                &field("capture_jitter_us"),
+                f.capture_jitter_us,
+                0.0,
+                f64::from(MAX_JITTER_US),
+            )? as u32,
+            clock_drift_ppm: check.range(
+                &field("clock_drift_ppm"),
+                f.clock_drift_ppm,
+                -MAX_CLOCK_DRIFT_PPM,
+                MAX_CLOCK_DRIFT_PPM,
+            )?,
+        };
+    }
+    Ok(faults)
 }
 
 #[cfg(test)]

@@ -253,65 +253,21 @@ impl SceneSpec {
         for (k, v) in o.xyz_mm.iter().chain(&o.rpy_deg).enumerate() {
             check.range(&format!("object.pose[{k}]"), *v, -1e4, 1e4)?;
         }
-        let trigger = match &o.trigger {
-            None => None,
-            Some(t) => {
-                let preload_n = check.range("object.trigger.preload_n", t.preload_n, 0.0, 1e3)?;
-                Some(TriggerSpec {
-                    shape: shape(&check, "object.trigger.shape", &t.shape)?,
-                    travel_dir: unit(&check, "object.trigger.travel_dir", t.travel_dir)?,
-                    travel_mm: check.range("object.trigger.travel_mm", t.travel_mm, 0.1, 50.0)?,
-                    preload_n,
-                    switch_force_n: check.range(
-                        "object.trigger.switch_force_n",
-                        t.switch_force_n,
-                        preload_n + 1e-3,
-                        1e3,
-                    )?,
-                })
-            }
-        };
+        let trigger = o
+            .trigger
+            .as_ref()
+            .map(|t| trigger_spec(&check, t))
+            .transpose()?;
         let bolt = match &o.bolt {
             None => None,
-            Some(b) => {
-                if trigger.is_none() {
-                    return Err(check.invalid(
-                        "object.bolt",
-                        "a bolt",
-                        "a bolt only with an [object.trigger] that starts the tool",
-                    ));
-                }
-                let run = check.range("object.bolt.run_torque_nm", b.run_torque_nm, 0.0, 100.0)?;
-                Some(BoltSpec {
-                    free_rpm: check.range("object.bolt.free_rpm", b.free_rpm, 1.0, 1e4)?,
-                    run_torque_nm: run,
-                    seat_after_turns: check.range(
-                        "object.bolt.seat_after_turns",
-                        b.seat_after_turns,
-                        0.0,
-                        1e3,
-                    )?,
-                    tighten_nm_per_turn: check.range(
-                        "object.bolt.tighten_nm_per_turn",
-                        b.tighten_nm_per_turn,
-                        1e-3,
-                        1e3,
-                    )?,
-                    stall_torque_nm: check.range(
-                        "object.bolt.stall_torque_nm",
-                        b.stall_torque_nm,
-                        run + 1e-3,
-                        1e3,
-                    )?,
-                    lever_mm: check.range("object.bolt.lever_mm", b.lever_mm, 1.0, 1e3)?,
-                    deflection_mm_per_n: check.range(
-                        "object.bolt.deflection_mm_per_n",
-                        b.deflection_mm_per_n,
-                        0.0,
-                        1.0,
-                    )?,
-                })
+            Some(_) if trigger.is_none() => {
+                return Err(check.invalid(
+                    "object.bolt",
+                    "a bolt",
+                    "a bolt only with an [object.trigger] that starts the tool",
+                ));
             }
+            Some(b) => Some(bolt_spec(&check, b)?),
         };
         let stiffness_n_per_mm = o
             .stiffness_n_per_mm
@@ -366,4 +322,55 @@ impl SceneSpec {
             expect_contact,
         })
     }
+}
+
+/// `[object.trigger]`: the tool's trigger, which the grasp presses.
+fn trigger_spec(check: &FieldCheck, t: &RawTrigger) -> Result<TriggerSpec, ConfigError> {
+    let preload_n = check.range("object.trigger.preload_n", t.preload_n, 0.0, 1e3)?;
+    Ok(TriggerSpec {
+        shape: shape(check, "object.trigger.shape", &t.shape)?,
+        travel_dir: unit(check, "object.trigger.travel_dir", t.travel_dir)?,
+        travel_mm: check.range("object.trigger.travel_mm", t.travel_mm, 0.1, 50.0)?,
+        preload_n,
+        switch_force_n: check.range(
+            "object.trigger.switch_force_n",
+            t.switch_force_n,
+            preload_n + 1e-3,
+            1e3,
+        )?,
+    })
+}
+
+/// `[object.bolt]`: what the tool drives once its trigger is pressed.
+fn bolt_spec(check: &FieldCheck, b: &RawBolt) -> Result<BoltSpec, ConfigError> {
+    let run = check.range("object.bolt.run_torque_nm", b.run_torque_nm, 0.0, 100.0)?;
+    Ok(BoltSpec {
+        free_rpm: check.range("object.bolt.free_rpm", b.free_rpm, 1.0, 1e4)?,
+        run_torque_nm: run,
+        seat_after_turns: check.range(
+            "object.bolt.seat_after_turns",
+            b.seat_after_turns,
+            0.0,
+            1e3,
+        )?,
+        tighten_nm_per_turn: check.range(
+            "object.bolt.tighten_nm_per_turn",
+            b.tighten_nm_per_turn,
+            1e-3,
+            1e3,
+        )?,
+        stall_torque_nm: check.range(
+            "object.bolt.stall_torque_nm",
+            b.stall_torque_nm,
+            run + 1e-3,
+            1e3,
+        )?,
+        lever_mm: check.range("object.bolt.lever_mm", b.lever_mm, 1.0, 1e3)?,
+        deflection_mm_per_n: check.range(
+            "object.bolt.deflection_mm_per_n",
+            b.deflection_mm_per_n,
+            0.0,
+            1.0,
+        )?,
+    })
 }

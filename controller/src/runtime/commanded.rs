@@ -14,6 +14,8 @@ use crate::gripper::{CommandKind, GripperHandle, GripperService};
 use crate::runtime::RuntimeError;
 use crate::runtime::outcome::ScriptEnd;
 use crate::runtime::plant::Plant;
+use crate::runtime::ports::Sensing;
+use crate::runtime::report::TaskStep;
 use crate::runtime::script_run::ScriptRun;
 use crate::runtime::task_report::TaskReport;
 use crate::task::TaskScript;
@@ -79,28 +81,31 @@ impl CommandedGripper {
         Ok(())
     }
 
-    /// Handle one gated set at host time `now_us`; reports how a script ended on it.
+    /// Handle one gated set at host time `now_us`, sensed through `sensing`: a running
+    /// script's row of the task log, and how a script ended on it.
     pub fn on_set(
         &mut self,
+        sensing: &mut dyn Sensing,
         set: &FrameSet,
         now_us: u64,
-    ) -> Result<Option<ScriptEnd>, RuntimeError> {
+    ) -> Result<(Option<TaskStep>, Option<ScriptEnd>), RuntimeError> {
         if std::mem::take(&mut self.watchdog_holding) {
             tracing::info!("synchronized sets are back; the fingers held meanwhile");
         }
         if let Some(end) = self.check_interruption() {
-            return Ok(Some(end));
+            return Ok((None, Some(end)));
         }
         if let Some(script) = self.script.as_mut() {
-            if script.on_set(&mut self.plant, set, now_us)? {
+            let (step, ended) = script.on_set(&mut self.plant, sensing, set, now_us)?;
+            if ended {
                 self.end_script();
-                return Ok(Some(ScriptEnd::Finished));
+                return Ok((Some(step), Some(ScriptEnd::Finished)));
             }
-            return Ok(None);
+            return Ok((Some(step), None));
         }
-        let sensed = self.plant.drive(&mut self.service, set, now_us)?;
+        let sensed = self.plant.drive(sensing, &mut self.service, set, now_us)?;
         self.plant.remember(sensed.fused);
-        Ok(None)
+        Ok((None, None))
     }
 
     /// A command queued between sets is applied now: a stop or e-stop is written at once,

@@ -6,12 +6,12 @@ use crate::actuator::ServoState;
 use crate::frame::FrameSet;
 use crate::grasp::Phase;
 use crate::gripper::{GripperHandle, GripperService, ServiceEvent};
-use crate::runtime::RuntimeError;
 use crate::runtime::commanded::CommandedGripper;
 use crate::runtime::gentle_grasp::{GentleGrasp, TASK_NAME};
 use crate::runtime::outcome::{EndReason, Fault, ScriptEnd};
 use crate::runtime::plant::Plant;
-use crate::runtime::ports::DriverControl;
+use crate::runtime::ports::{DriverControl, Sensing};
+use crate::runtime::report::DrivenSet;
 use crate::runtime::task_report::{TaskReport, TaskStatus};
 use crate::task::TaskScript;
 
@@ -39,21 +39,21 @@ fn script_end_reason(end: Option<ScriptEnd>, ends_run: bool) -> Option<EndReason
 }
 
 impl Driver {
-    /// Handle one gated set; returns an end reason when the task ends.
-    pub fn on_set(
-        &mut self,
-        set: &FrameSet,
-        now_us: u64,
-    ) -> Result<Option<EndReason>, RuntimeError> {
+    /// Handle one gated set, sensed through `sensing`: what the driver did with it, with an
+    /// end reason when the task ends.
+    pub fn on_set(&mut self, sensing: &mut dyn Sensing, set: &FrameSet, now_us: u64) -> DrivenSet {
         match self {
-            Self::GentleGrasp(t) => t.on_set(set, now_us),
+            Self::GentleGrasp(t) => t.on_set(sensing, set, now_us),
             Self::Commanded {
                 gripper,
                 script_ends_run,
-            } => Ok(script_end_reason(
-                gripper.on_set(set, now_us)?,
-                *script_ends_run,
-            )),
+            } => match gripper.on_set(sensing, set, now_us) {
+                Ok((step, end)) => DrivenSet {
+                    step,
+                    end: Ok(script_end_reason(end, *script_ends_run)),
+                },
+                Err(e) => DrivenSet::without_step(Err(e)),
+            },
         }
     }
 

@@ -20,7 +20,8 @@ use crate::layout::HandLayout;
 use crate::runtime::RuntimeError;
 use crate::runtime::outcome::EndReason;
 use crate::runtime::plant::Plant;
-use crate::runtime::report::TaskStep;
+use crate::runtime::ports::Sensing;
+use crate::runtime::report::{DrivenSet, TaskStep};
 use crate::runtime::task_report::TaskReport;
 
 /// The built-in task's name (`run --task gentle-grasp`).
@@ -144,18 +145,18 @@ impl GentleGrasp {
         self.plant.truth()?.slip_mm()
     }
 
-    /// Handle one gated set at host time `now_us`; returns an end reason when the task ends.
-    pub fn on_set(
-        &mut self,
-        set: &FrameSet,
-        now_us: u64,
-    ) -> Result<Option<EndReason>, RuntimeError> {
+    /// Handle one gated set at host time `now_us`, sensed through `sensing`: what it did,
+    /// with an end reason when the task ends.
+    pub fn on_set(&mut self, sensing: &mut dyn Sensing, set: &FrameSet, now_us: u64) -> DrivenSet {
         let t_s = now_us as f64 / 1e6;
         let start = *self.start_s.get_or_insert(t_s);
-        let sensed = self.plant.drive(&mut self.service, set, now_us)?;
+        let sensed = match self.plant.drive(sensing, &mut self.service, set, now_us) {
+            Ok(sensed) => sensed,
+            Err(e) => return DrivenSet::without_step(Err(e)),
+        };
         if let Some(end) = self.interrupted() {
             self.plant.remember(sensed.fused);
-            return Ok(Some(end));
+            return DrivenSet::without_step(Ok(Some(end)));
         }
         let truth = self.plant.true_forces_n();
         let regulated = self
@@ -180,7 +181,7 @@ impl GentleGrasp {
             .controller()
             .map(|c| (c.phases(), c.goals()))
             .unwrap_or_default();
-        self.plant.record_step(TaskStep {
+        let step = Some(TaskStep {
             trigger_seq: set.trigger_seq,
             t_s: t_s - start,
             stage: self.stage_label().to_string(),
@@ -189,6 +190,15 @@ impl GentleGrasp {
             goals,
         });
         self.plant.remember(sensed.fused);
+        DrivenSet {
+            end: self.advance(t_s, start),
+            step,
+        }
+    }
+
+    /// Move the task on after the set at `t_s` (the task began at `start`): the grasp's
+    /// outcome, the hold, the hold test; returns an end reason when the task ends.
+    fn advance(&mut self, t_s: f64, start: f64) -> Result<Option<EndReason>, RuntimeError> {
         match self.stage {
             Stage::Grasp => {
                 let ended = self.pending.as_mut().and_then(PendingGrasp::try_outcome);

@@ -45,8 +45,11 @@ use crate::runtime::control::LoopCommand;
 use crate::runtime::driver::Driver;
 use crate::runtime::fixed_close::FixedClose;
 use crate::runtime::outcome::{EndReason, Fault, FaultKind};
+use crate::runtime::ports::Sensing;
 use crate::runtime::ports::{ControlHandler, DriverControl, Observer};
-use crate::runtime::report::{FingerState, GripperReport, SetReport};
+use crate::runtime::report::{
+    DepthWindows, DrivenSet, FingerState, GripperReport, SetReport, TaskStep,
+};
 use crate::runtime::task_report::TaskReport;
 
 /// A failure inside the loop, typed so the loop can tell a hub from a servo from a log.
@@ -150,6 +153,8 @@ pub struct Runtime {
     acq: Acquisition,
     clock: Arc<dyn Clock>,
     driver: Option<Driver>,
+    /// The tactile pipelines the driver senses through (set with the driver).
+    sensing: Option<Box<dyn Sensing>>,
     fixed: Option<FixedClose>,
     observers: Vec<Box<dyn Observer>>,
     control: Option<(Box<dyn ControlHandler>, mpsc::Receiver<LoopCommand>)>,
@@ -192,6 +197,7 @@ impl Runtime {
             acq: acquisition,
             clock,
             driver: None,
+            sensing: None,
             fixed: None,
             observers: Vec::new(),
             control: None,
@@ -209,9 +215,11 @@ impl Runtime {
         }
     }
 
-    /// Drive the gripper with `driver`.
-    pub fn with_driver(mut self, driver: Driver) -> Self {
+    /// Drive the gripper with `driver`, sensing every set through `sensing` (frames reach
+    /// the pipelines as they arrive, sets as the gate emits them).
+    pub fn with_driver(mut self, driver: Driver, sensing: Box<dyn Sensing>) -> Self {
         self.driver = Some(driver);
+        self.sensing = Some(sensing);
         self
     }
 
@@ -272,16 +280,16 @@ impl Runtime {
     /// loop (nothing touches the sensors: the gripper starts open). Nothing to do on the
     /// simulator.
     pub async fn reference_sensors(&mut self) -> Result<(), RuntimeError> {
-        let Some(driver) = self.driver.as_mut() else {
+        let Some(sensing) = self.sensing.as_mut() else {
             return Ok(());
         };
-        let missing = driver.plant().sensing().reference_sets_missing();
+        let missing = sensing.reference_sets_missing();
         if missing == 0 {
             return Ok(());
         }
         tracing::info!(sets = missing, "referencing the sensors on untouched sets");
         let give_up = self.clock.now_us() + REFERENCE_TIMEOUT_S * 1_000_000;
-        while driver.plant().sensing().reference_sets_missing() > 0 {
+        while sensing.reference_sets_missing() > 0 {
             let Some(set) = self.acq.next_set_before(give_up).await? else {
                 return Err(RuntimeError::NoReference {
                     transport: self.acq.hub().describe().transport.clone(),
@@ -289,7 +297,7 @@ impl Runtime {
                     gate: format!("{:?}", self.acq.gate().stats()),
                 });
             };
-            driver.plant_mut().sensing_mut().offer_reference(&set);
+            sensing.offer_reference(&set);
         }
         Ok(())
     }
@@ -381,10 +389,10 @@ impl Runtime {
         // frame that completes the set emitted now is not handed ahead: the set's
         // processing, next, works on it on this thread, with no hand-off to the pool.
         if let Some(frame) = self.acq.take_arrived()
-            && let Some(driver) = self.driver.as_mut()
+            && let Some(sensing) = self.sensing.as_mut()
             && !completes(&step, &frame)
         {
-            driver.plant_mut().sensing_mut().frame_arrived(&frame);
+            sensing.frame_arrived(&frame);
         }
         match step {
             Err(HubError::Finished { detail }) => {
@@ -403,12 +411,12 @@ impl Runtime {
 
     fn on_set(&mut self, set: &FrameSet) -> Option<EndReason> {
         let now = self.clock.now_us();
-        let outcome = match self.driver.as_mut() {
-            Some(driver) => driver.on_set(set, now),
-            None => Ok(None),
+        let driven = match (self.driver.as_mut(), self.sensing.as_deref_mut()) {
+            (Some(driver), Some(sensing)) => driver.on_set(sensing, set, now),
+            _ => DrivenSet::without_step(Ok(None)),
         };
         let observers = std::time::Instant::now();
-        let reported = self.report(Some(set), now);
+        let reported = self.report(Some(set), driven.step.as_ref(), now);
         if let Some(d) = self.driver.as_mut() {
             d.plant_mut()
                 .observed(observers.elapsed().as_secs_f64() * 1e3);
@@ -416,7 +424,7 @@ impl Runtime {
         if let Err(e) = reported {
             return Some(self.fault(e));
         }
-        match outcome {
+        match driven.end {
             Ok(end) => end,
             Err(e) => Some(self.fault(e)),
         }
@@ -457,7 +465,7 @@ impl Runtime {
             Err(e) => return Some(self.fault(e)),
         };
         if (quiet || read)
-            && let Err(e) = self.report(None, now)
+            && let Err(e) = self.report(None, None, now)
         {
             return Some(self.fault(e));
         }
@@ -500,21 +508,28 @@ impl Runtime {
         Ok(true)
     }
 
-    /// Give every observer this pass's report.
-    fn report(&mut self, set: Option<&FrameSet>, now_us: u64) -> Result<(), RuntimeError> {
+    /// Give every observer this pass's report: `set` and what the driver did with it
+    /// (`step`), or a pass between sets.
+    fn report(
+        &mut self,
+        set: Option<&FrameSet>,
+        step: Option<&TaskStep>,
+        now_us: u64,
+    ) -> Result<(), RuntimeError> {
         if self.observers.is_empty() {
             if let Some(d) = self.driver.as_mut() {
-                d.plant_mut().take_step();
                 d.take_controller_events();
             }
             return Ok(());
         }
         self.last_report_us = Some(now_us);
-        let (step, events) = match self.driver.as_mut() {
-            Some(d) => (d.plant_mut().take_step(), d.take_controller_events()),
-            None => (None, Vec::new()),
-        };
-        let gripper = self.driver.as_ref().map(|d| {
+        let events = self
+            .driver
+            .as_mut()
+            .map(Driver::take_controller_events)
+            .unwrap_or_default();
+        let depth: Option<&dyn DepthWindows> = self.sensing.as_deref().map(|s| s as _);
+        let gripper = self.driver.as_ref().zip(depth).map(|(d, depth)| {
             let plant = d.plant();
             GripperReport {
                 fused: plant.last_fused(),
@@ -533,9 +548,9 @@ impl Runtime {
                 goals: plant.last_goals(),
                 task: d.status(),
                 latencies: plant.latencies(),
-                step: step.as_ref(),
+                step,
                 controller_events: &events,
-                sensing: plant.sensing(),
+                sensing: depth,
             }
         });
         let report = SetReport {

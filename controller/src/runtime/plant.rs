@@ -1,7 +1,8 @@
-//! The plant: what every driver of the gripper shares with the hardware. The tactile
-//! pipelines (the [`Sensing`] port), the servo bus, the simulator's ground truth when there
-//! is one, the watchdog's clock, the loop's latency histograms, and the record of what the
-//! driver did with the last set (for the observers: the task CSV, the recorder).
+//! The plant: what every driver of the gripper shares with the hardware. The servo bus,
+//! the simulator's ground truth when there is one, the watchdog's clock, the loop's latency
+//! histograms, and the last set fused and goals written (for the observers' reports between
+//! sets). The tactile pipelines (the [`Sensing`] port) are the runtime's: each set's
+//! sensing borrows them ([`Plant::sense`]).
 //!
 //! Servo and pipeline calls block (dynamixel2 and the pipelines are synchronous), so on a
 //! multi-threaded executor they run through [`off_executor`], which hands the worker's other
@@ -19,7 +20,6 @@ use crate::runtime::RuntimeError;
 use crate::runtime::latency::{Latencies, LoopLatency};
 use crate::runtime::outcome::Fault;
 use crate::runtime::ports::{GroundTruth, Sensing};
-use crate::runtime::report::TaskStep;
 
 /// No gated set for this long stops all motion, ms.
 pub const WATCHDOG_MS: u64 = 500;
@@ -64,7 +64,6 @@ pub struct Sensed {
 
 /// The shared hardware side of every driver.
 pub struct Plant {
-    sensing: Box<dyn Sensing>,
     bus: Box<dyn ServoBus>,
     truth: Option<Box<dyn GroundTruth>>,
     /// The hand.
@@ -79,7 +78,6 @@ pub struct Plant {
     /// The last set's loop time less its sensing, ms, until the observers have run.
     own_pending_ms: Option<f64>,
     last: Option<FusedSet>,
-    step: Option<TaskStep>,
     /// Servo reads that succeeded so far (after a set's goals, or between sets).
     servo_reads: u64,
     /// Recovered servo faults.
@@ -99,7 +97,6 @@ impl Plant {
     /// A plant on `layout`'s fingers: configures the servos.
     pub fn open(
         layout: HandLayout,
-        sensing: Box<dyn Sensing>,
         mut bus: Box<dyn ServoBus>,
         truth: Option<Box<dyn GroundTruth>>,
     ) -> Result<Self, RuntimeError> {
@@ -110,7 +107,6 @@ impl Plant {
         }
         off_executor(|| bus.configure()).map_err(RuntimeError::Configure)?;
         Ok(Self {
-            sensing,
             bus,
             truth,
             layout,
@@ -121,7 +117,6 @@ impl Plant {
             latency: LoopLatency::default(),
             own_pending_ms: None,
             last: None,
-            step: None,
             servo_reads: 0,
             recovered: Vec::new(),
         })
@@ -137,12 +132,17 @@ impl Plant {
         self.truth.as_deref_mut()
     }
 
-    /// Run every sensor's pipeline on `set` (received at host time `now_us`) and fuse.
-    pub fn sense(&mut self, set: &FrameSet, now_us: u64) -> Result<Sensed, RuntimeError> {
+    /// Run every sensor's pipeline (`sensing`) on `set` (received at host time `now_us`)
+    /// and fuse.
+    pub fn sense(
+        &mut self,
+        sensing: &mut dyn Sensing,
+        set: &FrameSet,
+        now_us: u64,
+    ) -> Result<Sensed, RuntimeError> {
         let handed_over = Instant::now();
         self.last_set_us = Some(now_us);
         self.last_sensed_seq = Some(set.trigger_seq);
-        let sensing = &mut self.sensing;
         let readings = off_executor(|| sensing.process(set));
         let sensing_ms = handed_over.elapsed().as_secs_f64() * 1e3;
         self.latency.pipeline_ms.record_ms(sensing_ms);
@@ -166,16 +166,6 @@ impl Plant {
         self.last = Some(fused);
     }
 
-    /// Record what the driver did with the last set (a row of the task log).
-    pub fn record_step(&mut self, step: TaskStep) {
-        self.step = Some(step);
-    }
-
-    /// What the driver did with the last set, once.
-    pub fn take_step(&mut self) -> Option<TaskStep> {
-        self.step.take()
-    }
-
     /// The goals last written and the set they answered (`None`: a stop or e-stop).
     pub fn last_goals(&self) -> Option<&(Option<u32>, Vec<FingerGoal>)> {
         self.last_goals.as_ref()
@@ -189,16 +179,6 @@ impl Plant {
     /// The last fused set remembered.
     pub fn last_fused(&self) -> Option<&FusedSet> {
         self.last.as_ref()
-    }
-
-    /// The pipelines.
-    pub fn sensing(&self) -> &dyn Sensing {
-        self.sensing.as_ref()
-    }
-
-    /// The pipelines, to reference them before the loop.
-    pub fn sensing_mut(&mut self) -> &mut dyn Sensing {
-        self.sensing.as_mut()
     }
 
     /// The servos' last states.
@@ -238,11 +218,12 @@ impl Plant {
     /// controller and write its goals.
     pub fn drive(
         &mut self,
+        sensing: &mut dyn Sensing,
         gripper: &mut GripperService,
         set: &FrameSet,
         now_us: u64,
     ) -> Result<Sensed, RuntimeError> {
-        let sensed = self.sense(set, now_us)?;
+        let sensed = self.sense(sensing, set, now_us)?;
         gripper.apply_commands(&self.positions());
         let goals = gripper.step(now_us as f64 / 1e6, Some(&sensed.fused), self.states());
         self.command(&sensed, goals.as_deref())?;

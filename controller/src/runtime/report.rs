@@ -9,7 +9,9 @@ use crate::fusion::FusedSet;
 use crate::gate::GateStats;
 use crate::grasp::Phase;
 use crate::gripper::ServiceEvent;
+use crate::runtime::RuntimeError;
 use crate::runtime::latency::Latencies;
+use crate::runtime::outcome::EndReason;
 use crate::runtime::task_report::TaskStatus;
 
 /// One sensor's last reconstructed depth window, and where it lies in the frame.
@@ -52,6 +54,23 @@ pub struct TaskStep {
     pub phases: Vec<Phase>,
     /// Each finger's goal.
     pub goals: Vec<FingerGoal>,
+}
+
+/// What a driver did with one gated set: the value its pass returns.
+#[derive(Debug)]
+pub struct DrivenSet {
+    /// A row of the task log (`None` when the driver only held, was interrupted, or failed
+    /// before it stepped).
+    pub step: Option<TaskStep>,
+    /// Whether the run ends (and why), or the pass's failure.
+    pub end: Result<Option<EndReason>, RuntimeError>,
+}
+
+impl DrivenSet {
+    /// A pass that wrote no task-log row and ends the run or not as `end` says.
+    pub fn without_step(end: Result<Option<EndReason>, RuntimeError>) -> Self {
+        Self { step: None, end }
+    }
 }
 
 /// One finger as the driver sees it.

@@ -8,6 +8,7 @@ use crate::frame::FrameSet;
 use crate::grasp::{Phase, Tuning};
 use crate::runtime::RuntimeError;
 use crate::runtime::plant::Plant;
+use crate::runtime::ports::Sensing;
 use crate::runtime::report::TaskStep;
 use crate::runtime::task_report::TaskReport;
 use crate::task::{TaskRunner, TaskScript};
@@ -44,16 +45,18 @@ impl ScriptRun {
         &self.runner.script().name
     }
 
-    /// Handle one gated set at host time `now_us`; returns true when the script ends.
+    /// Handle one gated set at host time `now_us`, sensed through `sensing`: the row of
+    /// the task log it makes, and whether the script ends.
     pub fn on_set(
         &mut self,
         plant: &mut Plant,
+        sensing: &mut dyn Sensing,
         set: &FrameSet,
         now_us: u64,
-    ) -> Result<bool, RuntimeError> {
+    ) -> Result<(TaskStep, bool), RuntimeError> {
         let t_s = now_us as f64 / 1e6;
         let start = *self.start_s.get_or_insert(t_s);
-        let sensed = plant.sense(set, now_us)?;
+        let sensed = plant.sense(sensing, set, now_us)?;
         let stage = self.runner.stage_name().unwrap_or("start").to_string();
         let goals = self.runner.step(t_s, &sensed.fused, plant.states());
         if let Some(now) = self.runner.stage_name()
@@ -71,23 +74,24 @@ impl ScriptRun {
         if let Some(peak) = plant.true_finger_peak_n(&truth) {
             self.true_peak_force_n = Some(self.true_peak_force_n.unwrap_or(0.0).max(peak));
         }
-        plant.record_step(TaskStep {
+        let step = TaskStep {
             trigger_seq: set.trigger_seq,
             t_s: t_s - start,
             stage: self.runner.stage_name().unwrap_or("done").to_string(),
             truth_n: truth,
             phases: self.runner.phases(),
             goals,
-        });
+        };
         plant.remember(sensed.fused);
-        Ok(self.runner.end().is_some_and(|e| {
+        let ended = self.runner.end().is_some_and(|e| {
             if e.completed {
                 tracing::info!("task {} done", self.runner.script().name);
             } else {
                 tracing::warn!("task {}: {}", self.runner.script().name, e.reason);
             }
             true
-        }))
+        });
+        Ok((step, ended))
     }
 
     /// Every finger holds where it is, and the script ends with `reason` (a running stage

@@ -11,6 +11,9 @@ use crate::actuator::XM430_W350;
 use crate::grasp::limits::{GraspLimits, number};
 use crate::layout::HandLayout;
 
+mod condition;
+use condition::{condition, finger_ids, finger_index};
+
 /// Longest stage timeout a script may ask for, s.
 pub const MAX_TIMEOUT_S: f64 = 3600.0;
 /// Longest window of a slope condition, s.
@@ -337,65 +340,9 @@ impl TaskScript {
         layout: &HandLayout,
         current_limit_ma: f64,
     ) -> Result<Self, ScriptError> {
-        let raw: RawScript = toml::from_str(text).map_err(|e| {
-            let mut message = e.to_string().trim_end().to_string();
-            let stage_keys = ["next", "on_timeout", "on_fail", "timeout_s", "exit_when", "fingers", "name"];
-            if stage_keys
-                .iter()
-                .any(|k| message.contains(&format!("unknown field `{k}`")))
-            {
-                message.push_str(
-                    "\n(stage keys (next, on_timeout, timeout_s, …) go before the stage's \
-                     [[stage.exit]] and [[stage.fail_if]] tables, or TOML puts them inside the last one)",
-                );
-            }
-            ScriptError::Parse {
-                file: file.to_string(),
-                message,
-            }
-        })?;
-        let script_err = |problem: String| ScriptError::Script {
-            file: file.to_string(),
-            problem,
-        };
-        if raw.version != 1 {
-            return Err(script_err(format!(
-                "`version` = {}: expected 1",
-                raw.version
-            )));
-        }
-        if raw.stages.is_empty() {
-            return Err(script_err(
-                "no stages: a script needs at least one [[stage]]".into(),
-            ));
-        }
-        if layout.fingers.is_empty() {
-            return Err(script_err(format!(
-                "layout {} declares no [[fingers]]: a task needs finger servos",
-                layout.name
-            )));
-        }
-        let mut names: Vec<String> = Vec::new();
-        for (i, s) in raw.stages.iter().enumerate() {
-            let check = StageCheck {
-                file,
-                stage: format!("#{}", i + 1),
-            };
-            let name = s
-                .name
-                .clone()
-                .ok_or_else(|| check.err("name", "is missing: every stage needs a name"))?;
-            if name.is_empty() || matches!(name.as_str(), "done" | "abort") {
-                return Err(check.err(
-                    "name",
-                    format!("= \"{name}\": expected a non-empty name other than done and abort"),
-                ));
-            }
-            if names.contains(&name) {
-                return Err(check.err("name", format!("= \"{name}\": used by an earlier stage")));
-            }
-            names.push(name);
-        }
+        let raw = parse(file, text)?;
+        check_script(file, &raw, layout)?;
+        let names = stage_names(file, &raw.stages)?;
         let limits = GraspLimits::for_hand(layout, XM430_W350, current_limit_ma);
         let default_speed = {
             let check = StageCheck {
@@ -442,6 +389,79 @@ impl TaskScript {
     pub fn stage_index(&self, name: &str) -> Option<usize> {
         self.stages.iter().position(|s| s.name == name)
     }
+}
+
+/// The script's TOML, with a hint where a stage key landed in the stage's last table.
+fn parse(file: &str, text: &str) -> Result<RawScript, ScriptError> {
+    toml::from_str(text).map_err(|e| {
+        let mut message = e.to_string().trim_end().to_string();
+        let stage_keys = ["next", "on_timeout", "on_fail", "timeout_s", "exit_when", "fingers", "name"];
+        if stage_keys
+            .iter()
+            .any(|k| message.contains(&format!("unknown field `{k}`")))
+        {
+            message.push_str(
+                "\n(stage keys (next, on_timeout, timeout_s, …) go before the stage's \
+                 [[stage.exit]] and [[stage.fail_if]] tables, or TOML puts them inside the last one)",
+            );
+        }
+        ScriptError::Parse {
+            file: file.to_string(),
+            message,
+        }
+    })
+}
+
+/// The script as a whole: its version, at least one stage, and fingers to run it on.
+fn check_script(file: &str, raw: &RawScript, layout: &HandLayout) -> Result<(), ScriptError> {
+    let script_err = |problem: String| ScriptError::Script {
+        file: file.to_string(),
+        problem,
+    };
+    if raw.version != 1 {
+        return Err(script_err(format!(
+            "`version` = {}: expected 1",
+            raw.version
+        )));
+    }
+    if raw.stages.is_empty() {
+        return Err(script_err(
+            "no stages: a script needs at least one [[stage]]".into(),
+        ));
+    }
+    if layout.fingers.is_empty() {
+        return Err(script_err(format!(
+            "layout {} declares no [[fingers]]: a task needs finger servos",
+            layout.name
+        )));
+    }
+    Ok(())
+}
+
+/// Every stage's name: present, not `done` or `abort`, and unique.
+fn stage_names(file: &str, stages: &[RawStage]) -> Result<Vec<String>, ScriptError> {
+    let mut names: Vec<String> = Vec::new();
+    for (i, s) in stages.iter().enumerate() {
+        let check = StageCheck {
+            file,
+            stage: format!("#{}", i + 1),
+        };
+        let name = s
+            .name
+            .clone()
+            .ok_or_else(|| check.err("name", "is missing: every stage needs a name"))?;
+        if name.is_empty() || matches!(name.as_str(), "done" | "abort") {
+            return Err(check.err(
+                "name",
+                format!("= \"{name}\": expected a non-empty name other than done and abort"),
+            ));
+        }
+        if names.contains(&name) {
+            return Err(check.err("name", format!("= \"{name}\": used by an earlier stage")));
+        }
+        names.push(name);
+    }
+    Ok(names)
 }
 
 fn branch(
@@ -626,176 +646,6 @@ fn target(
     Ok(FingerCommand {
         target,
         speed_deg_s,
-    })
-}
-
-fn finger_index(layout: &HandLayout, id: &str) -> Option<usize> {
-    layout.fingers.iter().position(|f| f.id == id)
-}
-
-fn finger_ids(layout: &HandLayout) -> String {
-    let ids: Vec<&str> = layout.fingers.iter().map(|f| f.id.as_str()).collect();
-    ids.join(", ")
-}
-
-fn source_ids(
-    check: &StageCheck,
-    field: &str,
-    c: &mut RawCondition,
-    layout: &HandLayout,
-) -> Result<Vec<(Source, String)>, ScriptError> {
-    let mut out = Vec::new();
-    for id in c.sensor.take().map(OneOrMany::into_vec).unwrap_or_default() {
-        let s = layout.index_of(&id).ok_or_else(|| {
-            check.err(
-                format!("{field}.sensor"),
-                format!(
-                    "= \"{id}\": unknown sensor id in layout {}; expected one of: {}",
-                    layout.name,
-                    layout.id_list()
-                ),
-            )
-        })?;
-        out.push((Source::Sensor(s), id));
-    }
-    for id in c.finger.take().map(OneOrMany::into_vec).unwrap_or_default() {
-        let source = if id == "palm" && layout.index_of("palm").is_some() {
-            Source::Palm
-        } else {
-            let f = finger_index(layout, &id).ok_or_else(|| {
-                check.err(
-                    format!("{field}.finger"),
-                    format!(
-                        "= \"{id}\": unknown finger; expected palm or one of: {}",
-                        finger_ids(layout)
-                    ),
-                )
-            })?;
-            Source::Finger(f)
-        };
-        out.push((source, id));
-    }
-    if out.is_empty() {
-        return Err(check.err(
-            field,
-            "names no source: set `sensor` (a sensor id or a list) or `finger` (a finger id, palm, or a list)",
-        ));
-    }
-    Ok(out)
-}
-
-fn condition(
-    check: &StageCheck,
-    field: &str,
-    mut c: RawCondition,
-    layout: &HandLayout,
-) -> Result<Condition, ScriptError> {
-    let sources = source_ids(check, field, &mut c, layout)?;
-    let f = |name: &str| format!("{field}.{name}");
-    let mut tests = Vec::new();
-    let mut label = Vec::new();
-    if let Some(v) = c.contact {
-        tests.push(Test::Contact(v));
-        label.push(format!("contact = {v}"));
-    }
-    let mut add =
-        |name: &str, v: Option<f64>, min: f64, max: f64, make: fn(f64) -> Test, text: &str| {
-            if let Some(v) = v {
-                let v = check.range(&f(name), v, min, max)?;
-                tests.push(make(v));
-                label.push(format!("{text} {v}"));
-            }
-            Ok::<(), ScriptError>(())
-        };
-    add(
-        "depth_mm_min",
-        c.depth_mm_min,
-        0.0,
-        50.0,
-        Test::DepthMin,
-        "depth_mm ≥",
-    )?;
-    add(
-        "force_n_min",
-        c.force_n_min,
-        0.0,
-        1000.0,
-        Test::ForceMin,
-        "force_n ≥",
-    )?;
-    add(
-        "force_n_max",
-        c.force_n_max,
-        0.0,
-        1000.0,
-        Test::ForceMax,
-        "force_n ≤",
-    )?;
-    add(
-        "area_change_pct",
-        c.area_change_pct,
-        -100.0,
-        10_000.0,
-        Test::AreaChangePct,
-        "area change % ≥",
-    )?;
-    add(
-        "rise_mm3_min",
-        c.rise_mm3_min,
-        0.0,
-        1e6,
-        Test::RiseMin,
-        "deformation rise mm³ ≥",
-    )?;
-    add(
-        "slope_mm3_per_s_min",
-        c.slope_mm3_per_s_min,
-        -1e6,
-        1e6,
-        Test::SlopeMin,
-        "slope mm³/s ≥",
-    )?;
-    add(
-        "slope_mm3_per_s_max",
-        c.slope_mm3_per_s_max,
-        -1e6,
-        1e6,
-        Test::SlopeMax,
-        "slope mm³/s ≤",
-    )?;
-    if tests.is_empty() {
-        return Err(check.err(
-            field,
-            "has no test: set contact, depth_mm_min, force_n_min, force_n_max, area_change_pct, \
-             rise_mm3_min, slope_mm3_per_s_min or slope_mm3_per_s_max",
-        ));
-    }
-    if let Some(Test::AreaChangePct(p)) = tests.iter().find(|t| matches!(t, Test::AreaChangePct(_)))
-        && *p == 0.0
-    {
-        return Err(check.err(
-            f("area_change_pct"),
-            "= 0: expected a non-zero change (+ grows, − shrinks)",
-        ));
-    }
-    let for_s = check.range(&f("for_s"), c.for_s, 0.0, MAX_TIMEOUT_S)?;
-    let window_s = check.range(
-        &f("window_s"),
-        c.window_s.unwrap_or(DEFAULT_WINDOW_S),
-        0.05,
-        MAX_WINDOW_S,
-    )?;
-    let ids: Vec<String> = sources.iter().map(|(_, id)| id.clone()).collect();
-    let mut text = format!("{}: {}", ids.join("+"), label.join(", "));
-    if for_s > 0.0 {
-        text.push_str(&format!(" for {for_s} s"));
-    }
-    Ok(Condition {
-        sources: sources.into_iter().map(|(s, _)| s).collect(),
-        tests,
-        for_s,
-        window_s,
-        label: text,
     })
 }
 

@@ -421,25 +421,12 @@ fn run(
     };
     let mut rng = Pcg64Mcg::seed_from_u64(opts.seed);
     let params = init(hidden, &mut rng)?;
-    let vars: Vec<Var> = params
-        .layers
-        .iter()
-        .flat_map(|(w, b)| [w.clone(), b.clone()])
-        .collect();
-    let mut opt = AdamW::new(
-        vars,
-        ParamsAdamW {
-            lr: opts.learning_rate,
-            weight_decay: 0.0,
-            ..Default::default()
-        },
-    )?;
+    let mut opt = optimizer(&params, opts.learning_rate)?;
     let n = samples.len();
     let batch = opts.batch.clamp(1, n);
     let epochs = opts.epochs.max(1);
     let mut order: Vec<usize> = (0..n).collect();
-    let mut curve: Vec<(f64, f64)> = Vec::new();
-    let mut best: Option<(Vec<Layer>, ValidationSummary)> = None;
+    let mut stop = EarlyStop::default();
     let (mut xb, mut yb) = (
         Vec::with_capacity(batch * INPUTS),
         Vec::with_capacity(batch * 2),
@@ -478,33 +465,101 @@ fn run(
             validation_loss,
         });
         if let Some(v) = validation_loss {
-            curve.push((loss, v));
-            if v.is_finite() && best.as_ref().is_none_or(|(_, s)| v < s.validation_loss) {
-                let summary = ValidationSummary {
-                    best_epoch: epoch + 1,
-                    train_loss: loss,
-                    validation_loss: v,
-                    stopped_at: epoch + 1,
-                    epochs,
-                    curve: Vec::new(),
-                };
-                best = Some((snapshot(&params, hidden)?, summary));
-            }
-            let since = best
-                .as_ref()
-                .map_or(epoch + 1, |(_, s)| epoch + 1 - s.best_epoch);
+            let since = stop.record((epoch + 1, epochs), (loss, v), &params, hidden)?;
             if opts.patience > 0 && since >= opts.patience {
                 break;
             }
         }
     }
+    let (layers, summary) = final_layers(stop, &params, hidden, &scaling)?;
+    let model = MlpModel {
+        input,
+        width,
+        height,
+        hidden,
+        layers,
+        offset_rgb: [0.0; 3],
+        gain_rgb: [1.0; 3],
+    };
+    Ok((model, summary))
+}
+
+/// AdamW over every layer's weights and biases, without weight decay.
+fn optimizer(params: &Params, learning_rate: f64) -> Result<AdamW, MlpError> {
+    let vars: Vec<Var> = params
+        .layers
+        .iter()
+        .flat_map(|(w, b)| [w.clone(), b.clone()])
+        .collect();
+    Ok(AdamW::new(
+        vars,
+        ParamsAdamW {
+            lr: learning_rate,
+            weight_decay: 0.0,
+            ..Default::default()
+        },
+    )?)
+}
+
+/// The validation curve so far, and the best epoch's weights with its summary.
+#[derive(Default)]
+struct EarlyStop {
+    /// Per epoch: the training loss and the validation loss.
+    curve: Vec<(f64, f64)>,
+    best: Option<(Vec<Layer>, ValidationSummary)>,
+}
+
+impl EarlyStop {
+    /// Epoch `epoch` (from 1) of `epochs` ended with losses `(train, validation)`: keep
+    /// its weights if it validates best so far. Returns the epochs since the best.
+    fn record(
+        &mut self,
+        (epoch, epochs): (usize, usize),
+        (loss, v): (f64, f64),
+        params: &Params,
+        hidden: usize,
+    ) -> Result<usize, MlpError> {
+        self.curve.push((loss, v));
+        if v.is_finite()
+            && self
+                .best
+                .as_ref()
+                .is_none_or(|(_, s)| v < s.validation_loss)
+        {
+            let summary = ValidationSummary {
+                best_epoch: epoch,
+                train_loss: loss,
+                validation_loss: v,
+                stopped_at: epoch,
+                epochs,
+                curve: Vec::new(),
+            };
+            self.best = Some((snapshot(params, hidden)?, summary));
+        }
+        Ok(self
+            .best
+            .as_ref()
+            .map_or(epoch, |(_, s)| epoch - s.best_epoch))
+    }
+}
+
+/// The weights to keep: the best validated epoch's (with the whole curve in its summary),
+/// else the last epoch's; the input scaling folded into the first layer. Refused when
+/// training diverged.
+fn final_layers(
+    stop: EarlyStop,
+    params: &Params,
+    hidden: usize,
+    scaling: &Scaling,
+) -> Result<(Vec<Layer>, Option<ValidationSummary>), MlpError> {
+    let EarlyStop { curve, best } = stop;
     let (mut layers, summary) = match best {
         Some((layers, mut summary)) => {
             summary.stopped_at = curve.len();
             summary.curve = curve;
             (layers, Some(summary))
         }
-        None => (snapshot(&params, hidden)?, None),
+        None => (snapshot(params, hidden)?, None),
     };
     if let Some(first) = layers.first_mut() {
         scaling.fold_into(first);
@@ -517,16 +572,7 @@ fn run(
             "training diverged (non-finite weights); lower --learning-rate".into(),
         ));
     }
-    let model = MlpModel {
-        input,
-        width,
-        height,
-        hidden,
-        layers,
-        offset_rgb: [0.0; 3],
-        gain_rgb: [1.0; 3],
-    };
-    Ok((model, summary))
+    Ok((layers, summary))
 }
 
 #[cfg(test)]

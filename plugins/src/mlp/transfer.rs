@@ -83,17 +83,7 @@ pub fn transfer(
             "the first press has no labelled pixels to fit the transfer on".into(),
         ));
     }
-    // Every k-th pixel, at most MAX_PIXELS: six parameters need far fewer, and each step
-    // costs two forward and backward passes over them.
-    let stride = press.keys.len().div_ceil(MAX_PIXELS);
-    let pick = |v: &[[f32; 3]]| v.iter().step_by(stride).copied().collect::<Vec<_>>();
-    let press = PressPixels {
-        keys: pick(&press.keys),
-        background_keys: pick(&press.background_keys),
-        positions: press.positions.iter().step_by(stride).copied().collect(),
-        targets: press.targets.iter().step_by(stride).copied().collect(),
-    };
-    let press = &press;
+    let press = &subsample(press);
     let n = press.keys.len();
     let dev = Device::Cpu;
     let centre = model.input.centre();
@@ -103,31 +93,10 @@ pub fn transfer(
     };
     let keys = scaled(&press.keys)?;
     let bg = scaled(&press.background_keys)?;
-    let xy: Vec<f32> = press
-        .positions
-        .iter()
-        .flat_map(|(x, y)| {
-            [
-                *x as f32 / model.width.max(1) as f32,
-                *y as f32 / model.height.max(1) as f32,
-            ]
-        })
-        .collect();
-    let xy = Tensor::from_vec(xy, (n, 2), &dev)?;
+    let xy = positions(model, press, &dev)?;
     let target: Vec<f32> = press.targets.iter().flatten().copied().collect();
     let target = Tensor::from_vec(target, (n, 2), &dev)?;
-    let layers: Vec<(Tensor, Tensor)> = model
-        .layers
-        .iter()
-        .map(|l| {
-            Ok((
-                Tensor::from_slice(&l.weight, (l.outputs, l.inputs), &dev)?
-                    .t()?
-                    .contiguous()?,
-                Tensor::from_slice(&l.bias, (1, l.outputs), &dev)?,
-            ))
-        })
-        .collect::<Result<_, candle_core::Error>>()?;
+    let layers = frozen_layers(model, &dev)?;
     let net = |x: &Tensor| -> candle_core::Result<Tensor> {
         let mut h = x.clone();
         for (i, (w, b)) in layers.iter().enumerate() {
@@ -203,4 +172,50 @@ pub fn transfer(
             pixels: n,
         },
     ))
+}
+
+/// Every k-th pixel of `press`, at most `MAX_PIXELS`: six parameters need far fewer, and
+/// each step costs two forward and backward passes over them.
+fn subsample(press: &PressPixels) -> PressPixels {
+    let stride = press.keys.len().div_ceil(MAX_PIXELS);
+    let pick = |v: &[[f32; 3]]| v.iter().step_by(stride).copied().collect::<Vec<_>>();
+    PressPixels {
+        keys: pick(&press.keys),
+        background_keys: pick(&press.background_keys),
+        positions: press.positions.iter().step_by(stride).copied().collect(),
+        targets: press.targets.iter().step_by(stride).copied().collect(),
+    }
+}
+
+/// The model's layers as constant tensors `(weightᵀ, bias)`: the transfer fits only the
+/// key's offset and gain.
+fn frozen_layers(model: &MlpModel, dev: &Device) -> candle_core::Result<Vec<(Tensor, Tensor)>> {
+    model
+        .layers
+        .iter()
+        .map(|l| {
+            Ok((
+                Tensor::from_slice(&l.weight, (l.outputs, l.inputs), dev)?
+                    .t()?
+                    .contiguous()?,
+                Tensor::from_slice(&l.bias, (1, l.outputs), dev)?,
+            ))
+        })
+        .collect()
+}
+
+/// The press pixels' positions as the model takes them (fractions of its image size),
+/// one row per pixel.
+fn positions(model: &MlpModel, press: &PressPixels, dev: &Device) -> candle_core::Result<Tensor> {
+    let xy: Vec<f32> = press
+        .positions
+        .iter()
+        .flat_map(|(x, y)| {
+            [
+                *x as f32 / model.width.max(1) as f32,
+                *y as f32 / model.height.max(1) as f32,
+            ]
+        })
+        .collect();
+    Tensor::from_vec(xy, (press.positions.len(), 2), dev)
 }
