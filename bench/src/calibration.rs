@@ -119,34 +119,14 @@ pub fn run(rig: &dyn Rig, args: BenchCalibrationArgs) -> anyhow::Result<u8> {
     let tmp =
         std::env::temp_dir().join(format!("gelgrip-bench-calibration-{}", std::process::id()));
     let ids = config.layout.sensor_ids();
-    let mut datasets = Vec::new();
-    for (i, id) in ids.iter().enumerate() {
-        let (cam, sim) = sensor_camera(&config, id)?;
-        eprintln!("collecting {presses} presses on simulated sensor {id}");
-        // Each sensor gets its own press positions (the camera keeps its unit variation).
-        let presses_sim = SimConfig {
-            seed: sim.seed ^ (0x5EED_0000 + i as u64),
-            ..sim.clone()
-        };
-        datasets.push(sim_presses(&cam, &presses_sim, presses, &tmp.join(id))?);
-    }
+    let datasets = hand_datasets(&config, &ids, presses, &tmp)?;
     let opts = TrainOptions {
         hidden: usize::from(args.hidden),
         epochs: args.epochs as usize,
         ..TrainOptions::default()
     };
     let test_rows = |ds: &PressDataset| calibrate::split_index(ds.presses.len())..ds.presses.len();
-    let train = |ds: &PressDataset, input: Input, what: &str| -> anyhow::Result<MlpModel> {
-        eprintln!(
-            "training {what} mlp ({} input) on {} presses",
-            input.as_str(),
-            calibrate::split_index(ds.presses.len())
-        );
-        let bar = progress::epochs(opts.epochs as u64);
-        let m = calibrate::train_mlp_on(&[ds], input, &opts, progress::epoch_reporter(&bar))?;
-        bar.finish_and_clear();
-        Ok(m)
-    };
+    let train = |ds: &PressDataset, input: Input, what: &str| train_mlp(ds, input, what, &opts);
     let source_raw = train(&datasets[0], Input::Raw, &format!("{} (source)", ids[0]))?;
     let source_diff = train(&datasets[0], Input::Diff, &format!("{} (source)", ids[0]))?;
     let mut sums = [Sum::default(); 7];
@@ -170,22 +150,9 @@ pub fn run(rig: &dyn Rig, args: BenchCalibrationArgs) -> anyhow::Result<u8> {
         ];
         let (mut off_raw, mut off_diff) = (None, None);
         if i > 0 {
-            for (fit, source) in [
-                (Fit::Offset, &source_raw),
-                (Fit::Offset, &source_diff),
-                (Fit::OffsetGain, &source_raw),
-                (Fit::OffsetGain, &source_diff),
-            ] {
-                let press = calibrate::press_pixels(ds, 0, source.input)?;
-                let (m, r) = transfer(source, &press, fit)?;
-                if fit == Fit::Offset {
-                    match source.input {
-                        Input::Raw => off_raw = Some(r.offset_rgb),
-                        Input::Diff | Input::Relative => off_diff = Some(r.offset_rgb),
-                    }
-                }
-                models.push(GradientModel::mlp(m, MlpMode::Dense)?);
-            }
+            let zero_shot = zero_shot_models(ds, [&source_raw, &source_diff])?;
+            (off_raw, off_diff) = (zero_shot.offset_rgb_raw, zero_shot.offset_rgb_diff);
+            models.extend(zero_shot.models);
         }
         for (k, model) in models.iter().enumerate() {
             let r = calibrate::evaluate(model, ds, test_rows(ds), None)?;
@@ -214,19 +181,7 @@ pub fn run(rig: &dyn Rig, args: BenchCalibrationArgs) -> anyhow::Result<u8> {
     let realistic = realistic_rows(&config, &ids[0], presses, &opts, &tmp.join("realistic"))?;
     let _ = std::fs::remove_dir_all(&tmp);
     let n = ids.len();
-    let zero_shot_data = presses + (n - 1);
-    let columns = NAMES
-        .iter()
-        .zip(sums)
-        .enumerate()
-        .map(|(k, (name, s))| Column {
-            name,
-            data_used_presses: if k < 3 { presses * n } else { zero_shot_data },
-            gx_mae: s.gx / s.n.max(1) as f64,
-            gy_mae: s.gy / s.n.max(1) as f64,
-            pixels: s.n,
-        })
-        .collect();
+    let columns = columns(sums, presses, n);
     let report = Report {
         sensors: n,
         presses_per_sensor: presses,
@@ -245,6 +200,104 @@ pub fn run(rig: &dyn Rig, args: BenchCalibrationArgs) -> anyhow::Result<u8> {
         print_table(&report);
     }
     Ok(0)
+}
+
+/// Table II's columns: each model's mean error over the target sensors, and the presses it
+/// needed (its own sensor's for the trained ones; the source's and one per target for the
+/// transferred ones).
+fn columns(sums: [Sum; 7], presses: usize, sensors: usize) -> Vec<Column> {
+    let zero_shot_data = presses + (sensors - 1);
+    NAMES
+        .iter()
+        .zip(sums)
+        .enumerate()
+        .map(|(k, (name, s))| Column {
+            name,
+            data_used_presses: if k < 3 {
+                presses * sensors
+            } else {
+                zero_shot_data
+            },
+            gx_mae: s.gx / s.n.max(1) as f64,
+            gy_mae: s.gy / s.n.max(1) as f64,
+            pixels: s.n,
+        })
+        .collect()
+}
+
+/// `presses` simulated presses on every sensor `ids` of `config`, each with its own press
+/// positions (the camera keeps its unit variation), under `tmp`.
+fn hand_datasets(
+    config: &gelgrip_controller::config::AppConfig,
+    ids: &[String],
+    presses: usize,
+    tmp: &std::path::Path,
+) -> anyhow::Result<Vec<PressDataset>> {
+    let mut datasets = Vec::new();
+    for (i, id) in ids.iter().enumerate() {
+        let (cam, sim) = sensor_camera(config, id)?;
+        eprintln!("collecting {presses} presses on simulated sensor {id}");
+        let presses_sim = SimConfig {
+            seed: sim.seed ^ (0x5EED_0000 + i as u64),
+            ..sim.clone()
+        };
+        datasets.push(sim_presses(&cam, &presses_sim, presses, &tmp.join(id))?);
+    }
+    Ok(datasets)
+}
+
+/// Train an MLP on `ds`'s training rows with `opts`, with a progress bar.
+fn train_mlp(
+    ds: &PressDataset,
+    input: Input,
+    what: &str,
+    opts: &TrainOptions,
+) -> anyhow::Result<MlpModel> {
+    eprintln!(
+        "training {what} mlp ({} input) on {} presses",
+        input.as_str(),
+        calibrate::split_index(ds.presses.len())
+    );
+    let bar = progress::epochs(opts.epochs as u64);
+    let m = calibrate::train_mlp_on(&[ds], input, opts, progress::epoch_reporter(&bar))?;
+    bar.finish_and_clear();
+    Ok(m)
+}
+
+/// The source sensor's MLPs transferred to a target sensor from its first press.
+struct ZeroShot {
+    /// Offset fits of the raw and the difference MLP, then offset-and-gain fits of both.
+    models: Vec<GradientModel>,
+    /// The raw MLP's offset fit.
+    offset_rgb_raw: Option<[f32; 3]>,
+    /// The difference MLP's offset fit.
+    offset_rgb_diff: Option<[f32; 3]>,
+}
+
+/// Transfer `[raw, diff]` (the source's MLPs) to `ds`'s sensor, offset then offset and gain.
+fn zero_shot_models(ds: &PressDataset, [raw, diff]: [&MlpModel; 2]) -> anyhow::Result<ZeroShot> {
+    let mut out = ZeroShot {
+        models: Vec::new(),
+        offset_rgb_raw: None,
+        offset_rgb_diff: None,
+    };
+    for (fit, source) in [
+        (Fit::Offset, raw),
+        (Fit::Offset, diff),
+        (Fit::OffsetGain, raw),
+        (Fit::OffsetGain, diff),
+    ] {
+        let press = calibrate::press_pixels(ds, 0, source.input)?;
+        let (m, r) = transfer(source, &press, fit)?;
+        if fit == Fit::Offset {
+            match source.input {
+                Input::Raw => out.offset_rgb_raw = Some(r.offset_rgb),
+                Input::Diff | Input::Relative => out.offset_rgb_diff = Some(r.offset_rgb),
+            }
+        }
+        out.models.push(GradientModel::mlp(m, MlpMode::Dense)?);
+    }
+    Ok(out)
 }
 
 /// LUT and MLP on `presses` presses of sensor `id` under the realistic optics, trained as

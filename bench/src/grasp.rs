@@ -257,18 +257,7 @@ pub async fn run(rig: &dyn Rig, args: BenchGraspArgs) -> anyhow::Result<u8> {
     }
     let scenes = scenes(&args)?;
     let dir = BenchDir::new("bench-grasp")?;
-    let mut configs: Vec<Variant> = vec![(None, None)];
-    if args.sweep == Some(GraspSweep::Resolution) {
-        let base = load_config(Path::new(BASE_CONFIG))?;
-        configs.clear();
-        for (w, h) in RESOLUTIONS {
-            let layout = dir.write(&format!("layout-{w}x{h}.toml"), &layout_at(&base, w, h)?)?;
-            let mut config = base.clone();
-            config.insert("layout".into(), layout.display().to_string().into());
-            let path = dir.write(&format!("config-{w}x{h}.toml"), &config)?;
-            configs.push((Some((w, h)), Some(path)));
-        }
-    }
+    let configs = variants(&args, &dir)?;
     let total = scenes.len() * configs.len();
     let mut rows = Vec::new();
     for (resolution, config) in &configs {
@@ -313,6 +302,30 @@ pub async fn run(rig: &dyn Rig, args: BenchGraspArgs) -> anyhow::Result<u8> {
         println!("{}", serde_json::to_string(&rows)?);
         return Ok(0);
     }
+    print_table(&rows);
+    Ok(0)
+}
+
+/// The configurations to grasp with: the default, or one per resolution of the sweep
+/// (written into `dir`).
+fn variants(args: &BenchGraspArgs, dir: &BenchDir) -> anyhow::Result<Vec<Variant>> {
+    let mut configs: Vec<Variant> = vec![(None, None)];
+    if args.sweep == Some(GraspSweep::Resolution) {
+        let base = load_config(Path::new(BASE_CONFIG))?;
+        configs.clear();
+        for (w, h) in RESOLUTIONS {
+            let layout = dir.write(&format!("layout-{w}x{h}.toml"), &layout_at(&base, w, h)?)?;
+            let mut config = base.clone();
+            config.insert("layout".into(), layout.display().to_string().into());
+            let path = dir.write(&format!("config-{w}x{h}.toml"), &config)?;
+            configs.push((Some((w, h)), Some(path)));
+        }
+    }
+    Ok(configs)
+}
+
+/// The rows as a table on stdout.
+fn print_table(rows: &[Value]) {
     println!(
         "{:<12} {:>9} {:>7} {:>7} {:>7} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>9} {:>9} {:>9} {:>9} {:>7} {:>9} {:>8}  reason",
         "scene",
@@ -335,7 +348,7 @@ pub async fn run(rig: &dyn Rig, args: BenchGraspArgs) -> anyhow::Result<u8> {
         "slip mm"
     );
     let num = |v: &Value, d: usize| v.as_f64().map_or("-".to_string(), |x| format!("{x:.d$}"));
-    for r in &rows {
+    for r in rows {
         println!(
             "{:<12} {:>9} {:>7} {:>7} {:>7} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>9} {:>9} {:>9} {:>9} {:>7} {:>9} {:>8}  {}",
             r["scene"].as_str().unwrap_or(""),
@@ -366,7 +379,6 @@ pub async fn run(rig: &dyn Rig, args: BenchGraspArgs) -> anyhow::Result<u8> {
             r["reason"].as_str().unwrap_or("")
         );
     }
-    Ok(0)
 }
 
 /// Overshoot against set rate, one line per object (its three resolutions).

@@ -142,47 +142,7 @@ fn measure(rig: &dyn Rig, args: &BenchPipelineArgs) -> anyhow::Result<Report> {
     // The embedded default [pipeline] section, with the bench's solver and scale on top.
     let pipeline_config = PipelineConfig::from_section(&config.pipeline, &config.layout)?;
     let tmp = std::env::temp_dir().join(format!("gelgrip-bench-pipeline-{}", std::process::id()));
-    let mlp_mode = args.mlp_mode.as_str();
-    let mode = MlpMode::parse(mlp_mode).unwrap_or(MlpMode::ContactOnly);
-    let fixed = match &args.model_file {
-        Some(path) => Some(GradientModel::load(path, mode)?),
-        None => None,
-    };
-    let opts = TrainOptions {
-        epochs: args.epochs as usize,
-        ..TrainOptions::default()
-    };
-    let plan = if args.model == ModelKind::Mlp {
-        MlpPlan::ZeroShot(&opts, Fit::Offset)
-    } else {
-        MlpPlan::None
-    };
-    // With a model file every sensor uses it: nothing to collect or train.
-    let sensors: Vec<(String, SensorCamera, SimConfig, GradientModel)> = match &fixed {
-        Some(m) => config
-            .layout
-            .sensors
-            .iter()
-            .map(|spec| {
-                let id = spec.id.to_string();
-                let (cam, sim) = sensor_camera(&config, &id)?;
-                Ok((id, cam, sim, m.clone()))
-            })
-            .collect::<anyhow::Result<_>>()?,
-        None => sensor_models::calibrate_hand(&config, CALIBRATION_PRESSES, &tmp, plan)?
-            .into_iter()
-            .map(|sensor| {
-                let model = match sensor.mlp {
-                    Some(m) if mlp_mode == "baked" => {
-                        GradientModel::lut(bake(&m, BakeOptions::default())?)
-                    }
-                    Some(m) => GradientModel::mlp(m, mode)?,
-                    None => GradientModel::lut(sensor.lut),
-                };
-                Ok((sensor.id, sensor.cam, sensor.sim, model))
-            })
-            .collect::<anyhow::Result<_>>()?,
-    };
+    let sensors = hand_models(&config, args, &tmp)?;
     let mut model_name = "lut";
     let mut pipes = Vec::new();
     let mut frames = Vec::new();
@@ -253,6 +213,57 @@ fn measure(rig: &dyn Rig, args: &BenchPipelineArgs) -> anyhow::Result<Report> {
         per_sensor,
     };
     Ok(report)
+}
+
+/// Each sensor of `config`, with its simulated camera and settings and the gradient model
+/// `args` ask for: `--model-file` for every sensor, else a calibration of the hand on
+/// simulated presses in `tmp` (an MLP transferred zero-shot, or baked into a LUT).
+fn hand_models(
+    config: &gelgrip_controller::config::AppConfig,
+    args: &BenchPipelineArgs,
+    tmp: &std::path::Path,
+) -> anyhow::Result<Vec<(String, SensorCamera, SimConfig, GradientModel)>> {
+    let mlp_mode = args.mlp_mode.as_str();
+    let mode = MlpMode::parse(mlp_mode).unwrap_or(MlpMode::ContactOnly);
+    let fixed = match &args.model_file {
+        Some(path) => Some(GradientModel::load(path, mode)?),
+        None => None,
+    };
+    let opts = TrainOptions {
+        epochs: args.epochs as usize,
+        ..TrainOptions::default()
+    };
+    let plan = if args.model == ModelKind::Mlp {
+        MlpPlan::ZeroShot(&opts, Fit::Offset)
+    } else {
+        MlpPlan::None
+    };
+    // With a model file every sensor uses it: nothing to collect or train.
+    Ok(match &fixed {
+        Some(m) => config
+            .layout
+            .sensors
+            .iter()
+            .map(|spec| {
+                let id = spec.id.to_string();
+                let (cam, sim) = sensor_camera(config, &id)?;
+                Ok((id, cam, sim, m.clone()))
+            })
+            .collect::<anyhow::Result<_>>()?,
+        None => sensor_models::calibrate_hand(config, CALIBRATION_PRESSES, tmp, plan)?
+            .into_iter()
+            .map(|sensor| {
+                let model = match sensor.mlp {
+                    Some(m) if mlp_mode == "baked" => {
+                        GradientModel::lut(bake(&m, BakeOptions::default())?)
+                    }
+                    Some(m) => GradientModel::mlp(m, mode)?,
+                    None => GradientModel::lut(sensor.lut),
+                };
+                Ok((sensor.id, sensor.cam, sensor.sim, model))
+            })
+            .collect::<anyhow::Result<_>>()?,
+    })
 }
 
 fn print_table(r: &Report) {

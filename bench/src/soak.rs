@@ -273,7 +273,6 @@ impl Gripper {
 pub async fn run(rig: &dyn Rig, args: BenchSoakArgs) -> anyhow::Result<u8> {
     let panic_count = count_panics();
     let gripper = Gripper::start(rig).await?;
-    let pid = std::process::id();
     let addr = gripper.addr.clone();
     let mut soak = Soak {
         addr,
@@ -289,55 +288,13 @@ pub async fn run(rig: &dyn Rig, args: BenchSoakArgs) -> anyhow::Result<u8> {
     // The tennis ball within reach, so grasps find something.
     soak.call("POST", "/api/sim/scene", r#"{"name": "tennis-ball"}"#)
         .await;
-    let (mut rss_warm, mut rss_max) = (0u64, 0u64);
-    let (mut samples, mut undocumented) = (0u64, 0u64);
-    let mut next_fault = start + Duration::from_secs(2);
-    let mut undo: Vec<(Instant, String)> = Vec::new();
-    let mut last_progress = start;
-    while start.elapsed() < total {
-        tokio::time::sleep(Duration::from_millis(500)).await;
-        let now = Instant::now();
-        if let Some(body) = soak.call("GET", "/api/state", "").await
-            && let Ok(state) = serde_json::from_str::<serde_json::Value>(&body)
-        {
-            samples += 1;
-            let fingers = state["fingers"].as_array().cloned().unwrap_or_default();
-            if fingers
-                .iter()
-                .any(|f| !f["phase"].as_str().is_some_and(|p| PHASES.contains(&p)))
-            {
-                undocumented += 1;
-            }
-        }
-        let rss = rss_kb(pid);
-        if now.duration_since(start) < warm_up {
-            rss_warm = rss;
-        } else {
-            rss_max = rss_max.max(rss);
-        }
-        for (_, body) in undo.iter().filter(|(at, _)| *at <= now) {
-            soak.call("POST", "/api/sim/fault", body).await;
-        }
-        undo.retain(|(at, _)| *at > now);
-        if now >= next_fault && now.duration_since(start) >= warm_up / 2 {
-            if let Some((hold, body)) = soak.inject().await {
-                undo.push((now + hold, body));
-            }
-            next_fault = now + Duration::from_secs(2);
-        }
-        if now.duration_since(last_progress) >= Duration::from_secs(30) {
-            last_progress = now;
-            tracing::info!(
-                elapsed_s = start.elapsed().as_secs(),
-                faults = soak.faults.values().sum::<u64>(),
-                rss_kb = rss,
-                "soaking"
-            );
-        }
-    }
-    for (_, body) in undo.drain(..) {
-        soak.call("POST", "/api/sim/fault", &body).await;
-    }
+    let seen = soak_for(&mut soak, start, total, warm_up).await;
+    let Seen {
+        rss_warm,
+        rss_max,
+        samples,
+        undocumented,
+    } = seen;
     while soak.bursts.join_next().await.is_some() {}
     let http_status = soak.status.lock().map(|s| s.clone()).unwrap_or_default();
     let report = gripper.stop().await?;
@@ -403,38 +360,116 @@ pub async fn run(rig: &dyn Rig, args: BenchSoakArgs) -> anyhow::Result<u8> {
     if args.json {
         println!("{}", serde_json::to_string(&report)?);
     } else {
-        println!(
-            "soak {:.1} min (seed {}): {}",
-            report.minutes,
-            report.seed,
-            if passed { "passed" } else { "FAILED" }
-        );
-        println!(
-            "  panics {}, unaccounted losses {}, duplicates {}, undocumented states {}, 5xx {}",
-            report.panics,
-            report.unaccounted_losses,
-            report.duplicates,
-            report.undocumented_states,
-            five_xx
-        );
-        println!(
-            "  RSS {} kB after warm-up, {} kB at most: {:+.1} %",
-            report.rss_warm_kb, report.rss_max_kb, report.rss_growth_pct
-        );
-        println!("  faults injected {:?}", report.faults);
-        println!(
-            "  {} sets, {} frames; drops {}; rejected {}",
-            report.sets, report.frames_received, report.drops, report.sets_rejected
-        );
-        println!(
-            "  HTTP {} requests: {:?}",
-            report.http_requests, report.http_status
-        );
+        print_report(&report, five_xx);
     }
     if !passed {
         bail!("soak invariants failed (see the report)");
     }
     Ok(0)
+}
+
+/// What the soak saw of the run while it injected faults.
+struct Seen {
+    /// RSS at the end of the warm-up, kB.
+    rss_warm: u64,
+    /// The largest RSS after it, kB.
+    rss_max: u64,
+    /// `/api/state` samples read.
+    samples: u64,
+    /// Samples with a finger phase the API does not document.
+    undocumented: u64,
+}
+
+/// Soak for `total` from `start`: sample the state and the RSS every half second, inject a fault every
+/// 2 s once half the warm-up has passed, undo each when its time is up (and the rest at
+/// the end).
+async fn soak_for(soak: &mut Soak, start: Instant, total: Duration, warm_up: Duration) -> Seen {
+    let (mut rss_warm, mut rss_max) = (0u64, 0u64);
+    let (mut samples, mut undocumented) = (0u64, 0u64);
+    let mut next_fault = start + Duration::from_secs(2);
+    let mut undo: Vec<(Instant, String)> = Vec::new();
+    let mut last_progress = start;
+    while start.elapsed() < total {
+        tokio::time::sleep(Duration::from_millis(500)).await;
+        let now = Instant::now();
+        if let Some(body) = soak.call("GET", "/api/state", "").await
+            && let Ok(state) = serde_json::from_str::<serde_json::Value>(&body)
+        {
+            samples += 1;
+            let fingers = state["fingers"].as_array().cloned().unwrap_or_default();
+            if fingers
+                .iter()
+                .any(|f| !f["phase"].as_str().is_some_and(|p| PHASES.contains(&p)))
+            {
+                undocumented += 1;
+            }
+        }
+        let rss = rss_kb(std::process::id());
+        if now.duration_since(start) < warm_up {
+            rss_warm = rss;
+        } else {
+            rss_max = rss_max.max(rss);
+        }
+        for (_, body) in undo.iter().filter(|(at, _)| *at <= now) {
+            soak.call("POST", "/api/sim/fault", body).await;
+        }
+        undo.retain(|(at, _)| *at > now);
+        if now >= next_fault && now.duration_since(start) >= warm_up / 2 {
+            if let Some((hold, body)) = soak.inject().await {
+                undo.push((now + hold, body));
+            }
+            next_fault = now + Duration::from_secs(2);
+        }
+        if now.duration_since(last_progress) >= Duration::from_secs(30) {
+            last_progress = now;
+            tracing::info!(
+                elapsed_s = start.elapsed().as_secs(),
+                faults = soak.faults.values().sum::<u64>(),
+                rss_kb = rss,
+                "soaking"
+            );
+        }
+    }
+    for (_, body) in undo.drain(..) {
+        soak.call("POST", "/api/sim/fault", &body).await;
+    }
+    Seen {
+        rss_warm,
+        rss_max,
+        samples,
+        undocumented,
+    }
+}
+
+/// The report as text.
+fn print_report(report: &SoakReport, five_xx: u64) {
+    println!(
+        "soak {:.1} min (seed {}): {}",
+        report.minutes,
+        report.seed,
+        if report.passed { "passed" } else { "FAILED" }
+    );
+    println!(
+        "  panics {}, unaccounted losses {}, duplicates {}, undocumented states {}, 5xx {}",
+        report.panics,
+        report.unaccounted_losses,
+        report.duplicates,
+        report.undocumented_states,
+        five_xx
+    );
+    println!(
+        "  RSS {} kB after warm-up, {} kB at most: {:+.1} %",
+        report.rss_warm_kb, report.rss_max_kb, report.rss_growth_pct
+    );
+    println!("  faults injected {:?}", report.faults);
+    println!(
+        "  {} sets, {} frames; drops {}; rejected {}",
+        report.sets, report.frames_received, report.drops, report.sets_rejected
+    );
+    println!(
+        "  HTTP {} requests: {:?}",
+        report.http_requests, report.http_status
+    );
 }
 
 /// `gelgrip bench soak`.

@@ -25,6 +25,7 @@ use gelgrip_plugins::mlp::bake::{BakeOptions, bake};
 use gelgrip_plugins::mlp::train::TrainOptions;
 use gelgrip_plugins::pipeline::{Needs, SensorPipeline, StageChoice, process_set};
 use gelgrip_plugins::poisson::Solver;
+use gelgrip_sim::pool::SensorCamera;
 use gelgrip_sim::scene::HeightMap;
 
 use crate::plot::{Figure, Series};
@@ -153,13 +154,65 @@ pub fn run(rig: &dyn Rig, args: BenchTradeoffArgs) -> anyhow::Result<u8> {
     }
     let config = rig.load_config(None)?;
     let pipeline_config = PipelineConfig::from_section(&config.pipeline, &config.layout)?;
+    let sensors = bench_sensors(&config, &args)?;
+    let mut rows = Vec::new();
+    for (scale, resolution) in [(1usize, "full"), (2, "1/2"), (4, "1/4")] {
+        let truths: Vec<Truth> = sensors
+            .iter()
+            .map(|s| truth_at(&s.map, scale, s.cam.mm_per_px))
+            .collect();
+        for model_index in 0..4 {
+            for solver in [Some(Solver::Dst), Some(Solver::Dct), None] {
+                let stages = SensorStages {
+                    decode_scale: scale,
+                    solver,
+                    ..pipeline_config.sensors[0].clone()
+                };
+                let case = Case {
+                    resolution,
+                    model_index,
+                    stages,
+                };
+                rows.push(measure(&sensors, &truths, &case, &args)?);
+            }
+        }
+    }
+    mark_pareto(&mut rows);
+    if let Some(path) = &args.plot {
+        plot(&rows, path)?;
+        eprintln!("wrote {}", path.display());
+    }
+    if args.json {
+        println!("{}", serde_json::to_string(&rows)?);
+    } else {
+        print_table(&rows);
+    }
+    Ok(0)
+}
+
+/// One simulated sensor of the bench: its camera, the press it sees, that press's frames,
+/// its untouched frames and its four gradient models (LUT, dense MLP, contact-only MLP,
+/// baked LUT).
+struct BenchSensor {
+    cam: SensorCamera,
+    map: HeightMap,
+    frames: Vec<Vec<u8>>,
+    quiet: Vec<Vec<u8>>,
+    models: [GradientModel; 4],
+}
+
+/// Calibrate every sensor of `config` (a LUT and an MLP each) and render its frames.
+fn bench_sensors(
+    config: &gelgrip_controller::config::AppConfig,
+    args: &BenchTradeoffArgs,
+) -> anyhow::Result<Vec<BenchSensor>> {
     let tmp = std::env::temp_dir().join(format!("gelgrip-bench-tradeoff-{}", std::process::id()));
     let opts = TrainOptions {
         epochs: args.epochs as usize,
         ..TrainOptions::default()
     };
     let hand = sensor_models::calibrate_hand(
-        &config,
+        config,
         args.presses as usize,
         &tmp,
         MlpPlan::Individual(&opts),
@@ -181,110 +234,121 @@ pub fn run(rig: &dyn Rig, args: BenchTradeoffArgs) -> anyhow::Result<u8> {
             .map(|k| s.cam.jpeg(&map, 4_000_000 + k))
             .collect::<Result<Vec<_>, _>>()?;
         let quiet = s.cam.untouched_frames(3_000_000, NOISE_FRAMES)?;
-        sensors.push((s.cam, map, frames, quiet, models));
+        sensors.push(BenchSensor {
+            cam: s.cam,
+            map,
+            frames,
+            quiet,
+            models,
+        });
     }
-    let mut rows = Vec::new();
+    Ok(sensors)
+}
+
+/// One row of the trade: a resolution's name, a model (by index) and the stages.
+struct Case {
+    resolution: &'static str,
+    model_index: usize,
+    stages: SensorStages,
+}
+
+/// Every sensor's pipeline for `case`, referenced on its untouched frames.
+fn pipes(
+    sensors: &[BenchSensor],
+    truths: &[Truth],
+    case: &Case,
+) -> anyhow::Result<Vec<SensorPipeline>> {
+    let mut pipes = Vec::new();
+    for (s, truth) in sensors.iter().zip(truths) {
+        let model = s.models[case.model_index].clone();
+        let mut pipe = SensorPipeline::new(
+            StageChoice {
+                stages: case.stages.clone(),
+                model,
+            },
+            s.cam.width,
+            s.cam.height,
+            s.cam.mm_per_px,
+        );
+        let (w, h) = pipe.size();
+        if w * h != truth.depth_mm.len() {
+            anyhow::bail!(
+                "decode scale {} gives {w}x{h} px, not the truth's size",
+                case.stages.decode_scale
+            );
+        }
+        let quiet: Vec<&[u8]> = s.quiet.iter().map(Vec::as_slice).collect();
+        pipe.calibrate(&quiet)?;
+        pipes.push(pipe);
+    }
+    Ok(pipes)
+}
+
+/// Time `case` on every sensor's frames and score its last frames against the truth.
+fn measure(
+    sensors: &[BenchSensor],
+    truths: &[Truth],
+    case: &Case,
+    args: &BenchTradeoffArgs,
+) -> anyhow::Result<Row> {
+    let (resolution, solver) = (case.resolution, case.stages.solver);
+    let mut pipes = pipes(sensors, truths, case)?;
+    let model = sensors[0].models[case.model_index].name();
+    let needs = Needs {
+        depth: solver.is_some(),
+        gradients: true,
+    };
+    let mut out = vec![Ok(ContactSummary::default()); pipes.len()];
+    let mut times = Vec::new();
+    let mut score = Score::default();
     let mut mask = Vec::new();
-    for (scale, resolution) in [(1usize, "full"), (2, "1/2"), (4, "1/4")] {
-        let truths: Vec<Truth> = sensors
+    let total = WARMUP_SETS + (args.sets as usize).max(FRAMES as usize);
+    for set in 0..total {
+        let frames: Vec<&[u8]> = sensors
             .iter()
-            .map(|(cam, map, ..)| truth_at(map, scale, cam.mm_per_px))
+            .map(|s| s.frames[set % s.frames.len()].as_slice())
             .collect();
-        for model_index in 0..4 {
-            for solver in [Some(Solver::Dst), Some(Solver::Dct), None] {
-                let mut pipes = Vec::new();
-                for (cam, _, _, quiet, models) in &sensors {
-                    let stages = SensorStages {
-                        decode_scale: scale,
-                        solver,
-                        ..pipeline_config.sensors[0].clone()
-                    };
-                    let model = models[model_index].clone();
-                    let mut pipe = SensorPipeline::new(
-                        StageChoice { stages, model },
-                        cam.width,
-                        cam.height,
-                        cam.mm_per_px,
-                    );
-                    let (w, h) = pipe.size();
-                    if w * h != truths[pipes.len()].depth_mm.len() {
-                        anyhow::bail!(
-                            "decode scale {scale} gives {w}x{h} px, not the truth's size"
-                        );
-                    }
-                    let quiet: Vec<&[u8]> = quiet.iter().map(Vec::as_slice).collect();
-                    pipe.calibrate(&quiet)?;
-                    pipes.push(pipe);
-                }
-                let model = sensors[0].4[model_index].name();
-                let needs = Needs {
-                    depth: solver.is_some(),
-                    gradients: true,
-                };
-                let mut out = vec![Ok(ContactSummary::default()); pipes.len()];
-                let mut times = Vec::new();
-                let mut score = Score::default();
-                let total = WARMUP_SETS + (args.sets as usize).max(FRAMES as usize);
-                for set in 0..total {
-                    let frames: Vec<&[u8]> = sensors
-                        .iter()
-                        .map(|s| s.2[set % s.2.len()].as_slice())
-                        .collect();
-                    let t = Instant::now();
-                    process_set(&mut pipes, &frames, needs, &mut out);
-                    let ms = t.elapsed().as_secs_f64() * 1e3;
-                    if let Some(e) = out.iter().find_map(|r| r.as_ref().err()) {
-                        anyhow::bail!("{resolution} {model}: {e}");
-                    }
-                    if set >= WARMUP_SETS {
-                        times.push(ms);
-                    }
-                    if set + FRAMES as usize >= total {
-                        for (pipe, truth) in pipes.iter().zip(&truths) {
-                            score.add(pipe, truth, solver.is_some(), &mut mask);
-                        }
-                    }
-                }
-                times.sort_by(f64::total_cmp);
-                let n = score.n.max(1) as f64;
-                let row = Row {
-                    resolution,
-                    model,
-                    solver: solver.map_or("none", Solver::as_str),
-                    ms_per_set: times[times.len() / 2],
-                    gx_mae: Some(score.gx / n),
-                    gy_mae: Some(score.gy / n),
-                    depth_mae_mm: solver.map(|_| score.depth / n),
-                    area_iou: Some(score.iou / score.frames.max(1) as f64),
-                    pareto: false,
-                };
-                eprintln!(
-                    "  {:<5} {:<12} {:<5} {:>8.2} ms/set  gx {:.4} gy {:.4} depth {} iou {:.3}",
-                    row.resolution,
-                    row.model,
-                    row.solver,
-                    row.ms_per_set,
-                    score.gx / n,
-                    score.gy / n,
-                    row.depth_mae_mm
-                        .map_or("-".into(), |d| format!("{d:.4} mm")),
-                    score.iou / score.frames.max(1) as f64
-                );
-                rows.push(row);
+        let t = Instant::now();
+        process_set(&mut pipes, &frames, needs, &mut out);
+        let ms = t.elapsed().as_secs_f64() * 1e3;
+        if let Some(e) = out.iter().find_map(|r| r.as_ref().err()) {
+            anyhow::bail!("{resolution} {model}: {e}");
+        }
+        if set >= WARMUP_SETS {
+            times.push(ms);
+        }
+        if set + FRAMES as usize >= total {
+            for (pipe, truth) in pipes.iter().zip(truths) {
+                score.add(pipe, truth, solver.is_some(), &mut mask);
             }
         }
     }
-    mark_pareto(&mut rows);
-    if let Some(path) = &args.plot {
-        plot(&rows, path)?;
-        eprintln!("wrote {}", path.display());
-    }
-    if args.json {
-        println!("{}", serde_json::to_string(&rows)?);
-    } else {
-        print_table(&rows);
-    }
-    Ok(0)
+    times.sort_by(f64::total_cmp);
+    let n = score.n.max(1) as f64;
+    let row = Row {
+        resolution,
+        model,
+        solver: solver.map_or("none", Solver::as_str),
+        ms_per_set: times[times.len() / 2],
+        gx_mae: Some(score.gx / n),
+        gy_mae: Some(score.gy / n),
+        depth_mae_mm: solver.map(|_| score.depth / n),
+        area_iou: Some(score.iou / score.frames.max(1) as f64),
+        pareto: false,
+    };
+    eprintln!(
+        "  {:<5} {:<12} {:<5} {:>8.2} ms/set  gx {:.4} gy {:.4} depth {} iou {:.3}",
+        row.resolution,
+        row.model,
+        row.solver,
+        row.ms_per_set,
+        score.gx / n,
+        score.gy / n,
+        row.depth_mae_mm
+            .map_or("-".into(), |d| format!("{d:.4} mm")),
+        score.iou / score.frames.max(1) as f64
+    );
+    Ok(row)
 }
 
 /// Mark the rows no other row beats on both time and depth error.
