@@ -13,6 +13,7 @@
 
 pub mod catalog;
 pub mod embedded;
+pub mod error;
 pub mod loop_control;
 pub mod output;
 pub mod replay;
@@ -23,4 +24,4 @@ pub mod tactile;
 pub mod task_log;
 pub mod wiring;
 
-pub use gelgrip_bench::args::UsageError;
+pub use error::{Context, Error, Result, UsageError};

@@ -8,7 +8,7 @@ use std::sync::Arc;
 use gelgrip_controller::clock::Clock;
 use gelgrip_controller::config::AppConfig;
 use gelgrip_controller::runtime::control::{LoopRequest, Refusal, ServoFaultName, SimFaults};
-use gelgrip_controller::runtime::ports::{ControlHandler, DriverControl};
+use gelgrip_controller::runtime::ports::{ControlHandler, PilotControl};
 use gelgrip_sim::config::SensorFaults;
 use gelgrip_sim::scene_spec::SceneSpec;
 use gelgrip_sim::world::SharedWorld;
@@ -67,7 +67,7 @@ impl ControlHandler for LoopControl {
     fn handle(
         &mut self,
         request: LoopRequest,
-        task: Option<&mut dyn DriverControl>,
+        task: Option<&mut dyn PilotControl>,
     ) -> Result<(), Refusal> {
         let answer = match request {
             LoopRequest::Task { name } => self.start_task(&name, task),
@@ -92,21 +92,19 @@ impl LoopControl {
     fn start_task(
         &mut self,
         name: &str,
-        task: Option<&mut dyn DriverControl>,
+        task: Option<&mut dyn PilotControl>,
     ) -> Result<(), Refusal> {
-        let Some(driver) = task else {
+        let Some(pilot) = task else {
             return Err(Refusal::Unavailable(
                 "this run has no finger servos to run a task on".into(),
             ));
         };
-        if let Some(running) = driver.running_task() {
+        if let Some(running) = pilot.running_task() {
             return Err(busy(running));
         }
         let script =
             load_script(name, &self.config).map_err(|e| Refusal::Invalid(e.to_string()))?;
-        driver
-            .start_script(script)
-            .map_err(|running| busy(&running))
+        pilot.start_script(script).map_err(|running| busy(&running))
     }
 
     fn world(&self) -> Result<&SharedWorld, Refusal> {
@@ -177,7 +175,7 @@ impl LoopControl {
     fn switch_scene(
         &mut self,
         name: &str,
-        task: Option<&mut dyn DriverControl>,
+        task: Option<&mut dyn PilotControl>,
     ) -> Result<(), Refusal> {
         let world = self.world()?.clone();
         let spec = if name == "none" {
@@ -197,11 +195,11 @@ impl LoopControl {
             Some(spec)
         };
         // The object appears where the fingers close: they must be open.
-        if let Some(driver) = task {
-            if let Some(running) = driver.running_task() {
+        if let Some(pilot) = task {
+            if let Some(running) = pilot.running_task() {
                 return Err(busy(running));
             }
-            let closed: Vec<String> = driver
+            let closed: Vec<String> = pilot
                 .servo_states()
                 .iter()
                 .zip(&self.config.layout.fingers)

@@ -4,7 +4,7 @@
 mod cli;
 mod commands;
 
-use gelgrip::wiring;
+use gelgrip_controller::config::ConfigError;
 
 use std::process::ExitCode;
 
@@ -21,9 +21,16 @@ fn init_logging() {
         .init();
 }
 
-/// Exit code 2 for usage and configuration errors, 1 for runtime faults (CONTRACTS.md).
+/// Exit code 2 for usage and configuration errors, 1 for runtime faults (CONTRACTS.md),
+/// from the error's type: the library's [`gelgrip::Error`] knows its own; a command's
+/// usage error and a configuration error it met directly are 2.
 fn exit_code_for(err: &anyhow::Error) -> u8 {
-    if wiring::is_config_error(err) { 2 } else { 1 }
+    if let Some(e) = err.downcast_ref::<gelgrip::Error>() {
+        return e.exit_code();
+    }
+    let usage = err.downcast_ref::<gelgrip::UsageError>().is_some()
+        || err.downcast_ref::<ConfigError>().is_some();
+    if usage { 2 } else { 1 }
 }
 
 /// A bench, with this program's composition root as its rig.

@@ -13,7 +13,7 @@ use std::path::Path;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
-use anyhow::Context;
+use crate::error::{Context, Error};
 use serde::Serialize;
 
 use gelgrip_controller::acquire::{Acquisition, AcquisitionTap, make_gate};
@@ -52,7 +52,7 @@ pub enum Pipelines<'a> {
     Compare(&'a Path, &'a Path),
 }
 
-fn open_pipelines(which: Pipelines<'_>, recorded: &AppConfig) -> anyhow::Result<Vec<Tactile>> {
+fn open_pipelines(which: Pipelines<'_>, recorded: &AppConfig) -> crate::Result<Vec<Tactile>> {
     let registry = wiring::registry();
     let configs: Vec<AppConfig> = match which {
         Pipelines::Config(p) => vec![wiring::load_config(Some(p), &registry)?],
@@ -64,12 +64,12 @@ fn open_pipelines(which: Pipelines<'_>, recorded: &AppConfig) -> anyhow::Result<
     };
     for c in &configs {
         if c.layout.sensors.len() != recorded.layout.sensors.len() {
-            anyhow::bail!(crate::UsageError(format!(
+            return Err(Error::Usage(crate::UsageError(format!(
                 "{}: {} sensors, the recording {}",
                 c.file,
                 c.layout.sensors.len(),
                 recorded.layout.sensors.len()
-            )));
+            ))));
         }
     }
     configs.iter().map(crate::tactile::open).collect()
@@ -117,7 +117,7 @@ fn as_array(r: &SensorReading) -> [f64; 5] {
     ]
 }
 
-fn read_recorded(recording: &Recording) -> anyhow::Result<Recorded> {
+fn read_recorded(recording: &Recording) -> crate::Result<Recorded> {
     let mut out = Recorded::default();
     let summary = recording.scan(|r| match r {
         Record::Meta(Meta::Decision {
@@ -327,7 +327,7 @@ impl ReplayedGate {
         speed: ReplaySpeed,
         max_spread_us: u32,
         max_age_us: u64,
-    ) -> anyhow::Result<Self> {
+    ) -> crate::Result<Self> {
         let (clock, speed): (Arc<dyn Clock>, Speed) = match speed {
             ReplaySpeed::Max => (VirtualClock::new(), Speed::Max),
             ReplaySpeed::Factor(f) => (Arc::new(RealClock::new()), Speed::Factor(f)),
@@ -352,7 +352,7 @@ impl ReplayedGate {
     }
 
     /// The next set the gate emits; `None` at the end of the recording.
-    pub async fn next_set(&mut self) -> anyhow::Result<Option<FrameSet>> {
+    pub async fn next_set(&mut self) -> crate::Result<Option<FrameSet>> {
         loop {
             match self.acq.step().await {
                 Ok(Some(set)) => return Ok(Some(set)),
@@ -376,7 +376,7 @@ impl ReplayedGate {
 
 /// What the exports read `recording` with: its config, its tactile pipelines and its gate
 /// replayed as fast as it goes, with the limits it was recorded under.
-pub fn replay_at_max(recording: &Recording) -> anyhow::Result<(AppConfig, Tactile, ReplayedGate)> {
+pub fn replay_at_max(recording: &Recording) -> crate::Result<(AppConfig, Tactile, ReplayedGate)> {
     let (config, max_spread_us, max_age_us) = recorded_config(recording)?;
     let tactile = crate::tactile::open(&config)?;
     let replayed = ReplayedGate::open(
@@ -391,7 +391,7 @@ pub fn replay_at_max(recording: &Recording) -> anyhow::Result<(AppConfig, Tactil
 
 /// The recorded config (rebuilt from the files the recording carries) and the gate limits
 /// the run used.
-pub fn recorded_config(recording: &Recording) -> anyhow::Result<(AppConfig, u32, u64)> {
+pub fn recorded_config(recording: &Recording) -> crate::Result<(AppConfig, u32, u64)> {
     let Meta::Header {
         config,
         max_spread_us,
@@ -399,14 +399,17 @@ pub fn recorded_config(recording: &Recording) -> anyhow::Result<(AppConfig, u32,
         ..
     } = recording.header()?
     else {
-        anyhow::bail!("the recording has no header");
+        return Err(Error::Recording("the recording has no header".into()));
     };
     let files: Vec<(String, String)> =
-        serde_json::from_str(&config).context("the recording's config files")?;
+        serde_json::from_str(&config).map_err(|source| Error::Json {
+            what: "the recording's config files".into(),
+            source,
+        })?;
     let first = files
         .first()
         .map(|(p, _)| p.clone())
-        .context("the recording holds no config file")?;
+        .ok_or_else(|| Error::Recording("the recording holds no config file".into()))?;
     let registry = wiring::registry();
     let config = wiring::load_config_from_memory(Path::new(&first), files, &registry)
         .context("the recording's config")?;
@@ -420,7 +423,7 @@ pub async fn replay(
     dir: &Path,
     speed: ReplaySpeed,
     pipelines: Pipelines<'_>,
-) -> anyhow::Result<ReplayReport> {
+) -> crate::Result<ReplayReport> {
     let recording = Recording::open(dir)?;
     let (config, max_spread_us, max_age_us) = recorded_config(&recording)?;
     let recorded = read_recorded(&recording)?;

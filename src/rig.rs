@@ -1,6 +1,8 @@
 //! This program's composition root as the benches' [`Rig`]: configs loaded with every
 //! transport registered ([`wiring`]), hubs opened behind their gates, and runs wired by
-//! [`Session`] in this process.
+//! [`Session`] in this process. It answers in the benches' error type (`anyhow`, as the
+//! binary's commands do): the library's typed [`crate::Error`] travels inside it, and the
+//! binary reads the exit code from that type.
 
 use std::path::Path;
 use std::sync::Arc;
@@ -32,7 +34,7 @@ fn run_end(report: &RunReport) -> anyhow::Result<RunEnd> {
 #[async_trait]
 impl Rig for ProgramRig {
     fn load_config(&self, path: Option<&Path>) -> anyhow::Result<AppConfig> {
-        wiring::load_config(path, &wiring::registry())
+        Ok(wiring::load_config(path, &wiring::registry())?)
     }
 
     async fn open_acquisition(
@@ -40,7 +42,7 @@ impl Rig for ProgramRig {
         config: &AppConfig,
         clock: Arc<dyn Clock>,
     ) -> anyhow::Result<Acquisition> {
-        wiring::open_acquisition(config, &wiring::registry(), clock).await
+        Ok(wiring::open_acquisition(config, &wiring::registry(), clock).await?)
     }
 
     async fn run_to_end(&self, options: &RunOptions) -> anyhow::Result<RunEnd> {

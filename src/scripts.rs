@@ -12,7 +12,7 @@ use crate::catalog::{self, Kind};
 /// Read and validate the script `name` for `config`'s layout and current limit: a NAME is
 /// `configs/tasks/NAME.toml` (on disk from the working directory, else among the embedded
 /// configs); anything with a `/` or ending in `.toml` is a path.
-pub fn load_script(name: &str, config: &AppConfig) -> anyhow::Result<TaskScript> {
+pub fn load_script(name: &str, config: &AppConfig) -> crate::Result<TaskScript> {
     let io_error = |path: &Path, e: std::io::Error| {
         crate::UsageError(
             ConfigError::Io {

@@ -1,4 +1,4 @@
-//! A run, wired from a config: the hub, the gate, the pipelines, the driver, the servos, the
+//! A run, wired from a config: the hub, the gate, the pipelines, the pilot, the servos, the
 //! simulator when there is one, the recorder, the task log and the dashboard, assembled
 //! into a [`Runtime`]; and, when it ends, the `run --json` report. `gelgrip run`, the
 //! benches and the examples all run the gripper through this, in process.
@@ -10,10 +10,10 @@ use gelgrip_controller::clock::{Clock, ClockKind};
 use gelgrip_controller::config::AppConfig;
 use gelgrip_controller::hub::HubDescription;
 use gelgrip_controller::runtime::commanded::CommandedGripper;
-use gelgrip_controller::runtime::driver::Driver;
 use gelgrip_controller::runtime::fixed_close::FixedClose;
 use gelgrip_controller::runtime::gentle_grasp::GentleGrasp;
 use gelgrip_controller::runtime::outcome::EndReason;
+use gelgrip_controller::runtime::pilot::Pilot;
 use gelgrip_controller::runtime::plant::Plant;
 use gelgrip_controller::runtime::ports::{GroundTruth, Sensing};
 use gelgrip_controller::runtime::{Runtime, RuntimeEvent};
@@ -21,6 +21,7 @@ use gelgrip_sim::world::SharedWorld;
 use tokio::sync::mpsc;
 
 use crate::UsageError;
+use crate::error::{Context, Error};
 use crate::loop_control::LoopControl;
 use crate::output::{RunReport, latency_ms};
 use crate::scripts::load_script;
@@ -38,7 +39,7 @@ pub use gelgrip_controller::runtime::options::RunOptions;
 
 /// The task's forces, speeds and timeouts, against what the configured hand can do (exit 2
 /// in the CLI), before the hub and the servos are opened.
-fn check_task(options: &RunOptions, config: &AppConfig) -> anyhow::Result<()> {
+fn check_task(options: &RunOptions, config: &AppConfig) -> crate::Result<()> {
     match options.task.as_deref() {
         Some("gentle-grasp") if !config.layout.fingers.is_empty() => {
             let limit = config.servos.current_limit_ma;
@@ -57,7 +58,7 @@ fn check_task(options: &RunOptions, config: &AppConfig) -> anyhow::Result<()> {
 /// dashboard, when asked, or publishing to ROS 2; never while a sensor has no model (the
 /// dashboard's grasp needs every sensor's pipeline; on a hardware hub without model files
 /// the dashboard still serves the cameras, sync and servos).
-fn drives_through_grasp_api(options: &RunOptions, config: &AppConfig) -> anyhow::Result<bool> {
+fn drives_through_grasp_api(options: &RunOptions, config: &AppConfig) -> crate::Result<bool> {
     let unmodelled = crate::tactile::sensors_without_model(config)?;
     // A run that publishes to ROS 2 drives through the grasp API too (readings, servos).
     let ros_on = gelgrip_ros_bridge::config::RosConfig::from_section(&config.ros)?.enabled;
@@ -80,7 +81,7 @@ async fn serve_dashboard(
     world: Option<SharedWorld>,
     clock: Arc<dyn Clock>,
     description: &HubDescription,
-) -> anyhow::Result<String> {
+) -> crate::Result<String> {
     let sim_view = Arc::new(Mutex::new(None));
     let control = LoopControl::new(config, world, clock, sim_view.clone());
     let requests = runtime.control(Box::new(control));
@@ -109,28 +110,28 @@ fn start_recording(
     config: &AppConfig,
     config_files: Vec<(String, String)>,
     acq: Acquisition,
-) -> anyhow::Result<(Acquisition, RunRecorder)> {
+) -> crate::Result<(Acquisition, RunRecorder)> {
     let description = acq.hub().describe().clone();
     let r = RunRecorder::start(dir, config, config_files, &description, acq.gate().limits())?;
     Ok((acq.with_tap(r.tap()), r))
 }
 
 /// The task CSV (`--log`, with the simulator's true forces when `sim_truth`) and the
-/// recorder's per-set snapshots, as observers of `runtime`'s driver.
+/// recorder's per-set snapshots, as observers of `runtime`'s pilot.
 fn log_and_record(
     runtime: &mut Runtime,
     options: &RunOptions,
     config: &AppConfig,
     sim_truth: bool,
     recorder: Option<&RunRecorder>,
-) -> anyhow::Result<()> {
+) -> crate::Result<()> {
     if let Some(path) = &options.log
-        && runtime.driver().is_some()
+        && runtime.pilot().is_some()
     {
         runtime.observe(Box::new(TaskLog::create(path, &config.layout, sim_truth)?));
     }
     if let Some(r) = recorder {
-        if let Some(d) = runtime.driver_mut() {
+        if let Some(d) = runtime.pilot_mut() {
             d.log_controller();
         }
         runtime.observe(r.snapshots());
@@ -172,15 +173,15 @@ impl std::fmt::Debug for Session {
     }
 }
 
-/// The driver `options` ask for, on `bus`: the gentle grasp, a task script, the grasp API
+/// The pilot `options` ask for, on `bus`: the gentle grasp, a task script, the grasp API
 /// (with a dashboard), or none (the fixed programme runs the servos); and the sensing it
 /// senses through.
-fn driver(
+fn pilot(
     options: &RunOptions,
     config: &AppConfig,
     world: Option<&SharedWorld>,
     bus: Box<dyn gelgrip_controller::actuator::ServoBus>,
-) -> anyhow::Result<(Driver, Box<dyn Sensing>)> {
+) -> crate::Result<(Pilot, Box<dyn Sensing>)> {
     let truth = world.map(|w| {
         Box::new(SimTruth::new(
             w.clone(),
@@ -191,12 +192,12 @@ fn driver(
     let sensing: Box<dyn Sensing> = Box::new(crate::tactile::open(config)?);
     let plant = Plant::open(config.layout.clone(), bus, truth)?;
     let limit = config.servos.current_limit_ma;
-    let driver = match options.task.as_deref() {
+    let pilot = match options.task.as_deref() {
         Some("gentle-grasp") => {
             let task = GentleGrasp::start(plant, limit, &options.grasp)
                 .map_err(|e| UsageError(e.to_string()))?;
             tracing::info!(task = "gentle-grasp", "task running");
-            Driver::GentleGrasp(Box::new(task))
+            Pilot::GentleGrasp(Box::new(task))
         }
         Some(name) => {
             let script = load_script(name, config)?;
@@ -208,25 +209,25 @@ fn driver(
             let mut gripper = CommandedGripper::new(plant, limit);
             gripper
                 .start_script(script)
-                .map_err(|running| anyhow::anyhow!("task {running} already running"))?;
-            Driver::Commanded {
+                .map_err(|running| Error::TaskRunning { task: running })?;
+            Pilot::Commanded {
                 gripper: Box::new(gripper),
                 script_ends_run: true,
             }
         }
-        None => Driver::Commanded {
+        None => Pilot::Commanded {
             gripper: Box::new(CommandedGripper::new(plant, limit)),
             script_ends_run: false,
         },
     };
-    Ok((driver, sensing))
+    Ok((pilot, sensing))
 }
 
 impl Session {
     /// Wire a run from `options`: load the config, open the hub, the servos and the
-    /// simulator, build the driver, start the recorder and the dashboard, and take the
+    /// simulator, build the pilot, start the recorder and the dashboard, and take the
     /// sensors' references (on a hardware hub).
-    pub async fn open(options: &RunOptions) -> anyhow::Result<Self> {
+    pub async fn open(options: &RunOptions) -> crate::Result<Self> {
         let registry = wiring::registry();
         let (config, config_files) =
             wiring::load_config_with_files(options.config.as_deref(), &registry)?;
@@ -261,21 +262,21 @@ impl Session {
         let mut runtime = Runtime::new(acq, clock.clone());
         match (options.task.as_deref(), bus) {
             (Some(_), Some(bus)) => {
-                let (driver, sensing) = driver(options, &config, world.as_ref(), bus)?;
-                runtime = runtime.with_driver(driver, sensing);
+                let (pilot, sensing) = pilot(options, &config, world.as_ref(), bus)?;
+                runtime = runtime.with_pilot(pilot, sensing);
             }
             (Some(name), None) => {
                 if name != "gentle-grasp" {
                     load_script(name, &config)?;
                 }
-                anyhow::bail!(UsageError(format!(
+                return Err(Error::Usage(UsageError(format!(
                     "task {name} needs finger servos; layout {} has no [[fingers]]",
                     config.layout.name
-                )));
+                ))));
             }
             (None, Some(bus)) if grasp_api => {
-                let (driver, sensing) = driver(options, &config, world.as_ref(), bus)?;
-                runtime = runtime.with_driver(driver, sensing);
+                let (pilot, sensing) = pilot(options, &config, world.as_ref(), bus)?;
+                runtime = runtime.with_pilot(pilot, sensing);
             }
             (None, Some(bus)) => {
                 let fixed = FixedClose::start(
@@ -285,7 +286,7 @@ impl Session {
                     options.close_current_ma,
                     clock.now_us(),
                 )
-                .map_err(|e| anyhow::anyhow!("configuring the servos: {e}"))?;
+                .context("configuring the servos")?;
                 runtime = runtime.with_fixed_close(fixed);
             }
             (None, None) => {}
@@ -425,7 +426,7 @@ impl Session {
 
 /// Run `options` to the end with no outside events (a task, a duration or a fault ends it):
 /// what the benches and the examples do.
-pub async fn run_to_end(options: &RunOptions) -> anyhow::Result<RunReport> {
+pub async fn run_to_end(options: &RunOptions) -> crate::Result<RunReport> {
     let session = Session::open(options).await?;
     let (_events, rx) = mpsc::channel(1);
     Ok(session.run(rx).await)

@@ -12,7 +12,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::Context;
+use crate::error::{Context, Error};
 
 use gelgrip_controller::config::AppConfig;
 use gelgrip_plugins::calibrate;
@@ -49,7 +49,7 @@ const CALIBRATION_VERSION: u32 = 5;
 ///   where the pad is darker, and at 5× the nominal noise a finger's force read with the
 ///   relative key scattered 2.5× as much (σ 0.18 against 0.07 N over a hold), enough to
 ///   move a steady hold; there the difference key's bias is the lesser error.
-fn calibration_input(datasets: &[&PressDataset]) -> anyhow::Result<Input> {
+fn calibration_input(datasets: &[&PressDataset]) -> crate::Result<Input> {
     let noise = calibrate::pixel_noise(datasets)?;
     Ok(if noise > calibrate::BLUR_ABOVE_NOISE {
         Input::Diff
@@ -77,7 +77,7 @@ pub fn cache_dir() -> PathBuf {
 /// each is referenced at once (model files optional: a missing one is calibrated on
 /// simulated presses, cached); on a hardware hub every sensor needs a model file, and the
 /// references are taken from the first live sets ([`Tactile::new`]).
-pub fn open(config: &AppConfig) -> anyhow::Result<Tactile> {
+pub fn open(config: &AppConfig) -> crate::Result<Tactile> {
     let pipeline = PipelineConfig::from_section(&config.pipeline, &config.layout)?;
     let live = config.hub.transport != "sim";
     let pipes = (0..config.layout.sensors.len())
@@ -88,7 +88,7 @@ pub fn open(config: &AppConfig) -> anyhow::Result<Tactile> {
                 Ok(sensor_pipeline(config, &pipeline, i)?.0)
             }
         })
-        .collect::<anyhow::Result<Vec<_>>>()?;
+        .collect::<crate::Result<Vec<_>>>()?;
     Ok(Tactile::new(pipes, &config.layout, live))
 }
 
@@ -123,7 +123,7 @@ fn sensor_model(
     model: Option<&std::path::Path>,
     cam: &SensorCamera,
     sim: &SimConfig,
-) -> anyhow::Result<LutModel> {
+) -> crate::Result<LutModel> {
     if let Some(path) = model {
         return LutModel::load(path)
             .with_context(|| format!("sensor {id}: model {}", path.display()));
@@ -185,13 +185,13 @@ pub fn sensor_pipeline(
     config: &AppConfig,
     pipeline: &PipelineConfig,
     index: usize,
-) -> anyhow::Result<(SensorPipeline, SensorCamera)> {
+) -> crate::Result<(SensorPipeline, SensorCamera)> {
     let id = config
         .layout
         .sensors
         .get(index)
         .map(|s| s.id.to_string())
-        .context("sensor index out of range")?;
+        .ok_or(Error::NoSensor { index })?;
     let stages = pipeline.sensors[index].clone();
     let (cam, sim) = sensor_camera(config, &id).with_context(|| {
         format!(
@@ -204,12 +204,12 @@ pub fn sensor_pipeline(
                 .with_context(|| format!("sensor {id}: model {}", path.display()))?;
             let is_mlp = matches!(model, GradientModel::Mlp { .. });
             if is_mlp != mode.is_some() {
-                anyhow::bail!(
-                    "sensor {id}: model {} is a {} model but the sensor's gradient stage is `{}`",
-                    path.display(),
-                    if is_mlp { "mlp" } else { "lut" },
-                    if mode.is_some() { "mlp" } else { "lut" }
-                );
+                return Err(Error::ModelKind {
+                    sensor: id,
+                    path: path.display().to_string(),
+                    kind: if is_mlp { "mlp" } else { "lut" },
+                    stage: if mode.is_some() { "mlp" } else { "lut" },
+                });
             }
             model
         }
@@ -230,7 +230,7 @@ pub fn sensor_pipeline(
 
 /// The sensors a run's pipelines cannot be built for: on a hardware hub, those without a
 /// model file (none on the simulator).
-pub fn sensors_without_model(config: &AppConfig) -> anyhow::Result<Vec<String>> {
+pub fn sensors_without_model(config: &AppConfig) -> crate::Result<Vec<String>> {
     if config.hub.transport == "sim" {
         return Ok(Vec::new());
     }
@@ -252,21 +252,21 @@ pub fn unreferenced_pipeline(
     config: &AppConfig,
     pipeline: &PipelineConfig,
     index: usize,
-) -> anyhow::Result<SensorPipeline> {
+) -> crate::Result<SensorPipeline> {
     let spec = config
         .layout
         .sensors
         .get(index)
-        .context("sensor index out of range")?;
+        .ok_or(Error::NoSensor { index })?;
     let stages = pipeline.sensors[index].clone();
     let Some(path) = stages.model.clone() else {
-        anyhow::bail!(crate::UsageError(format!(
+        return Err(Error::Usage(crate::UsageError(format!(
             "{}: sensor {} has no gradient model file; on a hardware hub the pipeline cannot \
              calibrate a LUT on a simulated camera: train one on this sensor's presses \
              (`gelgrip calibrate train`, docs/calibration.md) and set it with \
              [[pipeline.sensors]] id = \"{}\" model = \"….safetensors\"",
             config.file, spec.id, spec.id
-        )));
+        ))));
     };
     let model = GradientModel::load(&path, stages.mlp.unwrap_or(MlpMode::ContactOnly))
         .with_context(|| format!("sensor {}: model {}", spec.id, path.display()))?;

@@ -5,8 +5,6 @@
 use std::io::Write;
 use std::path::Path;
 
-use anyhow::Context;
-
 use gelgrip_controller::layout::HandLayout;
 use gelgrip_controller::runtime::plant::phase_name;
 use gelgrip_controller::runtime::ports::{Observer, ObserverError};
@@ -20,9 +18,9 @@ pub struct TaskLog {
 
 impl TaskLog {
     /// Create `path` with its header for `layout`; `truth` adds the simulator's pad forces.
-    pub fn create(path: &Path, layout: &HandLayout, truth: bool) -> anyhow::Result<Self> {
+    pub fn create(path: &Path, layout: &HandLayout, truth: bool) -> crate::Result<Self> {
         let file = std::fs::File::create(path)
-            .with_context(|| format!("creating the log {}", path.display()))?;
+            .map_err(|e| crate::Error::io(format!("creating the log {}", path.display()), e))?;
         let mut out = std::io::BufWriter::new(file);
         let mut header = vec!["t_s".to_string(), "stage".to_string()];
         header.extend(
@@ -45,7 +43,8 @@ impl TaskLog {
             header.push(format!("{}_goal_current_ma", f.id));
             header.push(format!("{}_position_deg", f.id));
         }
-        writeln!(out, "{}", header.join(","))?;
+        writeln!(out, "{}", header.join(","))
+            .map_err(|e| crate::Error::io(format!("writing the log {}", path.display()), e))?;
         Ok(Self { out })
     }
 }

@@ -5,7 +5,7 @@
 use std::path::Path;
 use std::sync::Arc;
 
-use anyhow::Context;
+use crate::error::Context;
 
 use gelgrip_cdc::factory::CdcFactory;
 use gelgrip_ch347::factory::Ch347Factory;
@@ -16,7 +16,7 @@ use gelgrip_controller::config::{
     AppConfig, CapturingFiles, ConfigError, DiskFiles, FileSource, MemoryFiles,
 };
 use gelgrip_controller::hub::SensorSettings;
-use gelgrip_controller::registry::{OpenError, OpenRequest, TransportRegistry};
+use gelgrip_controller::registry::{OpenRequest, TransportRegistry};
 use gelgrip_dynamixel::driver::DynamixelBus;
 use gelgrip_record::factory::ReplayFactory;
 use gelgrip_sim::SimHubFactory;
@@ -61,7 +61,7 @@ pub fn open_world(
     config: &AppConfig,
     scene_override: Option<&Path>,
     default_scene: Option<&str>,
-) -> anyhow::Result<Option<SharedWorld>> {
+) -> crate::Result<Option<SharedWorld>> {
     let sim_hub = config.hub.transport == "sim";
     if scene_override.is_some() && !sim_hub {
         return Err(crate::UsageError(format!(
@@ -107,7 +107,7 @@ pub fn open_world(
 /// fixture holding the object throughout: a scene's table drops away `release_after_s`
 /// into the run (the hold test), but a run that opens on a default scene waits for someone
 /// to press Grasp, whenever that is.
-fn embedded_scene(name: &str, config: &AppConfig) -> anyhow::Result<SceneSpec> {
+fn embedded_scene(name: &str, config: &AppConfig) -> crate::Result<SceneSpec> {
     let path = format!("scenes/{name}.toml");
     let text = gelgrip_controller::config::FileSource::read(&embedded::FILES, Path::new(&path))?;
     let mut scene =
@@ -121,7 +121,7 @@ pub fn open_servos(
     config: &AppConfig,
     world: Option<&SharedWorld>,
     clock: Arc<dyn Clock>,
-) -> anyhow::Result<Option<Box<dyn ServoBus>>> {
+) -> crate::Result<Option<Box<dyn ServoBus>>> {
     let s = &config.servos;
     match s.bus.as_str() {
         "dynamixel" => {
@@ -142,7 +142,7 @@ pub fn open_servos(
 }
 
 /// Load `path`, or the embedded default configuration when `None`.
-pub fn load_config(path: Option<&Path>, registry: &TransportRegistry) -> anyhow::Result<AppConfig> {
+pub fn load_config(path: Option<&Path>, registry: &TransportRegistry) -> crate::Result<AppConfig> {
     load_config_with_files(path, registry).map(|(config, _)| config)
 }
 
@@ -151,7 +151,7 @@ pub fn load_config(path: Option<&Path>, registry: &TransportRegistry) -> anyhow:
 pub fn load_config_with_files(
     path: Option<&Path>,
     registry: &TransportRegistry,
-) -> anyhow::Result<(AppConfig, Vec<(String, String)>)> {
+) -> crate::Result<(AppConfig, Vec<(String, String)>)> {
     let (path, source): (&Path, Arc<dyn FileSource>) = match path {
         Some(p) => (p, Arc::new(DiskFiles)),
         None => (
@@ -171,13 +171,13 @@ pub fn load_config_from_memory(
     path: &Path,
     files: Vec<(String, String)>,
     registry: &TransportRegistry,
-) -> anyhow::Result<AppConfig> {
+) -> crate::Result<AppConfig> {
     let config = AppConfig::load(path, Arc::new(MemoryFiles(files)), registry)?;
     check_loaded(config)
 }
 
 /// The checks beyond the config's own: the pipeline, the servo faults, the servo count.
-fn check_loaded(config: AppConfig) -> anyhow::Result<AppConfig> {
+fn check_loaded(config: AppConfig) -> crate::Result<AppConfig> {
     gelgrip_plugins::config::PipelineConfig::from_section(&config.pipeline, &config.layout)?;
     gelgrip_record::writer::RecorderOptions::from_section(&config.record)?;
     gelgrip_ros_bridge::config::RosConfig::from_section(&config.ros)?;
@@ -188,7 +188,7 @@ fn check_loaded(config: AppConfig) -> anyhow::Result<AppConfig> {
 
 /// One servo per finger: a layout with fingers needs as many `servos.ids` (so
 /// `check-config` catches a mismatch, not the first run).
-fn check_servo_count(config: &AppConfig) -> anyhow::Result<()> {
+fn check_servo_count(config: &AppConfig) -> crate::Result<()> {
     let fingers = config.layout.fingers.len();
     if fingers == 0 || config.servos.ids.len() == fingers {
         return Ok(());
@@ -223,7 +223,7 @@ pub async fn open_acquisition(
     config: &AppConfig,
     registry: &TransportRegistry,
     clock: Arc<dyn Clock>,
-) -> anyhow::Result<Acquisition> {
+) -> crate::Result<Acquisition> {
     let request = OpenRequest {
         section: &config.hub.section,
         layout: &config.layout,
@@ -240,19 +240,4 @@ pub async fn open_acquisition(
         Acquisition::new(hub, gate, clock, config.hub.first_trigger_seq)
             .with_cpu_clock(thread_cpu_ns),
     )
-}
-
-/// Whether `err` is a usage or configuration error (exit code 2).
-pub fn is_config_error(err: &anyhow::Error) -> bool {
-    err.chain().any(|e| {
-        e.downcast_ref::<ConfigError>().is_some()
-            || e.downcast_ref::<crate::UsageError>().is_some()
-            || matches!(e.downcast_ref::<OpenError>(), Some(OpenError::Config(_)))
-            || e.downcast_ref::<gelgrip_ros_bridge::BridgeError>()
-                .is_some_and(gelgrip_ros_bridge::BridgeError::is_usage)
-            || matches!(
-                e.downcast_ref::<gelgrip_web::feed::ServeError>(),
-                Some(gelgrip_web::feed::ServeError::OpenWithoutToken { .. })
-            )
-    })
 }

@@ -41,7 +41,7 @@ async fn step_until(session: &mut Session, what: &str, done: impl Fn(&Session) -
 fn squeezing(session: &Session) -> bool {
     session
         .runtime
-        .driver()
+        .pilot()
         .is_some_and(|d| d.fingers().iter().any(|(p, _, _)| *p == Phase::Squeeze))
 }
 
@@ -80,11 +80,7 @@ async fn an_estop_mid_squeeze_holds_every_finger_at_the_minimum_current() {
         "{:?}",
         summary.faults
     );
-    let plant = session
-        .runtime
-        .driver()
-        .expect("the grasp's driver")
-        .plant();
+    let plant = session.runtime.pilot().expect("the grasp's pilot").plant();
     let (answered, goals) = plant.last_goals().expect("hold goals were written");
     assert_eq!(*answered, None, "written at once, not for a set");
     let min = Tuning::default().min_current_ma;
@@ -112,7 +108,7 @@ async fn a_task_script_is_interrupted_by_the_dashboards_stop_and_the_fingers_hol
     let gripper = session.runtime.gripper().expect("the grasp API");
     assert!(gripper.busy().is_some(), "the script owns the gripper");
     step_until(&mut session, "the script's second stage", |s| {
-        let status = s.runtime.driver().and_then(|d| d.status());
+        let status = s.runtime.pilot().and_then(|d| d.status());
         // Before its first set the runner has no stage yet (`done`).
         status.is_some_and(|t| t.running && t.stage != FIRST_STAGE && t.stage != "done")
     })

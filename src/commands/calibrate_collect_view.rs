@@ -32,7 +32,7 @@ impl ViewServer {
         bind: SocketAddr,
         view: Arc<CollectView>,
     ) -> anyhow::Result<Self> {
-        check_bind(bind, config.http.token.as_deref())?;
+        check_bind(bind, config.http.token.as_deref()).map_err(gelgrip::Error::from)?;
         let token = config
             .http
             .token

@@ -106,13 +106,15 @@ pub async fn run(args: RunArgs) -> anyhow::Result<u8> {
     // Publishing to ROS 2 drives through the grasp API (readings and servos to publish).
     options.grasp_api |= args.ros || args.ros_namespace.is_some();
     let mut session = Session::open(&options).await?;
-    let ros = RosPublisher::for_run(session.config(), args.ros, args.ros_namespace.as_deref())?;
+    let ros = RosPublisher::for_run(session.config(), args.ros, args.ros_namespace.as_deref())
+        .map_err(gelgrip::Error::from)?;
     if let Some(publisher) = ros {
         let commands = gelgrip_ros_bridge::command::RosCommands::for_run(
             session.config(),
             &publisher,
             session.runtime.gripper(),
-        )?;
+        )
+        .map_err(gelgrip::Error::from)?;
         // The command side first: it sees each pass right after the servo write.
         if let Some(c) = commands {
             session.runtime.observe(Box::new(c));

@@ -1,4 +1,4 @@
-//! The fixed servo programme of a run without a grasp driver (`gelgrip run --headless` on a
+//! The fixed servo programme of a run without a grasp pilot (`gelgrip run --headless` on a
 //! scene): with a scene, close every finger with a goal current that ramps to `--close-current-ma` over
 //! [`RAMP_S`] and then holds; without one, hold the fingers where they are. Every tick
 //! reads the servos back, collects recovered faults, and stops on an unrecovered one.

@@ -2,7 +2,7 @@
 //! examples and other programs embed.
 //!
 //! One pass: the [`Acquisition`] steps the hub and the gate; a gated set goes to the
-//! [`Driver`] (the gentle grasp, or the grasp API and task scripts), which senses it through
+//! [`Pilot`] (the gentle grasp, or the grasp API and task scripts), which senses it through
 //! the [`Sensing`](ports::Sensing) port, fuses it, steps the controller and writes the
 //! servos through the [`Plant`](plant::Plant); then the safety checks run (queued stops and
 //! e-stops, the watchdog, the fixed servo programme's faults), and every
@@ -18,12 +18,12 @@
 
 pub mod commanded;
 pub mod control;
-pub mod driver;
 pub mod fixed_close;
 pub mod gentle_grasp;
 pub mod latency;
 pub mod options;
 pub mod outcome;
+pub mod pilot;
 pub mod plant;
 pub mod ports;
 pub mod report;
@@ -42,11 +42,11 @@ use crate::frame::{FrameSet, ReceivedFrame};
 use crate::gripper::{GripperError, GripperHandle};
 use crate::hub::HubError;
 use crate::runtime::control::LoopCommand;
-use crate::runtime::driver::Driver;
 use crate::runtime::fixed_close::FixedClose;
 use crate::runtime::outcome::{EndReason, Fault, FaultKind};
+use crate::runtime::pilot::Pilot;
 use crate::runtime::ports::Sensing;
-use crate::runtime::ports::{ControlHandler, DriverControl, Observer};
+use crate::runtime::ports::{ControlHandler, Observer, PilotControl};
 use crate::runtime::report::{
     DepthWindows, DrivenSet, FingerState, GripperReport, SetReport, TaskStep,
 };
@@ -67,7 +67,7 @@ pub enum RuntimeError {
     /// The grasp API failed.
     #[error("grasp: {0}")]
     Grasp(GripperError),
-    /// A driver needs fingers and the layout has none.
+    /// A pilot needs fingers and the layout has none.
     #[error("a task needs finger mechanics; layout {layout} declares no [[fingers]]")]
     NoFingers {
         /// The layout's name.
@@ -152,8 +152,8 @@ struct Progress {
 pub struct Runtime {
     acq: Acquisition,
     clock: Arc<dyn Clock>,
-    driver: Option<Driver>,
-    /// The tactile pipelines the driver senses through (set with the driver).
+    pilot: Option<Pilot>,
+    /// The tactile pipelines the pilot senses through (set with the pilot).
     sensing: Option<Box<dyn Sensing>>,
     fixed: Option<FixedClose>,
     observers: Vec<Box<dyn Observer>>,
@@ -183,20 +183,20 @@ impl std::fmt::Debug for Runtime {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Runtime")
             .field("acquisition", &self.acq)
-            .field("driver", &self.driver)
+            .field("pilot", &self.pilot)
             .field("observers", &self.observers.len())
             .finish_non_exhaustive()
     }
 }
 
 impl Runtime {
-    /// A runtime on `acquisition`, timed by `clock`, with no driver yet.
+    /// A runtime on `acquisition`, timed by `clock`, with no pilot yet.
     pub fn new(acquisition: Acquisition, clock: Arc<dyn Clock>) -> Self {
         let start_us = clock.now_us();
         Self {
             acq: acquisition,
             clock,
-            driver: None,
+            pilot: None,
             sensing: None,
             fixed: None,
             observers: Vec::new(),
@@ -215,15 +215,15 @@ impl Runtime {
         }
     }
 
-    /// Drive the gripper with `driver`, sensing every set through `sensing` (frames reach
+    /// Drive the gripper with `pilot`, sensing every set through `sensing` (frames reach
     /// the pipelines as they arrive, sets as the gate emits them).
-    pub fn with_driver(mut self, driver: Driver, sensing: Box<dyn Sensing>) -> Self {
-        self.driver = Some(driver);
+    pub fn with_pilot(mut self, pilot: Pilot, sensing: Box<dyn Sensing>) -> Self {
+        self.pilot = Some(pilot);
         self.sensing = Some(sensing);
         self
     }
 
-    /// Run the fixed servo programme (no grasp driver).
+    /// Run the fixed servo programme (no grasp pilot).
     pub fn with_fixed_close(mut self, fixed: FixedClose) -> Self {
         self.fixed = Some(fixed);
         self
@@ -256,19 +256,19 @@ impl Runtime {
         &mut self.acq
     }
 
-    /// The driver, if any.
-    pub fn driver(&self) -> Option<&Driver> {
-        self.driver.as_ref()
+    /// The pilot, if any.
+    pub fn pilot(&self) -> Option<&Pilot> {
+        self.pilot.as_ref()
     }
 
-    /// The driver, mutably (to start a task script).
-    pub fn driver_mut(&mut self) -> Option<&mut Driver> {
-        self.driver.as_mut()
+    /// The pilot, mutably (to start a task script).
+    pub fn pilot_mut(&mut self) -> Option<&mut Pilot> {
+        self.pilot.as_mut()
     }
 
-    /// The grasp API's handle (none without a driver).
+    /// The grasp API's handle (none without a pilot).
     pub fn gripper(&self) -> Option<GripperHandle> {
-        self.driver.as_ref().map(Driver::handle)
+        self.pilot.as_ref().map(Pilot::handle)
     }
 
     /// The clock.
@@ -361,8 +361,8 @@ impl Runtime {
                 Pass::Tick => None,
                 Pass::Request(Some((request, reply))) => {
                     if let Some((handler, _)) = self.control.as_mut() {
-                        let driver = self.driver.as_mut().map(|d| d as &mut dyn DriverControl);
-                        let answer = handler.handle(request, driver);
+                        let pilot = self.pilot.as_mut().map(|d| d as &mut dyn PilotControl);
+                        let answer = handler.handle(request, pilot);
                         if let Err(refusal) = &answer {
                             tracing::warn!(?refusal, "dashboard request refused");
                         }
@@ -382,7 +382,7 @@ impl Runtime {
         }
     }
 
-    /// What a hub step brought: a set for the driver, an end, or nothing.
+    /// What a hub step brought: a set for the pilot, an end, or nothing.
     fn on_step(&mut self, step: Result<Option<FrameSet>, HubError>) -> Option<EndReason> {
         // Streaming: the pipelines start on a frame as soon as it is in, before its set
         // completes (the gate still decides on the set; see Sensing::frame_arrived). The
@@ -411,13 +411,13 @@ impl Runtime {
 
     fn on_set(&mut self, set: &FrameSet) -> Option<EndReason> {
         let now = self.clock.now_us();
-        let driven = match (self.driver.as_mut(), self.sensing.as_deref_mut()) {
-            (Some(driver), Some(sensing)) => driver.on_set(sensing, set, now),
+        let driven = match (self.pilot.as_mut(), self.sensing.as_deref_mut()) {
+            (Some(pilot), Some(sensing)) => pilot.on_set(sensing, set, now),
             _ => DrivenSet::without_step(Ok(None)),
         };
         let observers = std::time::Instant::now();
         let reported = self.report(Some(set), driven.step.as_ref(), now);
-        if let Some(d) = self.driver.as_mut() {
+        if let Some(d) = self.pilot.as_mut() {
             d.plant_mut()
                 .observed(observers.elapsed().as_secs_f64() * 1e3);
         }
@@ -440,10 +440,10 @@ impl Runtime {
     /// the quiet report, the duration, the progress log.
     fn after_pass(&mut self) -> Option<EndReason> {
         let now = self.clock.now_us();
-        if let Some(end) = self.driver.as_mut().and_then(Driver::apply_urgent) {
+        if let Some(end) = self.pilot.as_mut().and_then(Pilot::apply_urgent) {
             return Some(end);
         }
-        if let Some((fault, ends_run)) = self.driver.as_mut().and_then(|d| d.watchdog(now)) {
+        if let Some((fault, ends_run)) = self.pilot.as_mut().and_then(|d| d.watchdog(now)) {
             tracing::error!("{fault}");
             self.faults.push(Fault::new(FaultKind::Watchdog, fault));
             if ends_run {
@@ -487,10 +487,10 @@ impl Runtime {
         let refused_total = self.acq.gate().stats().sets_rejected.total();
         let refused = refused_total > self.reads.refused;
         self.reads.refused = refused_total;
-        let Some(driver) = self.driver.as_mut() else {
+        let Some(pilot) = self.pilot.as_mut() else {
             return Ok(false);
         };
-        let count = driver.plant().servo_reads();
+        let count = pilot.plant().servo_reads();
         if count != self.reads.count {
             self.reads.count = count;
             self.reads.at_us = Some(now_us);
@@ -502,13 +502,13 @@ impl Runtime {
         if !(refused || quiet) || recent || self.observers.is_empty() {
             return Ok(false);
         }
-        driver.plant_mut().read_between_sets()?;
-        self.reads.count = driver.plant().servo_reads();
+        pilot.plant_mut().read_between_sets()?;
+        self.reads.count = pilot.plant().servo_reads();
         self.reads.at_us = Some(now_us);
         Ok(true)
     }
 
-    /// Give every observer this pass's report: `set` and what the driver did with it
+    /// Give every observer this pass's report: `set` and what the pilot did with it
     /// (`step`), or a pass between sets.
     fn report(
         &mut self,
@@ -517,19 +517,19 @@ impl Runtime {
         now_us: u64,
     ) -> Result<(), RuntimeError> {
         if self.observers.is_empty() {
-            if let Some(d) = self.driver.as_mut() {
+            if let Some(d) = self.pilot.as_mut() {
                 d.take_controller_events();
             }
             return Ok(());
         }
         self.last_report_us = Some(now_us);
         let events = self
-            .driver
+            .pilot
             .as_mut()
-            .map(Driver::take_controller_events)
+            .map(Pilot::take_controller_events)
             .unwrap_or_default();
         let depth: Option<&dyn DepthWindows> = self.sensing.as_deref().map(|s| s as _);
-        let gripper = self.driver.as_ref().zip(depth).map(|(d, depth)| {
+        let gripper = self.pilot.as_ref().zip(depth).map(|(d, depth)| {
             let plant = d.plant();
             GripperReport {
                 fused: plant.last_fused(),
@@ -616,7 +616,7 @@ impl Runtime {
                 tracing::warn!("could not turn servo torque off: {e}");
             }
         }
-        if let Some(d) = self.driver.as_mut() {
+        if let Some(d) = self.pilot.as_mut() {
             faults.splice(0..0, d.take_recovered());
             if end == EndReason::Estop {
                 d.estop();
@@ -635,12 +635,12 @@ impl Runtime {
         RunSummary {
             end_reason: end,
             faults,
-            task: self.driver.as_ref().and_then(Driver::report),
+            task: self.pilot.as_ref().and_then(Pilot::report),
             servos: self
                 .fixed
                 .as_ref()
                 .map(|s| s.last.clone())
-                .or_else(|| self.driver.as_ref().map(|d| d.states().to_vec())),
+                .or_else(|| self.pilot.as_ref().map(|d| d.states().to_vec())),
             elapsed_s: now.saturating_sub(self.run_start_us.unwrap_or(self.start_us)) as f64 / 1e6,
         }
     }

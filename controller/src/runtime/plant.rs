@@ -1,4 +1,4 @@
-//! The plant: what every driver of the gripper shares with the hardware. The servo bus,
+//! The plant: what every pilot of the gripper shares with the hardware. The servo bus,
 //! the simulator's ground truth when there is one, the watchdog's clock, the loop's latency
 //! histograms, and the last set fused and goals written (for the observers' reports between
 //! sets). The tactile pipelines (the [`Sensing`] port) are the runtime's: each set's
@@ -54,7 +54,7 @@ pub fn phase_name(p: Phase) -> &'static str {
 pub struct Sensed {
     /// The fused set.
     pub fused: FusedSet,
-    /// Wall-clock instant the driver got the set (the loop latency's start).
+    /// Wall-clock instant the pilot got the set (the loop latency's start).
     pub handed_over: Instant,
     /// The set's age at emission, ms.
     pub set_age_ms: f64,
@@ -62,7 +62,7 @@ pub struct Sensed {
     pub sensing_ms: f64,
 }
 
-/// The shared hardware side of every driver.
+/// The shared hardware side of every pilot.
 pub struct Plant {
     bus: Box<dyn ServoBus>,
     truth: Option<Box<dyn GroundTruth>>,

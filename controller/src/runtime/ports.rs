@@ -57,9 +57,9 @@ pub trait Observer: Send {
     }
 }
 
-/// The driver as a [`ControlHandler`] reaches it: which task drives the fingers, where
+/// The pilot as a [`ControlHandler`] reaches it: which task drives the fingers, where
 /// the servos stand, and starting a task script.
-pub trait DriverControl {
+pub trait PilotControl {
     /// The task that drives the fingers now (`gentle-grasp`, or a script's name), if any.
     fn running_task(&self) -> Option<&str>;
     /// The servos' last states, in finger order.
@@ -70,12 +70,12 @@ pub trait DriverControl {
 }
 
 /// Carries out the dashboard's requests beyond the grasp API (task scripts, simulator
-/// controls) on the loop's thread, with the driver in reach.
+/// controls) on the loop's thread, with the pilot in reach.
 pub trait ControlHandler: Send {
     /// Carry out `request`, or refuse it with the reason.
     fn handle(
         &mut self,
         request: LoopRequest,
-        driver: Option<&mut dyn DriverControl>,
+        pilot: Option<&mut dyn PilotControl>,
     ) -> Result<(), Refusal>;
 }

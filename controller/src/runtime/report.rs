@@ -39,7 +39,7 @@ pub trait DepthWindows {
     fn depth_window(&self, index: usize) -> Option<DepthWindow>;
 }
 
-/// What a driver did with one set: a row of the task log.
+/// What a pilot did with one set: a row of the task log.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TaskStep {
     /// The set's trigger sequence.
@@ -56,10 +56,10 @@ pub struct TaskStep {
     pub goals: Vec<FingerGoal>,
 }
 
-/// What a driver did with one gated set: the value its pass returns.
+/// What a pilot did with one gated set: the value its pass returns.
 #[derive(Debug)]
 pub struct DrivenSet {
-    /// A row of the task log (`None` when the driver only held, was interrupted, or failed
+    /// A row of the task log (`None` when the pilot only held, was interrupted, or failed
     /// before it stepped).
     pub step: Option<TaskStep>,
     /// Whether the run ends (and why), or the pass's failure.
@@ -73,7 +73,7 @@ impl DrivenSet {
     }
 }
 
-/// One finger as the driver sees it.
+/// One finger as the pilot sees it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FingerState {
     /// Its phase.
@@ -96,7 +96,7 @@ pub struct SetReport<'a> {
     pub set: Option<&'a FrameSet>,
     /// The gate's statistics.
     pub gate: &'a GateStats,
-    /// The gripper's side, when a driver runs it.
+    /// The gripper's side, when a pilot runs it.
     pub gripper: Option<GripperReport<'a>>,
 }
 
@@ -128,7 +128,7 @@ pub struct GripperReport<'a> {
     pub task: Option<TaskStatus>,
     /// The loop's latency figures so far.
     pub latencies: Latencies,
-    /// What the driver did with this set (a row of the task log).
+    /// What the pilot did with this set (a row of the task log).
     pub step: Option<&'a TaskStep>,
     /// The grasp-API service's commands and steps on this pass (while recording).
     pub controller_events: &'a [ServiceEvent],

@@ -10,14 +10,14 @@ use crate::runtime::commanded::CommandedGripper;
 use crate::runtime::gentle_grasp::{GentleGrasp, TASK_NAME};
 use crate::runtime::outcome::{EndReason, Fault, ScriptEnd};
 use crate::runtime::plant::Plant;
-use crate::runtime::ports::{DriverControl, Sensing};
+use crate::runtime::ports::{PilotControl, Sensing};
 use crate::runtime::report::DrivenSet;
 use crate::runtime::task_report::{TaskReport, TaskStatus};
 use crate::task::TaskScript;
 
 /// Whoever drives the fingers in a run.
 #[derive(Debug)]
-pub enum Driver {
+pub enum Pilot {
     /// `--task gentle-grasp`.
     GentleGrasp(Box<GentleGrasp>),
     /// The grasp API and task scripts.
@@ -38,8 +38,8 @@ fn script_end_reason(end: Option<ScriptEnd>, ends_run: bool) -> Option<EndReason
     }
 }
 
-impl Driver {
-    /// Handle one gated set, sensed through `sensing`: what the driver did with it, with an
+impl Pilot {
+    /// Handle one gated set, sensed through `sensing`: what the pilot did with it, with an
     /// end reason when the task ends.
     pub fn on_set(&mut self, sensing: &mut dyn Sensing, set: &FrameSet, now_us: u64) -> DrivenSet {
         match self {
@@ -203,7 +203,7 @@ impl Driver {
     }
 }
 
-impl DriverControl for Driver {
+impl PilotControl for Pilot {
     fn running_task(&self) -> Option<&str> {
         match self {
             Self::GentleGrasp(_) => Some(TASK_NAME),
