@@ -9,7 +9,6 @@ use gelgrip_controller::config::ConfigError;
 use gelgrip_controller::hub::HubError;
 use gelgrip_controller::registry::OpenError;
 use gelgrip_controller::runtime::RuntimeError;
-use gelgrip_controller::task::script::ScriptError;
 use gelgrip_plugins::calibrate::CalibrateError;
 use gelgrip_plugins::calibrate::collect::CollectError;
 use gelgrip_plugins::dataset::DatasetError;
@@ -46,9 +45,6 @@ pub enum Error {
     /// The run loop failed.
     #[error(transparent)]
     Runtime(#[from] RuntimeError),
-    /// A task script is invalid.
-    #[error(transparent)]
-    Script(#[from] ScriptError),
     /// The dashboard cannot be served.
     #[error(transparent)]
     Dashboard(#[from] ServeError),
@@ -153,7 +149,7 @@ impl Error {
     /// A usage or configuration error (the request or the config is wrong, not the run).
     pub fn is_usage(&self) -> bool {
         match self {
-            Self::Usage(_) | Self::Config(_) | Self::Script(_) => true,
+            Self::Usage(_) | Self::Config(_) => true,
             Self::Open(e) => matches!(e, OpenError::Config(_)),
             Self::Dashboard(e) => matches!(e, ServeError::OpenWithoutToken { .. }),
             Self::Bridge(e) => e.is_usage(),
