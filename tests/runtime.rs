@@ -81,8 +81,8 @@ async fn an_estop_mid_squeeze_holds_every_finger_at_the_minimum_current() {
         summary.faults
     );
     let plant = session.runtime.pilot().expect("the grasp's pilot").plant();
-    let (answered, goals) = plant.last_goals().expect("hold goals were written");
-    assert_eq!(*answered, None, "written at once, not for a set");
+    let (_, goals) = plant.goals_written_at_once();
+    let goals = goals.expect("hold goals were written at once, not for a set");
     let min = Tuning::default().min_current_ma;
     assert_eq!(goals.len(), 3);
     for (goal, state) in goals.iter().zip(plant.states()) {

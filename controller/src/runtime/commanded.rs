@@ -15,10 +15,31 @@ use crate::runtime::RuntimeError;
 use crate::runtime::outcome::ScriptEnd;
 use crate::runtime::plant::Plant;
 use crate::runtime::ports::Sensing;
-use crate::runtime::report::TaskStep;
+use crate::runtime::report::{Sensed, TaskStep};
 use crate::runtime::script_run::ScriptRun;
 use crate::runtime::task_report::TaskReport;
 use crate::task::TaskScript;
+
+/// What the commanded gripper did with one set.
+#[derive(Debug)]
+pub struct CommandedPass {
+    /// The set sensed and answered (`None` when a command interrupted the script first).
+    pub sensed: Option<Sensed>,
+    /// A row of the task log, while a script runs.
+    pub step: Option<TaskStep>,
+    /// How the script ended, if it did.
+    pub end: Option<ScriptEnd>,
+}
+
+impl CommandedPass {
+    fn without_set(end: ScriptEnd) -> Self {
+        Self {
+            sensed: None,
+            step: None,
+            end: Some(end),
+        }
+    }
+}
 
 /// The gripper commanded through the grasp API and task scripts: its plant, the grasp
 /// API's service and the script it may be running.
@@ -88,24 +109,35 @@ impl CommandedGripper {
         sensing: &mut dyn Sensing,
         set: &FrameSet,
         now_us: u64,
-    ) -> Result<(Option<TaskStep>, Option<ScriptEnd>), RuntimeError> {
+    ) -> Result<CommandedPass, RuntimeError> {
         if std::mem::take(&mut self.watchdog_holding) {
             tracing::info!("synchronized sets are back; the fingers held meanwhile");
         }
         if let Some(end) = self.check_interruption() {
-            return Ok((None, Some(end)));
+            return Ok(CommandedPass::without_set(end));
         }
         if let Some(script) = self.script.as_mut() {
-            let (step, ended) = script.on_set(&mut self.plant, sensing, set, now_us)?;
+            let (sensed, step, ended) = script.on_set(&mut self.plant, sensing, set, now_us)?;
             if ended {
                 self.end_script();
-                return Ok((Some(step), Some(ScriptEnd::Finished)));
+                return Ok(CommandedPass {
+                    sensed: Some(sensed),
+                    step: Some(step),
+                    end: Some(ScriptEnd::Finished),
+                });
             }
-            return Ok((Some(step), None));
+            return Ok(CommandedPass {
+                sensed: Some(sensed),
+                step: Some(step),
+                end: None,
+            });
         }
         let sensed = self.plant.drive(sensing, &mut self.service, set, now_us)?;
-        self.plant.remember(sensed.fused);
-        Ok((None, None))
+        Ok(CommandedPass {
+            sensed: Some(sensed),
+            step: None,
+            end: None,
+        })
     }
 
     /// A command queued between sets is applied now: a stop or e-stop is written at once,
@@ -223,7 +255,7 @@ impl CommandedGripper {
         self.script
             .as_ref()
             .or(self.last_script.as_ref())
-            .map(|s| s.report(&self.plant))
+            .map(ScriptRun::report)
     }
 
     /// The plant.

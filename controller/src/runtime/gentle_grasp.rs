@@ -155,8 +155,12 @@ impl GentleGrasp {
             Err(e) => return DrivenSet::without_step(Err(e)),
         };
         if let Some(end) = self.interrupted() {
-            self.plant.remember(sensed.fused);
-            return DrivenSet::without_step(Ok(Some(end)));
+            return DrivenSet {
+                sensed: Some(sensed),
+                step: None,
+                controller_events: Vec::new(),
+                end: Ok(Some(end)),
+            };
         }
         let truth = self.plant.true_forces_n();
         let regulated = self
@@ -189,10 +193,11 @@ impl GentleGrasp {
             phases,
             goals,
         });
-        self.plant.remember(sensed.fused);
         DrivenSet {
             end: self.advance(t_s, start),
+            sensed: Some(sensed),
             step,
+            controller_events: Vec::new(),
         }
     }
 
@@ -343,11 +348,11 @@ impl GentleGrasp {
         &mut self.plant
     }
 
-    /// The task fields.
+    /// The task fields (the latencies are the runtime's: see
+    /// [`TaskReport::with_latencies`]).
     pub fn report(&self) -> TaskReport {
         let outcome = self.outcome.clone();
         let held = self.hold_slip_mm.is_none_or(|s| s < HELD_SLIP_MM);
-        let lat = self.plant.latencies();
         TaskReport {
             task: TASK_NAME.into(),
             grasped: outcome.as_ref().is_some_and(|o| o.grasped) && held,
@@ -356,12 +361,12 @@ impl GentleGrasp {
             true_peak_force_n: self.true_peak_force_n,
             target_force_n: self.target_force_n,
             time_to_stable_s: self.time_to_stable_s,
-            loop_latency_ms_p50: lat.loop_p50,
-            loop_latency_ms_p99: lat.loop_p99,
-            capture_to_command_ms_p50: lat.capture_p50,
-            capture_to_command_ms_p99: lat.capture_p99,
-            loop_own_ms_p99: lat.own_p99,
-            pipeline_ms_p99: lat.pipeline_p99,
+            loop_latency_ms_p50: None,
+            loop_latency_ms_p99: None,
+            capture_to_command_ms_p50: None,
+            capture_to_command_ms_p99: None,
+            loop_own_ms_p99: None,
+            pipeline_ms_p99: None,
             final_force_n: outcome.as_ref().map(|o| o.final_force_n),
             reason: match (&outcome, self.interrupt_reason) {
                 (Some(o), _) => o.reason.to_string(),

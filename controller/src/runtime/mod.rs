@@ -20,6 +20,7 @@ pub mod commanded;
 pub mod control;
 pub mod fixed_close;
 pub mod gentle_grasp;
+pub mod last_pass;
 pub mod latency;
 pub mod options;
 pub mod outcome;
@@ -43,13 +44,12 @@ use crate::gripper::{GripperError, GripperHandle};
 use crate::hub::HubError;
 use crate::runtime::control::LoopCommand;
 use crate::runtime::fixed_close::FixedClose;
+use crate::runtime::last_pass::LastPass;
 use crate::runtime::outcome::{EndReason, Fault, FaultKind};
 use crate::runtime::pilot::Pilot;
 use crate::runtime::ports::Sensing;
 use crate::runtime::ports::{ControlHandler, Observer, PilotControl};
-use crate::runtime::report::{
-    DepthWindows, DrivenSet, FingerState, GripperReport, SetReport, TaskStep,
-};
+use crate::runtime::report::{DepthWindows, DrivenSet, FingerState, GripperReport, SetReport};
 use crate::runtime::task_report::TaskReport;
 
 /// A failure inside the loop, typed so the loop can tell a hub from a servo from a log.
@@ -165,6 +165,7 @@ pub struct Runtime {
     last_report_us: Option<u64>,
     reads: ReadTrack,
     progress: Progress,
+    last: LastPass,
 }
 
 /// What the runtime has seen of the servo reads and the gate's refusals, to read the servos
@@ -207,6 +208,7 @@ impl Runtime {
             deadline_us: None,
             last_report_us: None,
             reads: ReadTrack::default(),
+            last: LastPass::default(),
             progress: Progress {
                 last_log_us: start_us,
                 last_sets: 0,
@@ -411,16 +413,19 @@ impl Runtime {
 
     fn on_set(&mut self, set: &FrameSet) -> Option<EndReason> {
         let now = self.clock.now_us();
-        let driven = match (self.pilot.as_mut(), self.sensing.as_deref_mut()) {
+        if let Some(pilot) = self.pilot.as_ref() {
+            self.last.written_at_once(pilot.plant());
+        }
+        let mut driven = match (self.pilot.as_mut(), self.sensing.as_deref_mut()) {
             (Some(pilot), Some(sensing)) => pilot.on_set(sensing, set, now),
             _ => DrivenSet::without_step(Ok(None)),
         };
-        let observers = std::time::Instant::now();
-        let reported = self.report(Some(set), driven.step.as_ref(), now);
-        if let Some(d) = self.pilot.as_mut() {
-            d.plant_mut()
-                .observed(observers.elapsed().as_secs_f64() * 1e3);
+        if let Some(sensed) = driven.sensed.take() {
+            self.last.sensed(sensed);
         }
+        let observers = std::time::Instant::now();
+        let reported = self.report(Some((set, &mut driven)), now);
+        self.last.observed(observers.elapsed().as_secs_f64() * 1e3);
         if let Err(e) = reported {
             return Some(self.fault(e));
         }
@@ -465,7 +470,7 @@ impl Runtime {
             Err(e) => return Some(self.fault(e)),
         };
         if (quiet || read)
-            && let Err(e) = self.report(None, None, now)
+            && let Err(e) = self.report(None, now)
         {
             return Some(self.fault(e));
         }
@@ -508,32 +513,42 @@ impl Runtime {
         Ok(true)
     }
 
-    /// Give every observer this pass's report: `set` and what the pilot did with it
-    /// (`step`), or a pass between sets.
+    /// Give every observer this pass's report: a set and what the pilot did with it, or
+    /// (`None`) a pass between sets.
     fn report(
         &mut self,
-        set: Option<&FrameSet>,
-        step: Option<&TaskStep>,
+        pass: Option<(&FrameSet, &mut DrivenSet)>,
         now_us: u64,
     ) -> Result<(), RuntimeError> {
+        if let Some(pilot) = self.pilot.as_ref() {
+            self.last.written_at_once(pilot.plant());
+        }
+        let (set, step, events) = match pass {
+            Some((set, driven)) => (
+                Some(set),
+                driven.step.as_ref(),
+                std::mem::take(&mut driven.controller_events),
+            ),
+            None => (
+                None,
+                None,
+                self.pilot
+                    .as_mut()
+                    .map(Pilot::take_controller_events)
+                    .unwrap_or_default(),
+            ),
+        };
         if self.observers.is_empty() {
-            if let Some(d) = self.pilot.as_mut() {
-                d.take_controller_events();
-            }
             return Ok(());
         }
         self.last_report_us = Some(now_us);
-        let events = self
-            .pilot
-            .as_mut()
-            .map(Pilot::take_controller_events)
-            .unwrap_or_default();
         let depth: Option<&dyn DepthWindows> = self.sensing.as_deref().map(|s| s as _);
+        let last = &self.last;
         let gripper = self.pilot.as_ref().zip(depth).map(|(d, depth)| {
             let plant = d.plant();
             GripperReport {
-                fused: plant.last_fused(),
-                sensed_seq: plant.last_sensed_seq(),
+                fused: last.fused.as_ref().map(|(_, f)| f),
+                sensed_seq: last.fused.as_ref().map(|(seq, _)| *seq),
                 fingers: d
                     .fingers()
                     .into_iter()
@@ -545,9 +560,9 @@ impl Runtime {
                     .collect(),
                 servos: plant.states(),
                 servo_reads: plant.servo_reads(),
-                goals: plant.last_goals(),
+                goals: last.goals.as_ref(),
                 task: d.status(),
-                latencies: plant.latencies(),
+                latencies: last.latency.latencies(),
                 step,
                 controller_events: &events,
                 sensing: depth,
@@ -635,7 +650,11 @@ impl Runtime {
         RunSummary {
             end_reason: end,
             faults,
-            task: self.pilot.as_ref().and_then(Pilot::report),
+            task: self
+                .pilot
+                .as_ref()
+                .and_then(Pilot::report)
+                .map(|t| t.with_latencies(&self.last.latency.latencies())),
             servos: self
                 .fixed
                 .as_ref()

@@ -42,19 +42,23 @@ impl Pilot {
     /// Handle one gated set, sensed through `sensing`: what the pilot did with it, with an
     /// end reason when the task ends.
     pub fn on_set(&mut self, sensing: &mut dyn Sensing, set: &FrameSet, now_us: u64) -> DrivenSet {
-        match self {
+        let mut driven = match self {
             Self::GentleGrasp(t) => t.on_set(sensing, set, now_us),
             Self::Commanded {
                 gripper,
                 script_ends_run,
             } => match gripper.on_set(sensing, set, now_us) {
-                Ok((step, end)) => DrivenSet {
-                    step,
-                    end: Ok(script_end_reason(end, *script_ends_run)),
+                Ok(pass) => DrivenSet {
+                    sensed: pass.sensed,
+                    step: pass.step,
+                    controller_events: Vec::new(),
+                    end: Ok(script_end_reason(pass.end, *script_ends_run)),
                 },
                 Err(e) => DrivenSet::without_step(Err(e)),
             },
-        }
+        };
+        driven.controller_events = self.take_controller_events();
+        driven
     }
 
     /// Commands queued between sets are applied now; returns an end reason when they

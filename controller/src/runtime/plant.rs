@@ -1,8 +1,8 @@
 //! The plant: what every pilot of the gripper shares with the hardware. The servo bus,
-//! the simulator's ground truth when there is one, the watchdog's clock, the loop's latency
-//! histograms, and the last set fused and goals written (for the observers' reports between
-//! sets). The tactile pipelines (the [`Sensing`] port) are the runtime's: each set's
-//! sensing borrows them ([`Plant::sense`]).
+//! the simulator's ground truth when there is one, and the watchdog's clock. What a set's
+//! pass sensed and wrote goes back to the runtime by value ([`Sensed`]); the tactile
+//! pipelines (the [`Sensing`] port) are the runtime's: each set's sensing borrows them
+//! ([`Plant::sense`]).
 //!
 //! Servo and pipeline calls block (dynamixel2 and the pipelines are synchronous), so on a
 //! multi-threaded executor they run through [`off_executor`], which hands the worker's other
@@ -12,14 +12,14 @@ use std::time::Instant;
 
 use crate::actuator::{FingerGoal, ServoBus, ServoError, ServoState};
 use crate::frame::FrameSet;
-use crate::fusion::{FusedSet, fuse_excluding};
+use crate::fusion::fuse_excluding;
 use crate::grasp::Phase;
 use crate::gripper::GripperService;
 use crate::layout::HandLayout;
 use crate::runtime::RuntimeError;
-use crate::runtime::latency::{Latencies, LoopLatency};
 use crate::runtime::outcome::Fault;
 use crate::runtime::ports::{GroundTruth, Sensing};
+use crate::runtime::report::Sensed;
 
 /// No gated set for this long stops all motion, ms.
 pub const WATCHDOG_MS: u64 = 500;
@@ -49,19 +49,6 @@ pub fn phase_name(p: Phase) -> &'static str {
     }
 }
 
-/// A set sensed: the fused set and when the gate handed it over.
-#[derive(Debug)]
-pub struct Sensed {
-    /// The fused set.
-    pub fused: FusedSet,
-    /// Wall-clock instant the pilot got the set (the loop latency's start).
-    pub handed_over: Instant,
-    /// The set's age at emission, ms.
-    pub set_age_ms: f64,
-    /// The pipelines' share of the loop, ms.
-    pub sensing_ms: f64,
-}
-
 /// The shared hardware side of every pilot.
 pub struct Plant {
     bus: Box<dyn ServoBus>,
@@ -70,14 +57,9 @@ pub struct Plant {
     pub layout: HandLayout,
     states: Vec<ServoState>,
     last_set_us: Option<u64>,
-    /// The trigger sequence of the last set sensed.
-    last_sensed_seq: Option<u32>,
-    /// The goals last written, and the set they answered (`None` for a stop or e-stop).
-    last_goals: Option<(Option<u32>, Vec<FingerGoal>)>,
-    latency: LoopLatency,
-    /// The last set's loop time less its sensing, ms, until the observers have run.
-    own_pending_ms: Option<f64>,
-    last: Option<FusedSet>,
+    /// Goals written at once (stop, e-stop, watchdog; no set's pass wrote them): how many
+    /// such writes so far, and the last.
+    written_at_once: (u64, Option<Vec<FingerGoal>>),
     /// Servo reads that succeeded so far (after a set's goals, or between sets).
     servo_reads: u64,
     /// Recovered servo faults.
@@ -112,11 +94,7 @@ impl Plant {
             layout,
             states: Vec::new(),
             last_set_us: None,
-            last_sensed_seq: None,
-            last_goals: None,
-            latency: LoopLatency::default(),
-            own_pending_ms: None,
-            last: None,
+            written_at_once: (0, None),
             servo_reads: 0,
             recovered: Vec::new(),
         })
@@ -142,14 +120,13 @@ impl Plant {
     ) -> Result<Sensed, RuntimeError> {
         let handed_over = Instant::now();
         self.last_set_us = Some(now_us);
-        self.last_sensed_seq = Some(set.trigger_seq);
         let readings = off_executor(|| sensing.process(set));
         let sensing_ms = handed_over.elapsed().as_secs_f64() * 1e3;
-        self.latency.pipeline_ms.record_ms(sensing_ms);
         if self.states.is_empty() {
             self.states = self.read()?;
         }
         Ok(Sensed {
+            trigger_seq: set.trigger_seq,
             fused: fuse_excluding(
                 &self.layout,
                 &readings,
@@ -158,27 +135,15 @@ impl Plant {
             handed_over,
             set_age_ms: set.latency_us() as f64 / 1e3,
             sensing_ms,
+            goals: None,
+            loop_ms: None,
         })
     }
 
-    /// Keep the last fused set (for the observers).
-    pub fn remember(&mut self, fused: FusedSet) {
-        self.last = Some(fused);
-    }
-
-    /// The goals last written and the set they answered (`None`: a stop or e-stop).
-    pub fn last_goals(&self) -> Option<&(Option<u32>, Vec<FingerGoal>)> {
-        self.last_goals.as_ref()
-    }
-
-    /// The trigger sequence of the last set sensed.
-    pub fn last_sensed_seq(&self) -> Option<u32> {
-        self.last_sensed_seq
-    }
-
-    /// The last fused set remembered.
-    pub fn last_fused(&self) -> Option<&FusedSet> {
-        self.last.as_ref()
+    /// Goals written at once (stop, e-stop, watchdog), outside a set's pass: how many such
+    /// writes so far, and the last one's goals.
+    pub fn goals_written_at_once(&self) -> (u64, Option<&[FingerGoal]>) {
+        (self.written_at_once.0, self.written_at_once.1.as_deref())
     }
 
     /// The servos' last states.
@@ -191,25 +156,20 @@ impl Plant {
         self.states.iter().map(|s| s.position_deg).collect()
     }
 
-    /// Write `goals` (if any) for the set `sensed`, record the latencies, and read the
-    /// servos back.
+    /// Write `goals` (if any) for the set `sensed`, note them and the loop time in it, and
+    /// read the servos back.
     pub fn command(
         &mut self,
-        sensed: &Sensed,
+        sensed: &mut Sensed,
         goals: Option<&[FingerGoal]>,
     ) -> Result<(), RuntimeError> {
         if let Some(goals) = goals {
             tracing::debug!(?goals, "goals");
-            self.last_goals = Some((self.last_sensed_seq, goals.to_vec()));
+            sensed.goals = Some(goals.to_vec());
             let bus = &mut self.bus;
             off_executor(|| bus.write_goals(goals))?;
         }
-        let loop_ms = sensed.handed_over.elapsed().as_secs_f64() * 1e3;
-        self.latency.loop_ms.record_ms(loop_ms);
-        self.latency
-            .capture_ms
-            .record_ms(sensed.set_age_ms + loop_ms);
-        self.own_pending_ms = Some((loop_ms - sensed.sensing_ms).max(0.0));
+        sensed.loop_ms = Some(sensed.handed_over.elapsed().as_secs_f64() * 1e3);
         self.states = self.read()?;
         Ok(())
     }
@@ -223,17 +183,17 @@ impl Plant {
         set: &FrameSet,
         now_us: u64,
     ) -> Result<Sensed, RuntimeError> {
-        let sensed = self.sense(sensing, set, now_us)?;
+        let mut sensed = self.sense(sensing, set, now_us)?;
         gripper.apply_commands(&self.positions());
         let goals = gripper.step(now_us as f64 / 1e6, Some(&sensed.fused), self.states());
-        self.command(&sensed, goals.as_deref())?;
+        self.command(&mut sensed, goals.as_deref())?;
         Ok(sensed)
     }
 
     /// Write hold goals at once (stop, e-stop, watchdog); a failure is logged, since the
     /// caller is already on its way to a safe state.
     pub fn write_now(&mut self, goals: &[FingerGoal]) {
-        self.last_goals = Some((None, goals.to_vec()));
+        self.written_at_once = (self.written_at_once.0 + 1, Some(goals.to_vec()));
         let bus = &mut self.bus;
         if let Err(e) = off_executor(|| bus.write_goals(goals)) {
             tracing::error!("could not write the hold goals: {e}");
@@ -314,18 +274,5 @@ impl Plant {
         if let Err(e) = off_executor(|| bus.set_torque(false)) {
             tracing::warn!("could not turn servo torque off: {e}");
         }
-    }
-
-    /// The observers of the last set took `observers_ms`: the loop's own share of that set
-    /// (its loop time less its sensing, plus the observers) is complete.
-    pub fn observed(&mut self, observers_ms: f64) {
-        if let Some(own) = self.own_pending_ms.take() {
-            self.latency.own_ms.record_ms(own + observers_ms.max(0.0));
-        }
-    }
-
-    /// The latency figures so far.
-    pub fn latencies(&self) -> Latencies {
-        self.latency.latencies()
     }
 }

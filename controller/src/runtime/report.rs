@@ -3,6 +3,8 @@
 //! observer (the dashboard feed, the task CSV, the recorder's snapshots, network
 //! publishers); none of them reaches into the loop.
 
+use std::time::Instant;
+
 use crate::actuator::{FingerGoal, ServoState};
 use crate::frame::FrameSet;
 use crate::fusion::FusedSet;
@@ -56,20 +58,50 @@ pub struct TaskStep {
     pub goals: Vec<FingerGoal>,
 }
 
+/// A set sensed and answered: the fused set, the goals written for it, and the pass's
+/// timings.
+#[derive(Debug)]
+pub struct Sensed {
+    /// The set's trigger sequence.
+    pub trigger_seq: u32,
+    /// The fused set.
+    pub fused: FusedSet,
+    /// Wall-clock instant the pilot got the set (the loop latency's start).
+    pub handed_over: Instant,
+    /// The set's age at emission, ms.
+    pub set_age_ms: f64,
+    /// The pipelines' share of the loop, ms.
+    pub sensing_ms: f64,
+    /// The goals written for the set (`None` until written, or when nothing was).
+    pub goals: Option<Vec<FingerGoal>>,
+    /// From the hand-over to the goals written, ms (`None` until then).
+    pub loop_ms: Option<f64>,
+}
+
 /// What a pilot did with one gated set: the value its pass returns.
 #[derive(Debug)]
 pub struct DrivenSet {
+    /// The set sensed, fused and answered (`None` when the pilot did not sense it: a task
+    /// interrupted before, or a failure).
+    pub sensed: Option<Sensed>,
     /// A row of the task log (`None` when the pilot only held, was interrupted, or failed
     /// before it stepped).
     pub step: Option<TaskStep>,
+    /// The grasp-API service's commands and steps since the pass before (while recording).
+    pub controller_events: Vec<ServiceEvent>,
     /// Whether the run ends (and why), or the pass's failure.
     pub end: Result<Option<EndReason>, RuntimeError>,
 }
 
 impl DrivenSet {
-    /// A pass that wrote no task-log row and ends the run or not as `end` says.
+    /// A pass that sensed nothing and ends the run or not as `end` says.
     pub fn without_step(end: Result<Option<EndReason>, RuntimeError>) -> Self {
-        Self { step: None, end }
+        Self {
+            sensed: None,
+            step: None,
+            controller_events: Vec::new(),
+            end,
+        }
     }
 }
 

@@ -9,7 +9,7 @@ use crate::grasp::{Phase, Tuning};
 use crate::runtime::RuntimeError;
 use crate::runtime::plant::Plant;
 use crate::runtime::ports::Sensing;
-use crate::runtime::report::TaskStep;
+use crate::runtime::report::{Sensed, TaskStep};
 use crate::runtime::task_report::TaskReport;
 use crate::task::{TaskRunner, TaskScript};
 
@@ -53,10 +53,10 @@ impl ScriptRun {
         sensing: &mut dyn Sensing,
         set: &FrameSet,
         now_us: u64,
-    ) -> Result<(TaskStep, bool), RuntimeError> {
+    ) -> Result<(Sensed, TaskStep, bool), RuntimeError> {
         let t_s = now_us as f64 / 1e6;
         let start = *self.start_s.get_or_insert(t_s);
-        let sensed = plant.sense(sensing, set, now_us)?;
+        let mut sensed = plant.sense(sensing, set, now_us)?;
         let stage = self.runner.stage_name().unwrap_or("start").to_string();
         let goals = self.runner.step(t_s, &sensed.fused, plant.states());
         if let Some(now) = self.runner.stage_name()
@@ -64,7 +64,7 @@ impl ScriptRun {
         {
             tracing::info!(stage = now, t_s = t_s - start, "task stage");
         }
-        plant.command(&sensed, Some(&goals))?;
+        plant.command(&mut sensed, Some(&goals))?;
         let truth = plant.true_forces_n();
         self.peak_force_n = self
             .runner
@@ -82,7 +82,6 @@ impl ScriptRun {
             phases: self.runner.phases(),
             goals,
         };
-        plant.remember(sensed.fused);
         let ended = self.runner.end().is_some_and(|e| {
             if e.completed {
                 tracing::info!("task {} done", self.runner.script().name);
@@ -91,7 +90,7 @@ impl ScriptRun {
             }
             true
         });
-        Ok((step, ended))
+        Ok((sensed, step, ended))
     }
 
     /// Every finger holds where it is, and the script ends with `reason` (a running stage
@@ -160,8 +159,7 @@ impl ScriptRun {
 
     /// The task fields: `grasped` is true when the script completed (every stage it went
     /// through exited on its conditions and it reached `done`).
-    pub fn report(&self, plant: &Plant) -> TaskReport {
-        let lat = plant.latencies();
+    pub fn report(&self) -> TaskReport {
         let end = self.runner.end();
         TaskReport {
             task: self.runner.script().name.clone(),
@@ -171,12 +169,12 @@ impl ScriptRun {
             true_peak_force_n: self.true_peak_force_n,
             target_force_n: self.runner.max_target_force_n(),
             time_to_stable_s: None,
-            loop_latency_ms_p50: lat.loop_p50,
-            loop_latency_ms_p99: lat.loop_p99,
-            capture_to_command_ms_p50: lat.capture_p50,
-            capture_to_command_ms_p99: lat.capture_p99,
-            loop_own_ms_p99: lat.own_p99,
-            pipeline_ms_p99: lat.pipeline_p99,
+            loop_latency_ms_p50: None,
+            loop_latency_ms_p99: None,
+            capture_to_command_ms_p50: None,
+            capture_to_command_ms_p99: None,
+            loop_own_ms_p99: None,
+            pipeline_ms_p99: None,
             final_force_n: None,
             reason: end.map_or_else(|| "not finished".into(), |e| e.reason.clone()),
             finger_status: Vec::new(),

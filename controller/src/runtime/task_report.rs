@@ -4,6 +4,7 @@
 use serde::Serialize;
 
 use crate::grasp::FingerStatus;
+use crate::runtime::latency::Latencies;
 use crate::task::StageRecord;
 
 /// Task fields of `run --json` (CONTRACTS.md) and a few more.
@@ -57,6 +58,21 @@ pub struct TaskReport {
     /// conditions that ended it.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub stages: Option<Vec<StageRecord>>,
+}
+
+impl TaskReport {
+    /// The report with the run loop's latency figures.
+    pub fn with_latencies(self, lat: &Latencies) -> Self {
+        Self {
+            loop_latency_ms_p50: lat.loop_p50,
+            loop_latency_ms_p99: lat.loop_p99,
+            capture_to_command_ms_p50: lat.capture_p50,
+            capture_to_command_ms_p99: lat.capture_p99,
+            loop_own_ms_p99: lat.own_p99,
+            pipeline_ms_p99: lat.pipeline_p99,
+            ..self
+        }
+    }
 }
 
 /// A task as the page shows it.
