@@ -9,7 +9,7 @@
 //!    until [`SETTLE_FRAMES`] looks in a row (each at the mean of the last
 //!    [`SETTLE_FRAMES`] frames) show the same circle, says why a contact it sees is not
 //!    taken (too shallow, cut by the pad's edge, …), averages the next
-//!    [`AVERAGE_FRAMES`] and labels that ([`calibrate_label::label_one`]); Enter keeps the
+//!    [`AVERAGE_FRAMES`] and labels that ([`detect`]); Enter keeps the
 //!    press, `r` and Enter redoes it. A kept press is written (`press_NNN.png`, and
 //!    `presses.csv` rewritten) at once. The next press must first be lifted off, or moved.
 //!
@@ -43,7 +43,6 @@ use gelgrip_web::calibrate::{CollectStatus, CollectView, Decision, LabelView, Ph
 use crate::cli::{CollectArgs, UsageError};
 use crate::commands::calibrate_collect_view::ViewServer;
 use crate::commands::calibrate_force_hw::stdin_lines;
-use crate::commands::calibrate_label::label_one;
 use gelgrip::wiring;
 use gelgrip_controller::clock::ClockKind;
 
@@ -197,8 +196,8 @@ async fn session(
             kept.len() + 1
         ));
         s.view.update(|v| v.phase = Phase::Pressing);
-        let img = s.settled_press(&background, last).await?;
-        let circle = match label_one(&img, &background, ball_radius_px) {
+        let img = s.settled_press(&background, ball_radius_px, last).await?;
+        let circle = match detect(&img, &background, ball_radius_px) {
             Ok(c) => c,
             Err(reason) => {
                 eprintln!("  not usable: {reason}; lift the ball and press again");
@@ -207,7 +206,7 @@ async fn session(
                     v.label = None;
                     v.rejection = Some(reason.to_string());
                 });
-                last = detect(&img, &background).ok();
+                last = None;
                 continue;
             }
         };
@@ -392,6 +391,7 @@ impl Session {
     async fn settled_press(
         &mut self,
         background: &RgbImage,
+        ball_radius_px: f64,
         mut last: Option<ContactCircle>,
     ) -> Result<RgbImage, Stop> {
         let mut run: Vec<ContactCircle> = Vec::new();
@@ -405,15 +405,15 @@ impl Session {
                 recent.pop_front();
             }
             let img = average(recent.make_contiguous())?;
-            let found = detect(&img, background);
+            let found = detect(&img, background, ball_radius_px);
             self.show(&img, background, found.as_ref().ok().copied());
             let c = match found {
                 Ok(c) => c,
                 Err(why) => {
                     // Say once why a contact that is there is not taken.
-                    if !matches!(why, Rejection::NoContact { .. }) && said != why.kind() {
+                    if !matches!(why, Rejection::NoContact { .. }) && said != why.code() {
                         eprintln!("  waiting: {why}");
-                        said = why.kind();
+                        said = why.code();
                         let why = why.to_string();
                         self.view.update(|v| {
                             v.label = None;

@@ -9,7 +9,7 @@ use anyhow::Context;
 use clap::Args;
 use serde::Serialize;
 
-use gelgrip_plugins::calibrate::label::{ContactCircle, detect};
+use gelgrip_plugins::calibrate::label::{ContactCircle, Labeller, Rejection};
 use gelgrip_plugins::calibrate::sheet::{Tile, contact_sheet};
 use gelgrip_plugins::dataset::{DatasetInfo, Press, PressDataset};
 use gelgrip_plugins::image::RgbImage;
@@ -64,13 +64,18 @@ pub struct LabelledJson {
 pub struct RejectedJson {
     /// The image's file name.
     pub file: String,
-    /// Why it was not labelled.
+    /// Why it was not labelled: `no_contact`, `several_contacts`, `cut_by_border`,
+    /// `too_shallow`, `saturated`, `larger_than_ball`, `unreadable` or `wrong_size`.
+    pub code: &'static str,
+    /// Why, with what was measured.
     pub reason: String,
 }
 
 #[derive(Debug, Serialize)]
 struct LabelJson {
     labelled: usize,
+    /// The dataset's camera noise the presses were measured against, grey levels.
+    camera_noise: Option<f64>,
     rejected: Vec<RejectedJson>,
     presses: Vec<LabelledJson>,
 }
@@ -91,45 +96,39 @@ pub fn run(args: LabelArgs) -> anyhow::Result<u8> {
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     let ball_radius_px = args.ball_mm / 2.0 / args.mm_per_px;
-    let mut images = Vec::with_capacity(files.len());
+    let images: Vec<(String, Result<RgbImage, String>)> = files
+        .iter()
+        .map(|name| {
+            let img = RgbImage::read_png(&args.input.join(name)).map_err(|e| e.to_string());
+            (name.clone(), img)
+        })
+        .collect();
+    let readable: Vec<&RgbImage> = images.iter().filter_map(|(_, i)| i.as_ref().ok()).collect();
+    let labeller = Labeller::new(&background, ball_radius_px).with_dataset_noise(&readable);
     let (mut presses, mut rejected) = (Vec::new(), Vec::new());
-    for name in &files {
-        let img = RgbImage::read_png(&args.input.join(name));
-        let outcome = match &img {
-            Ok(img) => label_one(img, &background, ball_radius_px),
-            Err(e) => Err(format!("unreadable: {e}")),
+    for (name, img) in &images {
+        let outcome = match img {
+            Ok(img) => labeller.detect(img),
+            Err(detail) => Err(Rejection::Unreadable {
+                detail: detail.clone(),
+            }),
         };
-        images.push((name.clone(), img.ok()));
         match outcome {
             Ok(c) => presses.push((name.clone(), c)),
-            Err(reason) => {
-                eprintln!("{name}: rejected: {reason}");
+            Err(why) => {
+                eprintln!("{name}: rejected: {why}");
                 rejected.push(RejectedJson {
                     file: name.clone(),
-                    reason,
+                    code: why.code(),
+                    reason: why.to_string(),
                 });
             }
         }
     }
+    let images: Vec<(String, Option<RgbImage>)> =
+        images.into_iter().map(|(n, i)| (n, i.ok())).collect();
     write_outputs(&args, &background, &images, &presses, &rejected)?;
-    report(&args, presses, rejected)
-}
-
-/// The contact circle of `img`, or why it is not a usable press; a contact wider than the
-/// ball cannot be labelled with the ball's geometry.
-pub fn label_one(
-    img: &RgbImage,
-    background: &RgbImage,
-    ball_radius_px: f64,
-) -> Result<ContactCircle, String> {
-    let c = detect(img, background).map_err(|e| e.to_string())?;
-    if c.contact_radius_px >= ball_radius_px {
-        return Err(format!(
-            "contact radius {:.1} px is not smaller than the ball's radius {ball_radius_px:.1} px (check --ball-mm and --mm-per-px)",
-            c.contact_radius_px
-        ));
-    }
-    Ok(c)
+    report(&args, labeller.camera_noise(), presses, rejected)
 }
 
 /// The `*.png` files of `dir` but `background.png`, sorted by name.
@@ -203,11 +202,13 @@ fn csv_field(s: &str) -> String {
 
 fn report(
     args: &LabelArgs,
+    camera_noise: Option<f64>,
     presses: Vec<(String, ContactCircle)>,
     rejected: Vec<RejectedJson>,
 ) -> anyhow::Result<u8> {
     let out = LabelJson {
         labelled: presses.len(),
+        camera_noise,
         presses: presses
             .into_iter()
             .map(|(file, c)| LabelledJson {

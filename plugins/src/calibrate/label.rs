@@ -1,26 +1,29 @@
-//! Contact-circle detection: where a ball touched the gel in a press, from the press and the
-//! sensor's no-contact background, to label calibration presses without a person.
+//! Contact-circle detection: where a ball touched the gel in a press, from the press, the
+//! sensor's no-contact background and the ball's size, to label calibration presses without
+//! a person, on any sensor.
 //!
-//! The contact's rim is where the gel's slope is steepest and then stops: the difference
-//! from the background (its magnitude over the three channels) steps down there. Optics blur
-//! that step, and the LEDs make its height depend on the direction the slope faces, so the
-//! rim is found ray by ray, each relative to its own height and the contact's:
+//! Nothing here is a grey level seen on one sensor: every threshold is in units of the
+//! dataset's own noise or of the frame's own spread, and every length in units of the ball's
+//! radius (the image-processing scales, the blur and the background's smoothing, aside).
 //! 1. the difference image, each channel divided by the background's local level (the LEDs'
 //!    falloff across the pad) and less its median (a global brightness change),
-//!    box-blurred, and its magnitude; the noise level is the magnitude's median and spread
-//!    (MAD) over the frame;
-//! 2. the pixels above the noise form blobs (4-connected): none is "no contact", a second
-//!    one of comparable size "two blobs", clipped channels over the blob (or over half the
-//!    frame) "saturated";
-//! 3. from the blob's centroid, [`RAYS`] rays: along each, the outer point where the
-//!    magnitude falls half way from the untouched gel to a reference height (a step blurred
-//!    by the optics is at half height at the step), interpolated between samples. The
-//!    reference is the geometric mean of the ray's own peak (the LEDs show slopes facing
-//!    some ways more strongly than others) and the contact's (on a real sensor the weakly
-//!    shown directions are also the broad ones, and read against their own peak they pull
-//!    the centre toward them: 7 px on the GelSight Mini);
+//!    box-blurred, and its magnitude. Two noise figures come from the data: the frame's
+//!    spread (MAD of the magnitude: its smooth shading and drift) and the camera's noise
+//!    (what a 3×3 mean does not explain, per press; a dataset takes the median over its
+//!    presses, [`Labeller::with_dataset_noise`]);
+//! 2. the pixels above both form blobs (4-connected). Blobs within the ball's diameter of
+//!    the largest are parts of one contact (the LEDs show some slope directions weakly, and
+//!    a contact's magnitude may dip below the threshold there); a blob beyond that, of
+//!    comparable size, is a second contact. A contact whose peak is under [`SHALLOW_SNR`]
+//!    times the camera's noise is too shallow;
+//! 3. from the contact's centroid, [`RAYS`] rays out to the ball's radius: along each, the
+//!    outer point where the magnitude falls half way from the untouched gel to the ray's own
+//!    peak (a step blurred by the optics is at half height at the step, whatever the LEDs'
+//!    gain for that direction), interpolated between samples; where that point lies beyond
+//!    the ball (the gel's shading around a deep press), the steepest fall within it;
 //! 4. a least-squares circle through those rim points (outliers dropped, then refitted),
-//!    and the rays cast again from its centre, [`ITERATIONS`] times.
+//!    and the rays cast again from its centre, [`ITERATIONS`] times. A circle as wide as the
+//!    ball is refused: no press of that ball can make it.
 //!
 //! The score (0–1) is the share of rays that found the rim times how well the rim points
 //! lie on the circle (`exp(−rms / (5% of r))`).
@@ -35,32 +38,30 @@ pub use field::DiffField;
 /// Rays cast from the centre.
 pub const RAYS: usize = 72;
 /// Times the rays are recast from the fitted centre.
-pub const ITERATIONS: usize = 3;
+pub const ITERATIONS: usize = 4;
 /// Box-blur radius of the difference image, px.
 pub const BLUR_PX: usize = 2;
 /// Box-blur radius of the background's level that the difference is divided by, px: the
 /// LEDs' falloff is smooth over tens of pixels, the camera's noise is not.
 pub const BACKGROUND_SMOOTH_PX: usize = 8;
-/// Where on its way down from the reference height to the untouched gel a ray's rim is
-/// placed: half way, where a step blurred by the optics sits. A real GelSight Mini shows
-/// no step (its colour change fades over tens of pixels) and there the level sets the
-/// radius: 0.4 would match the mean size of its authors' hand-drawn circles, but moves the
-/// simulator's rims 0.7 px outward (docs/calibration.md).
+/// Where on its way down from the ray's peak to the untouched gel a ray's rim is placed:
+/// half way, where a step blurred by the optics sits.
 pub const RIM_FRACTION: f64 = 0.5;
-/// Noise spreads (MAD × 1.4826) above the median magnitude that count as signal.
+/// The frame's spreads (MAD × 1.4826 of the magnitude) above its median that count as
+/// signal.
 pub const SIGNAL_SIGMAS: f64 = 8.0;
-/// The least magnitude that counts as signal, grey levels (a noise-free synthetic frame has
-/// no spread to scale).
-pub const MIN_SIGNAL: f64 = 4.0;
+/// The camera noise's spreads in the blurred magnitude that count as signal at least.
+pub const NOISE_SIGMAS: f64 = 5.0;
+/// A contact whose peak is less than this many times the camera noise in the magnitude is
+/// too shallow to place a rim on.
+pub const SHALLOW_SNR: f64 = 10.0;
 /// A blob needs this many pixels to count.
 pub const MIN_BLOB_PX: usize = 12;
-/// A second blob at least this share of the largest one's size makes two blobs.
+/// A second blob, beyond the ball's diameter from the first, at least this share of its
+/// size is a second contact.
 pub const SECOND_BLOB_SHARE: f64 = 0.2;
-/// A contact whose peak is less than this many times the signal threshold is too shallow to
-/// place a rim on.
-pub const SHALLOW_PEAK: f64 = 2.5;
-/// Smallest contact radius that is labelled, px.
-pub const MIN_RADIUS_PX: f64 = 3.0;
+/// Smallest contact radius that is labelled, in units of the ball's radius.
+pub const MIN_RADIUS_SHARE: f64 = 0.08;
 /// Share of the blob's pixels that may be clipped (a channel at 0 or 255 that is not so in
 /// the background) before the press is saturated.
 pub const SATURATED_SHARE: f64 = 0.02;
@@ -80,9 +81,16 @@ pub struct ContactCircle {
     pub score: f64,
 }
 
-/// Why a press was not labelled.
+/// Why a press was not labelled. Each has a stable `code` (`--json`'s `rejected[].code`)
+/// and a text that gives what was measured.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum Rejection {
+    /// The image could not be read.
+    #[error("unreadable: {detail}")]
+    Unreadable {
+        /// The decoder's error.
+        detail: String,
+    },
     /// The press and the background differ in size.
     #[error("wrong size: {width}x{height} px, the background is {bg_width}x{bg_height} px")]
     WrongSize {
@@ -96,37 +104,22 @@ pub enum Rejection {
         bg_height: usize,
     },
     /// Nothing above the noise.
-    #[error("no contact: nothing above the noise (threshold {threshold:.1} grey levels)")]
+    #[error(
+        "no contact: nothing above the threshold ({threshold:.1} grey levels over the gel's \
+         {baseline:.1}; camera noise {noise:.2} grey levels)"
+    )]
     NoContact {
         /// The signal threshold, grey levels.
         threshold: f64,
+        /// The untouched gel's magnitude, grey levels.
+        baseline: f64,
+        /// The camera's noise, grey levels per channel.
+        noise: f64,
     },
-    /// More than one contact.
-    #[error("two blobs: a second contact of {second_px} px beside one of {first_px} px")]
-    TwoBlobs {
-        /// The largest blob's size, px.
-        first_px: usize,
-        /// The second's, px.
-        second_px: usize,
-    },
-    /// The contact runs off the image.
-    #[error("cut by the pad's edge: the contact reaches the image border")]
-    CutByEdge,
-    /// Too faint or too small to place a rim on.
-    #[error("too shallow: {detail}")]
-    TooShallow {
-        /// What was too small.
-        detail: String,
-    },
-    /// Clipped channels over the contact.
-    #[error("saturated: {percent:.0}% of the contact's pixels are clipped at 0 or 255")]
-    Saturated {
-        /// Clipped share of the blob, %.
-        percent: f64,
-    },
-    /// The rim is not a circle.
+    /// Something above the noise, but no round rim around it.
     #[error(
-        "not round: the rim was found on {rays_found} of {rays} rays, {rms_px:.1} px RMS off the circle"
+        "no contact: no round rim (found on {rays_found} of {rays} rays, {rms_px:.1} px RMS off \
+         a circle)"
     )]
     NotRound {
         /// Rays that found the rim.
@@ -136,119 +129,133 @@ pub enum Rejection {
         /// RMS distance of the rim points from the circle, px.
         rms_px: f64,
     },
+    /// More than one contact.
+    #[error(
+        "several contacts: one of {second_px} px {distance_px:.0} px from one of {first_px} px, \
+         further apart than the ball's diameter ({diameter_px:.0} px)"
+    )]
+    SeveralContacts {
+        /// The largest blob's size, px.
+        first_px: usize,
+        /// The second's, px.
+        second_px: usize,
+        /// Between their centroids, px.
+        distance_px: f64,
+        /// The ball's diameter, px.
+        diameter_px: f64,
+    },
+    /// The contact runs off the image.
+    #[error("cut by the border: {detail}")]
+    CutByBorder {
+        /// Where.
+        detail: String,
+    },
+    /// Too faint or too small to place a rim on.
+    #[error("too shallow: {detail}")]
+    TooShallow {
+        /// What was measured, against what.
+        detail: String,
+    },
+    /// Clipped channels over the contact.
+    #[error("saturated: {percent:.0}% of the contact's pixels are clipped at 0 or 255")]
+    Saturated {
+        /// Clipped share of the blob, %.
+        percent: f64,
+    },
+    /// The contact is at least as wide as the ball.
+    #[error(
+        "larger than the ball: contact radius {radius_px:.1} px, the ball's {ball_radius_px:.1} \
+         px (check --ball-mm and --mm-per-px)"
+    )]
+    LargerThanBall {
+        /// The circle found, px.
+        radius_px: f64,
+        /// The ball's radius, px.
+        ball_radius_px: f64,
+    },
 }
 
 impl Rejection {
-    /// The reason's short name (`no contact`, `two blobs`, …), without its figures.
-    pub fn kind(&self) -> &'static str {
+    /// The reason's stable code: `no_contact`, `several_contacts`, `cut_by_border`,
+    /// `too_shallow`, `saturated`, `larger_than_ball`, `unreadable` or `wrong_size`.
+    pub fn code(&self) -> &'static str {
         match self {
-            Self::WrongSize { .. } => "wrong size",
-            Self::NoContact { .. } => "no contact",
-            Self::TwoBlobs { .. } => "two blobs",
-            Self::CutByEdge => "cut by the pad's edge",
-            Self::TooShallow { .. } => "too shallow",
+            Self::Unreadable { .. } => "unreadable",
+            Self::WrongSize { .. } => "wrong_size",
+            Self::NoContact { .. } | Self::NotRound { .. } => "no_contact",
+            Self::SeveralContacts { .. } => "several_contacts",
+            Self::CutByBorder { .. } => "cut_by_border",
+            Self::TooShallow { .. } => "too_shallow",
             Self::Saturated { .. } => "saturated",
-            Self::NotRound { .. } => "not round",
+            Self::LargerThanBall { .. } => "larger_than_ball",
         }
     }
 }
 
-/// Find the contact circle of `press` against `background`.
-pub fn detect(press: &RgbImage, background: &RgbImage) -> Result<ContactCircle, Rejection> {
-    if (press.width, press.height) != (background.width, background.height)
-        || press.data.len() != background.data.len()
-    {
-        return Err(Rejection::WrongSize {
-            width: press.width,
-            height: press.height,
-            bg_width: background.width,
-            bg_height: background.height,
-        });
-    }
-    let field = DiffField::new(press, background, BLUR_PX);
-    // A frame clipped nearly everywhere (LEDs off, an overexposed camera) shows no press.
-    let everywhere: Vec<usize> = (0..press.width * press.height).step_by(7).collect();
-    let clipped = field.clipped_share(press, background, &everywhere);
-    if clipped > 0.5 {
-        return Err(Rejection::Saturated {
-            percent: clipped * 100.0,
-        });
-    }
-    let threshold = field.threshold();
-    let blobs = field.blobs(threshold);
-    let Some(main) = blobs.first() else {
-        return Err(Rejection::NoContact { threshold });
-    };
-    if let Some(second) = blobs.get(1)
-        && second.pixels.len() as f64 >= SECOND_BLOB_SHARE * main.pixels.len() as f64
-    {
-        return Err(Rejection::TwoBlobs {
-            first_px: main.pixels.len(),
-            second_px: second.pixels.len(),
-        });
-    }
-    let clipped = field.clipped_share(press, background, &main.pixels);
-    if clipped > SATURATED_SHARE {
-        return Err(Rejection::Saturated {
-            percent: clipped * 100.0,
-        });
-    }
-    if main.touches_border {
-        return Err(Rejection::CutByEdge);
-    }
-    let peak = main.peak - field.baseline();
-    if peak < SHALLOW_PEAK * (threshold - field.baseline()) {
-        return Err(Rejection::TooShallow {
-            detail: format!(
-                "peak {peak:.1} grey levels, under {SHALLOW_PEAK} x the signal threshold"
-            ),
-        });
-    }
-    let (mut cx, mut cy) = main.centroid;
-    let mut r = (main.pixels.len() as f64 / std::f64::consts::PI).sqrt();
-    let mut found = (0, 0.0);
-    for _ in 0..ITERATIONS {
-        let reach = (2.5 * r).max(8.0);
-        let rim = field.rim_points((cx, cy), reach, RAYS, threshold, main.peak);
-        let Some(circle) = fit::robust_circle(&rim) else {
-            return Err(Rejection::NotRound {
-                rays_found: rim.len(),
-                rays: RAYS,
-                rms_px: f64::NAN,
-            });
-        };
-        (cx, cy, r) = (circle.cx, circle.cy, circle.r);
-        found = (rim.len(), circle.rms);
-    }
-    let (rays_found, rms_px) = found;
-    if (rays_found as f64) < MIN_RAY_SHARE * RAYS as f64 || rms_px.is_nan() || rms_px >= 0.25 * r {
-        return Err(Rejection::NotRound {
-            rays_found,
-            rays: RAYS,
-            rms_px,
-        });
-    }
-    if r.is_nan() || r < MIN_RADIUS_PX {
-        return Err(Rejection::TooShallow {
-            detail: format!("contact radius {r:.1} px, under {MIN_RADIUS_PX} px"),
-        });
-    }
-    let (w, h) = (press.width as f64, press.height as f64);
-    if cx - r < 0.0 || cy - r < 0.0 || cx + r > w - 1.0 || cy + r > h - 1.0 {
-        return Err(Rejection::CutByEdge);
-    }
-    let score = rays_found as f64 / RAYS as f64 * (-rms_px / (0.05 * r)).exp();
-    Ok(ContactCircle {
-        center_x_px: cx,
-        center_y_px: cy,
-        contact_radius_px: r,
-        score: if score.is_finite() {
-            score.clamp(0.0, 1.0)
-        } else {
-            0.0
-        },
-    })
+/// Labels presses of one ball against one background, with the dataset's noise.
+#[derive(Debug, Clone)]
+pub struct Labeller<'a> {
+    background: &'a RgbImage,
+    ball_radius_px: f64,
+    camera_noise: Option<f64>,
 }
+
+impl<'a> Labeller<'a> {
+    /// A labeller for presses of a ball of `ball_radius_px` against `background`; each press
+    /// is measured against its own camera noise until [`Self::with_dataset_noise`].
+    pub fn new(background: &'a RgbImage, ball_radius_px: f64) -> Self {
+        Self {
+            background,
+            ball_radius_px,
+            camera_noise: None,
+        }
+    }
+
+    /// Measure every press against the dataset's camera noise: the median of `presses`'
+    /// own (those of the background's size).
+    pub fn with_dataset_noise(mut self, presses: &[&RgbImage]) -> Self {
+        let mut noise: Vec<f64> = presses
+            .iter()
+            .filter(|p| same_size(p, self.background))
+            .map(|p| DiffField::new(p, self.background, BLUR_PX).camera_noise())
+            .filter(|n| n.is_finite())
+            .collect();
+        noise.sort_by(f64::total_cmp);
+        self.camera_noise = noise.get(noise.len() / 2).copied();
+        self
+    }
+
+    /// The dataset's camera noise, grey levels per channel (`None`: each press's own).
+    pub fn camera_noise(&self) -> Option<f64> {
+        self.camera_noise
+    }
+
+    /// The ball's radius, px.
+    pub fn ball_radius_px(&self) -> f64 {
+        self.ball_radius_px
+    }
+
+    /// Find the contact circle of `press`.
+    pub fn detect(&self, press: &RgbImage) -> Result<ContactCircle, Rejection> {
+        detect::contact(self, press)
+    }
+}
+
+fn same_size(a: &RgbImage, b: &RgbImage) -> bool {
+    (a.width, a.height) == (b.width, b.height) && a.data.len() == b.data.len()
+}
+
+/// Find the contact circle of `press` against `background`, for a ball of `ball_radius_px`
+/// (the press measured against its own camera noise).
+pub fn detect(
+    press: &RgbImage,
+    background: &RgbImage,
+    ball_radius_px: f64,
+) -> Result<ContactCircle, Rejection> {
+    Labeller::new(background, ball_radius_px).detect(press)
+}
+
+mod detect;
 
 #[cfg(test)]
 mod tests;

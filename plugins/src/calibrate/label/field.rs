@@ -5,19 +5,33 @@
 
 use crate::image::RgbImage;
 
-use super::{BACKGROUND_SMOOTH_PX, MIN_BLOB_PX, MIN_SIGNAL, RIM_FRACTION, SIGNAL_SIGMAS};
+use super::{BACKGROUND_SMOOTH_PX, MIN_BLOB_PX, NOISE_SIGMAS, RIM_FRACTION, SIGNAL_SIGMAS};
 
 /// Step along a ray, px.
 const RAY_STEP_PX: f64 = 0.5;
+/// Rays run this far past the ball's radius (in its units) to see a rim's fall.
+const RAY_REACH: f64 = 1.5;
 
 /// |press − background| per pixel, with the noise statistics of the frame.
 #[derive(Debug, Clone)]
 pub struct DiffField {
     width: usize,
     height: usize,
+    /// The blurred difference's magnitude as the camera gives it (its noise is the same
+    /// everywhere): where the contact is, and how far above the noise.
+    signal: Vec<f32>,
+    /// The same with each channel divided by the LEDs' light there: where its rim is.
     magnitude: Vec<f32>,
+    /// The blurred difference divided by the light, channel by channel.
+    channels: Vec<Vec<f32>>,
+    /// `signal`'s median.
     baseline: f64,
+    /// `magnitude`'s median.
+    lit_baseline: f64,
     spread: f64,
+    /// The camera's noise in the difference, per channel, grey levels (before the blur).
+    camera_noise: f64,
+    blur_px: usize,
 }
 
 /// A 4-connected blob of pixels above the threshold.
@@ -45,46 +59,72 @@ impl DiffField {
     pub fn new(press: &RgbImage, background: &RgbImage, blur_px: usize) -> Self {
         let (w, h) = (press.width, press.height);
         let n = w * h;
-        let mut channels: Vec<Vec<f32>> = (0..3)
+        let mut raw: Vec<Vec<f32>> = (0..3)
             .map(|c| {
-                let mut level: Vec<f32> = (0..n)
-                    .map(|p| f32::from(background.data[3 * p + c]))
-                    .collect();
-                let reference = median(level.iter().step_by(7).copied().collect()).max(1.0) as f32;
-                box_blur(&mut level, w, h, BACKGROUND_SMOOTH_PX);
                 (0..n)
                     .map(|p| {
-                        let d = f32::from(press.data[3 * p + c])
-                            - f32::from(background.data[3 * p + c]);
-                        d * reference / level[p].max(1.0)
+                        f32::from(press.data[3 * p + c]) - f32::from(background.data[3 * p + c])
                     })
                     .collect()
             })
             .collect();
-        for ch in &mut channels {
+        let mut noise = Vec::with_capacity(3);
+        for ch in &mut raw {
             let shift = median(ch.iter().step_by(7).copied().collect()) as f32;
             ch.iter_mut().for_each(|v| *v -= shift);
+            noise.push(high_pass_sigma(ch, w, h));
+        }
+        // The three channels' noise as one figure (their RMS), never under the 8-bit
+        // quantisation's own (1/√12 of a grey level).
+        let camera_noise = (noise.iter().map(|s| s * s).sum::<f64>() / 3.0)
+            .sqrt()
+            .max(QUANTISATION_SIGMA);
+        let mut channels: Vec<Vec<f32>> = raw
+            .iter()
+            .enumerate()
+            .map(|(c, ch)| {
+                let gain = lighting_gain(background, c);
+                ch.iter().zip(&gain).map(|(d, g)| d * g).collect()
+            })
+            .collect();
+        for ch in raw.iter_mut().chain(channels.iter_mut()) {
             box_blur(ch, w, h, blur_px);
         }
-        let magnitude: Vec<f32> = (0..n)
-            .map(|p| (channels.iter().map(|c| c[p] * c[p]).sum::<f32>()).sqrt())
-            .collect();
-        let sample: Vec<f32> = magnitude.iter().step_by(3).copied().collect();
-        let baseline = median(sample.clone());
-        let spread = 1.4826
-            * median(
-                sample
-                    .iter()
-                    .map(|v| (f64::from(*v) - baseline).abs() as f32)
-                    .collect(),
-            );
+        let magnitude_of = |planes: &[Vec<f32>]| -> Vec<f32> {
+            (0..n)
+                .map(|p| (planes.iter().map(|c| c[p] * c[p]).sum::<f32>()).sqrt())
+                .collect()
+        };
+        let signal = magnitude_of(&raw);
+        let magnitude = magnitude_of(&channels);
+        let (baseline, spread) = level_and_spread(&signal);
+        let (lit_baseline, _) = level_and_spread(&magnitude);
         Self {
             width: w,
             height: h,
+            signal,
             magnitude,
+            channels,
             baseline,
+            lit_baseline,
             spread,
+            camera_noise,
+            blur_px,
         }
+    }
+
+    /// The camera's noise in the difference image, per channel, grey levels: the spread of
+    /// what a 3×3 mean does not explain (the pixel-to-pixel noise, which the press's smooth
+    /// shading does not reach), at least the 8-bit quantisation's.
+    pub fn camera_noise(&self) -> f64 {
+        self.camera_noise
+    }
+
+    /// The noise `camera_noise` (per channel, unblurred) leaves in the blurred magnitude:
+    /// the unit the signal threshold and the shallowness are measured in.
+    pub fn magnitude_noise(&self, camera_noise: f64) -> f64 {
+        let side = (2 * self.blur_px + 1) as f64;
+        camera_noise * 3f64.sqrt() / side
     }
 
     /// The magnitude of untouched gel (the frame's median), grey levels.
@@ -92,17 +132,19 @@ impl DiffField {
         self.baseline
     }
 
-    /// The magnitude above which a pixel is signal: [`SIGNAL_SIGMAS`] noise spreads above
-    /// the baseline, and at least [`MIN_SIGNAL`] above it.
-    pub fn threshold(&self) -> f64 {
-        self.baseline + (SIGNAL_SIGMAS * self.spread).max(MIN_SIGNAL)
+    /// The magnitude above which a pixel is signal, given the dataset's camera noise:
+    /// [`SIGNAL_SIGMAS`] of the frame's own spread (MAD) above its baseline, and at least
+    /// [`NOISE_SIGMAS`] of the noise the camera leaves in the magnitude.
+    pub fn threshold(&self, camera_noise: f64) -> f64 {
+        self.baseline
+            + (SIGNAL_SIGMAS * self.spread).max(NOISE_SIGMAS * self.magnitude_noise(camera_noise))
     }
 
     /// Blobs above `threshold` of at least [`MIN_BLOB_PX`] pixels, largest first.
     pub fn blobs(&self, threshold: f64) -> Vec<Blob> {
         let (w, h) = (self.width, self.height);
         let above: Vec<bool> = self
-            .magnitude
+            .signal
             .iter()
             .map(|v| f64::from(*v) > threshold)
             .collect();
@@ -152,7 +194,7 @@ impl DiffField {
         for &p in &pixels {
             let (x, y) = (p % w, p / w);
             touches_border |= x == 0 || y == 0 || x + 1 == w || y + 1 == self.height;
-            let m = f64::from(self.magnitude[p]);
+            let m = f64::from(self.signal[p]);
             let wgt = m - threshold;
             sw += wgt;
             sx += wgt * x as f64;
@@ -171,6 +213,13 @@ impl DiffField {
             peak,
             touches_border,
         }
+    }
+
+    /// `a` and `b` as one blob (the parts of one contact).
+    pub fn merge(&self, a: Blob, b: Blob, threshold: f64) -> Blob {
+        let mut pixels = a.pixels;
+        pixels.extend(b.pixels);
+        self.blob(pixels, threshold)
     }
 
     /// Share of `pixels` where a channel of `press` is clipped (0 or 255) and the
@@ -193,6 +242,20 @@ impl DiffField {
 
     /// Bilinear magnitude at (`x`, `y`); `None` outside the image.
     fn at(&self, x: f64, y: f64) -> Option<f64> {
+        self.sample(&self.magnitude, x, y)
+    }
+
+    /// The blurred difference's three channels at (`x`, `y`); `None` outside the image.
+    fn colour_at(&self, x: f64, y: f64) -> Option<[f64; 3]> {
+        Some([
+            self.sample(&self.channels[0], x, y)?,
+            self.sample(&self.channels[1], x, y)?,
+            self.sample(&self.channels[2], x, y)?,
+        ])
+    }
+
+    /// Bilinear value of `plane` at (`x`, `y`); `None` outside the image.
+    fn sample(&self, plane: &[f32], x: f64, y: f64) -> Option<f64> {
         let (w, h) = (self.width, self.height);
         if !(x >= 0.0 && y >= 0.0 && x <= (w - 1) as f64 && y <= (h - 1) as f64) {
             return None;
@@ -200,53 +263,79 @@ impl DiffField {
         let (x0, y0) = (x.floor() as usize, y.floor() as usize);
         let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
         let (fx, fy) = (x - x0 as f64, y - y0 as f64);
-        let m = |x: usize, y: usize| f64::from(self.magnitude[y * w + x]);
+        let m = |x: usize, y: usize| f64::from(plane[y * w + x]);
         let top = m(x0, y0) * (1.0 - fx) + m(x1, y0) * fx;
         let bottom = m(x0, y1) * (1.0 - fx) + m(x1, y1) * fx;
         Some(top * (1.0 - fy) + bottom * fy)
     }
 
-    /// Rim points on `rays` rays from `centre` out to `reach` px: on each, the outer point
-    /// where the magnitude falls to [`RIM_FRACTION`] of the way from the baseline to the
-    /// ray's reference height, when the ray's peak is above `threshold` and the fall lies
-    /// inside the image. The reference is the geometric mean of the ray's own peak and the
-    /// contact's `peak` (both above the baseline): the ray's own, because the LEDs show
-    /// slopes facing some ways more strongly than others; the contact's, because on a real
-    /// sensor the weakly shown directions are also the broad ones (the gel's deformation
-    /// outside the contact), and a ray read only against its own peak runs far out along
-    /// them.
+    /// Rim points on `rays` rays from `centre`, out to [`RAY_REACH`] times the ball's radius
+    /// `ball_px` (a rim beyond the ball is found, and its circle refused, rather than cut
+    /// down to size). On each ray whose signal rises above `threshold`: the outer point where
+    /// the lit magnitude falls [`RIM_FRACTION`] of the way from the untouched gel to the
+    /// ray's own peak (a step in slope blurred by the optics is at half height at the step,
+    /// whatever the LEDs' gain for the slope's direction); then, within [`STEP_WINDOW`] of
+    /// the ball's radius of it, the centre of the colour's largest change, where that change
+    /// stands [`STEP_SNR`] times above the noise (`noise_unit`): where the LEDs' response
+    /// turns over at steep slopes, the magnitude falls before the rim, the colour still
+    /// steps at it.
     pub fn rim_points(
         &self,
         (cx, cy): (f64, f64),
-        reach: f64,
+        ball_px: f64,
         rays: usize,
         threshold: f64,
-        peak: f64,
+        noise_unit: f64,
     ) -> Vec<(f64, f64)> {
-        let steps = (reach / RAY_STEP_PX).ceil() as usize;
-        let mut out = Vec::with_capacity(rays);
-        let mut profile = Vec::with_capacity(steps + 1);
+        let steps = (ball_px * RAY_REACH / RAY_STEP_PX).ceil() as usize;
+        let window = (STEP_WINDOW * ball_px / RAY_STEP_PX).ceil() as usize;
+        let mut cast = Vec::with_capacity(rays);
         for k in 0..rays {
             let (s, c) = (std::f64::consts::TAU * k as f64 / rays as f64).sin_cos();
-            profile.clear();
+            let (mut profile, mut colours) = (Vec::new(), Vec::new());
+            let mut signal_peak = f64::MIN;
             for i in 0..=steps {
-                let rho = i as f64 * RAY_STEP_PX;
-                match self.at(cx + rho * c, cy + rho * s) {
-                    Some(v) => profile.push(v),
-                    None => break,
+                let (x, y) = (
+                    cx + i as f64 * RAY_STEP_PX * c,
+                    cy + i as f64 * RAY_STEP_PX * s,
+                );
+                match (
+                    self.at(x, y),
+                    self.colour_at(x, y),
+                    self.sample(&self.signal, x, y),
+                ) {
+                    (Some(v), Some(col), Some(sig)) => {
+                        profile.push(v);
+                        colours.push(col);
+                        signal_peak = signal_peak.max(sig);
+                    }
+                    _ => break,
                 }
             }
-            let Some(rho) = self.rim_fall(&profile, threshold, peak) else {
+            if signal_peak > threshold {
+                cast.push(((s, c), profile, colours));
+            }
+        }
+        let mut out = Vec::with_capacity(rays);
+        for ((s, c), profile, colours) in cast {
+            let Some(fall) = self.rim_fall(&profile) else {
                 continue;
+            };
+            let centre = (fall / RAY_STEP_PX).round() as usize;
+            let from = centre.saturating_sub(window);
+            let to = (centre + window).min(colours.len().saturating_sub(1));
+            let rho = match colour_step(&colours, from, to) {
+                Some((rho, change)) if change >= STEP_SNR * noise_unit => rho,
+                _ => fall,
             };
             out.push((cx + rho * c, cy + rho * s));
         }
         out
     }
 
-    /// Where `profile` (sampled every [`RAY_STEP_PX`]) falls below the rim level (see
-    /// [`Self::rim_points`]), after its peak, px from its start.
-    fn rim_fall(&self, profile: &[f64], threshold: f64, contact_peak: f64) -> Option<f64> {
+    /// Where the lit `profile` (sampled every [`RAY_STEP_PX`]) falls to the rim level after
+    /// its peak, px from its start (see [`Self::rim_points`]).
+    fn rim_fall(&self, profile: &[f64]) -> Option<f64> {
         let (peak_i, peak) =
             profile
                 .iter()
@@ -256,20 +345,112 @@ impl DiffField {
                     (0, f64::MIN),
                     |best, (i, v)| if v > best.1 { (i, v) } else { best },
                 );
-        if peak <= threshold {
+        let base = self.lit_baseline;
+        if peak <= base {
             return None;
         }
-        let reference = ((peak - self.baseline) * (contact_peak - self.baseline).max(0.0)).sqrt();
-        // A ray under a quarter of the contact's peak does not reach its own rim level.
-        let level = self.baseline + RIM_FRACTION * reference;
-        if peak <= level {
-            return None;
-        }
+        let level = base + RIM_FRACTION * (peak - base);
         let i = (peak_i..profile.len()).find(|&i| profile[i] < level)?;
         let (a, b) = (profile[i - 1], profile[i]);
         let t = if a > b { (a - level) / (a - b) } else { 0.0 };
         Some((i as f64 - 1.0 + t) * RAY_STEP_PX)
     }
+}
+
+/// A ray's colour step counts as its rim when it is this many times the camera's noise in
+/// the blurred magnitude; a fainter one is read from the magnitude's fall instead.
+const STEP_SNR: f64 = 8.0;
+/// How far either side of the magnitude's fall a ray looks for the colour's step, in units
+/// of the ball's radius.
+const STEP_WINDOW: f64 = 0.15;
+/// Samples either side of a point that the colour's change across it is measured over.
+const STEP_HALF_SAMPLES: usize = 2;
+
+/// Where along a ray the colour of the difference changes most between samples `from` and
+/// `to` (the rim: the gel's slope steps from the ball's to flat there, and the optics blur
+/// that step into a box-shaped change): the centroid of the change where it is above half
+/// its largest, px from the ray's start, and that largest change.
+fn colour_step(colours: &[[f64; 3]], from: usize, to: usize) -> Option<(f64, f64)> {
+    let k = STEP_HALF_SAMPLES;
+    let (from, to) = (from.max(k), to.min(colours.len().saturating_sub(k + 1)));
+    if from >= to {
+        return None;
+    }
+    let change: Vec<f64> = (from..=to)
+        .map(|i| {
+            let (a, b) = (colours[i - k], colours[i + k]);
+            ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+        })
+        .collect();
+    let (top_j, top) = change
+        .iter()
+        .copied()
+        .enumerate()
+        .fold(
+            (0, f64::MIN),
+            |best, (j, v)| if v > best.1 { (j, v) } else { best },
+        );
+    if top.is_nan() || top <= 0.0 {
+        return None;
+    }
+    let half = 0.5 * top;
+    let first = (0..=top_j)
+        .rev()
+        .take_while(|&j| change[j] >= half)
+        .last()?;
+    let last = (top_j..change.len())
+        .take_while(|&j| change[j] >= half)
+        .last()?;
+    let (sum, weighted) = (first..=last).fold((0.0, 0.0), |(s, w), j| {
+        (s + change[j], w + change[j] * (j + from) as f64)
+    });
+    Some((weighted / sum * RAY_STEP_PX, top))
+}
+
+/// Per pixel, what the difference of channel `c` is multiplied by to read as at a pixel of
+/// the channel's median light: the median over the background's level there (box-blurred
+/// over [`BACKGROUND_SMOOTH_PX`], at least 1).
+fn lighting_gain(background: &RgbImage, c: usize) -> Vec<f32> {
+    let (w, h) = (background.width, background.height);
+    let mut level: Vec<f32> = (0..w * h)
+        .map(|p| f32::from(background.data[3 * p + c]))
+        .collect();
+    let reference = median(level.iter().step_by(7).copied().collect()).max(1.0) as f32;
+    box_blur(&mut level, w, h, BACKGROUND_SMOOTH_PX);
+    level.iter().map(|l| reference / l.max(1.0)).collect()
+}
+
+/// The median of `v` and its spread (1.4826 × MAD), from every third value.
+fn level_and_spread(v: &[f32]) -> (f64, f64) {
+    let sample: Vec<f32> = v.iter().step_by(3).copied().collect();
+    let level = median(sample.clone());
+    let spread = 1.4826
+        * median(
+            sample
+                .iter()
+                .map(|x| (f64::from(*x) - level).abs() as f32)
+                .collect(),
+        );
+    (level, spread)
+}
+
+/// The 8-bit quantisation's noise, grey levels.
+const QUANTISATION_SIGMA: f64 = 0.288_675_134_594_812_9;
+
+/// The noise of one channel `v` (`w`×`h`): 1.4826 × the median absolute residual from the
+/// 3×3 mean, scaled by √(9/8) for the pixel's own share of that mean.
+fn high_pass_sigma(v: &[f32], w: usize, h: usize) -> f64 {
+    if w < 3 || h < 3 {
+        return 0.0;
+    }
+    let mut smooth = v.to_vec();
+    box_blur(&mut smooth, w, h, 1);
+    let residual: Vec<f32> = (1..h - 1)
+        .flat_map(|y| (1..w - 1).map(move |x| y * w + x))
+        .step_by(3)
+        .map(|p| (v[p] - smooth[p]).abs())
+        .collect();
+    1.4826 * median(residual) * (9.0f64 / 8.0).sqrt()
 }
 
 /// The median of `v` (0 for none; non-finite values sort last).
