@@ -387,3 +387,46 @@ fn calibrate_force_fits_the_simulators_gel_stiffness() {
         .expect("gelgrip runs");
     assert_eq!(bad.status.code(), Some(2));
 }
+
+/// `calibrate train` on a dataset whose `presses.csv` lists no press is a usage error
+/// (exit 2) that says so, for either model, and writes no model (it used to write one that
+/// predicts zero everywhere).
+#[test]
+fn train_refuses_a_dataset_without_presses() {
+    let dir = scratch("no-presses");
+    let data = dir.join("empty");
+    std::fs::create_dir_all(&data).expect("dir");
+    std::fs::write(
+        data.join("dataset.toml"),
+        "ball_diameter_mm = 6.0\nmm_per_px = 0.0625\n",
+    )
+    .expect("toml");
+    std::fs::write(
+        data.join("presses.csv"),
+        "file,center_x_px,center_y_px,contact_radius_px\n",
+    )
+    .expect("csv");
+    gelgrip_plugins::image::RgbImage::new(32, 24)
+        .write_png(&data.join("background.png"))
+        .expect("png");
+    for kind in ["lut", "mlp"] {
+        let model = dir.join(format!("{kind}.safetensors"));
+        let out = gelgrip(&[
+            "calibrate",
+            "train",
+            "--data",
+            s(&data),
+            "--model",
+            kind,
+            "--out",
+            s(&model),
+        ]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{kind}: {stderr}");
+        assert!(
+            stderr.contains("lists no presses") && stderr.contains(s(&data)),
+            "{kind}: {stderr}"
+        );
+        assert!(!model.exists(), "{kind}: a model was written");
+    }
+}

@@ -146,6 +146,15 @@ fn train(args: TrainArgs) -> anyhow::Result<u8> {
     // clap allows only the names Input parses.
     let input = Input::parse(&args.input).unwrap_or(Input::Diff);
     let ds = PressDataset::load(&args.data)?;
+    if ds.presses.is_empty() {
+        // A table or network fitted to no press predicts zero everywhere.
+        return Err(UsageError(format!(
+            "{}: presses.csv lists no presses, so there is nothing to train on: collect \
+             (`calibrate collect`) or label (`calibrate label`) presses into it first",
+            args.data.display()
+        ))
+        .into());
+    }
     let split = calibrate::split_index(ds.presses.len());
     let started = std::time::Instant::now();
     let trained = match args.model {
