@@ -57,6 +57,7 @@ impl Observer for TaskLog {
         let (Some(step), Some(fused)) = (g.step, g.fused) else {
             return Ok(());
         };
+        let servos = report.servos.map_or(&[][..], |s| s.states);
         let mut cells = vec![format!("{:.4}", step.t_s), step.stage.clone()];
         cells.extend(
             fused
@@ -74,7 +75,7 @@ impl Observer for TaskLog {
                     .map_or(String::new(), |g| format!("{:.1}", g.goal_current_ma)),
             );
             cells.push(
-                g.servos
+                servos
                     .get(i)
                     .map_or(String::new(), |s| format!("{:.2}", s.position_deg)),
             );

@@ -657,6 +657,54 @@ fn two_grippers_share_a_router_in_their_own_namespaces() {
     }
 }
 
+/// A plain run (no task: the fixed servo programme, no pilot) records every servo read, so
+/// its MCAP export holds `joint_states` at the servo-read rate (50 Hz) over the whole run.
+#[test]
+#[ignore = "needs the PyPI mcap and mcap-ros2-support: run scripts/test"]
+fn a_plain_runs_export_holds_joint_states_at_the_servo_read_rate() {
+    let dir = common::scratch("ros-mcap-plain");
+    let rec = dir.join("rec");
+    let out = common::virtual_run(&["--duration", "5", "--record", common::s(&rec)])
+        .output()
+        .expect("the run");
+    common::json(&out);
+    let mcap = dir.join("out.mcap");
+    common::ok(&common::gelgrip_cached(&[
+        "record",
+        "export",
+        common::s(&rec),
+        "--mcap",
+        common::s(&mcap),
+    ]));
+    let read = Command::new(python())
+        .arg(format!("{ROOT}/tests/python/mcap_read.py"))
+        .arg(&mcap)
+        .output()
+        .expect("the python reader");
+    assert!(
+        read.status.success(),
+        "{}",
+        String::from_utf8_lossy(&read.stderr)
+    );
+    let summary: Value = serde_json::from_slice(&read.stdout).expect("one JSON summary");
+    assert_eq!(summary["errors"], serde_json::json!([]));
+    let joints = &summary["topics"]["/gelgrip/joint_states"];
+    let count = joints["count"]
+        .as_u64()
+        .expect("joint_states in the export");
+    let span_s = (joints["last_log_ns"].as_u64().expect("t")
+        - joints["first_log_ns"].as_u64().expect("t")) as f64
+        / 1e9;
+    eprintln!("{count} joint_states over {span_s:.2} s");
+    assert!(
+        (4.5..=5.5).contains(&span_s),
+        "joint_states span {span_s} s"
+    );
+    let hz = (count - 1) as f64 / span_s;
+    assert!((45.0..=55.0).contains(&hz), "joint_states at {hz:.1} Hz");
+    assert_eq!(joints["full_velocity"], joints["count"], "{joints}");
+}
+
 #[test]
 #[ignore = "needs the PyPI mcap and mcap-ros2-support: run scripts/test"]
 fn an_mcap_export_reads_back_with_every_message_decoding() {

@@ -119,7 +119,11 @@ fn export_csv(recording: &Recording, file: &Path) -> anyhow::Result<u64> {
     let ids = sensor_ids(recording)?;
     let mut states = Vec::new();
     recording.scan(|r| {
-        if let Record::Meta(Meta::State { host_us, state }) = r {
+        // One row per set: the servo reads between sets (`trigger_seq` null) are the MCAP
+        // export's `joint_states`, not rows.
+        if let Record::Meta(Meta::State { host_us, state }) = r
+            && state["trigger_seq"].is_u64()
+        {
             states.push((host_us, state));
         }
     })?;

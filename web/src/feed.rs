@@ -8,7 +8,7 @@ use std::sync::{Arc, Mutex};
 
 use thiserror::Error;
 
-use gelgrip_controller::actuator::hardware_error_names;
+use gelgrip_controller::actuator::{ServoState, hardware_error_names};
 use gelgrip_controller::config::AppConfig;
 use gelgrip_controller::gripper::GripperHandle;
 use gelgrip_controller::runtime::control::LoopCommand;
@@ -158,7 +158,9 @@ impl Dashboard {
             transport: self.transport.clone(),
             sensors: self.sensor_views(report),
             fingers: gripper.map_or_else(Vec::new, |g| self.finger_views(g)),
-            servos: gripper.map_or_else(Vec::new, |g| self.servo_views(g)),
+            servos: report
+                .servos
+                .map_or_else(Vec::new, |s| self.servo_views(s.states)),
             sync: self.sync_view(report),
             calibration: self.calibration.clone(),
             task: gripper.and_then(|g| g.task.as_ref()).map(|t| TaskView {
@@ -219,8 +221,8 @@ impl Dashboard {
     }
 
     /// Each finger's servo, its hardware errors by name.
-    fn servo_views(&self, g: &GripperReport<'_>) -> Vec<ServoView> {
-        g.servos
+    fn servo_views(&self, states: &[ServoState]) -> Vec<ServoView> {
+        states
             .iter()
             .zip(&self.finger_ids)
             .map(|(s, id)| ServoView {

@@ -158,9 +158,12 @@ impl RunRecorder {
         Box::new(Tap(self.recorder.clone()))
     }
 
-    /// The observer that records the state after every set.
+    /// The observer that records the state after every set, and every servo read.
     pub fn snapshots(&self) -> Box<dyn Observer> {
-        Box::new(Snapshots(self.recorder.clone()))
+        Box::new(Snapshots {
+            recorder: self.recorder.clone(),
+            reads_recorded: None,
+        })
     }
 
     /// Close the recording (the acquisition's tap must be dropped first).
@@ -176,16 +179,35 @@ impl RunRecorder {
 }
 
 /// The state after every set (servos, fingers, each sensor's fused reading, the goals
-/// written for it, the grasp-API service's events, the task's stage). Lossless: the
-/// recorder queues every record or counts it as dropped under backpressure, and never
-/// blocks the loop.
-struct Snapshots(Arc<Recorder>);
+/// written for it, the grasp-API service's events, the task's stage), and every servo read
+/// between sets, or in a run without a pilot (`trigger_seq` null, only `servos`): a
+/// recording holds every read the run made. Lossless: the recorder queues every record or
+/// counts it as dropped under backpressure, and never blocks the loop.
+struct Snapshots {
+    recorder: Arc<Recorder>,
+    /// The servo read count last recorded.
+    reads_recorded: Option<u64>,
+}
 
 impl Observer for Snapshots {
     fn observe(&mut self, report: &SetReport<'_>) -> Result<(), ObserverError> {
+        let reads = report.servos.map(|s| s.reads);
+        let new_read = reads.is_some() && reads != self.reads_recorded;
         let (Some(set), Some(g)) = (report.set, report.gripper.as_ref()) else {
+            if let Some(servos) = report.servos.filter(|_| new_read) {
+                self.reads_recorded = reads;
+                let state = serde_json::json!({
+                    "trigger_seq": null,
+                    "servos": servos.states,
+                });
+                self.recorder.record(Record::Meta(Meta::State {
+                    host_us: report.now_us,
+                    state,
+                }));
+            }
             return Ok(());
         };
+        self.reads_recorded = reads;
         let trigger_seq = set.trigger_seq;
         // Only this set's readings: a set the driver did not sense gets none.
         let sensors: Option<Vec<Option<SensorSnapshot>>> = g
@@ -229,12 +251,12 @@ impl Observer for Snapshots {
             "trigger_seq": trigger_seq,
             "sensors": sensors,
             "fingers": fingers,
-            "servos": g.servos,
+            "servos": report.servos.map_or(&[][..], |s| s.states),
             "commands": commands,
             "controller": g.controller_events,
             "stage": stage,
         });
-        self.0.record(Record::Meta(Meta::State {
+        self.recorder.record(Record::Meta(Meta::State {
             host_us: report.now_us,
             state,
         }));

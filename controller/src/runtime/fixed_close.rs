@@ -27,6 +27,8 @@ pub struct FixedClose {
     next_us: u64,
     /// The last states read.
     pub last: Vec<ServoState>,
+    /// Reads that succeeded so far.
+    pub reads: u64,
     /// Faults recovered so far.
     pub recovered: Vec<Fault>,
 }
@@ -55,6 +57,7 @@ impl FixedClose {
             start_us: now_us,
             next_us: now_us,
             last: Vec::new(),
+            reads: 0,
             recovered: Vec::new(),
         })
     }
@@ -84,6 +87,7 @@ impl FixedClose {
             Ok::<_, ServoError>((states, bus.take_recovered()))
         })?;
         self.last = states;
+        self.reads += 1;
         self.recovered
             .extend(recovered.iter().map(Fault::recovered));
         Ok(())

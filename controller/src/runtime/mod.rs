@@ -30,6 +30,10 @@ pub mod ports;
 pub mod report;
 pub mod script_run;
 pub mod task_report;
+pub mod wake;
+
+pub use wake::RuntimeEvent;
+use wake::{Pass, completes, next_event, next_request, real_deadline};
 
 use std::sync::Arc;
 
@@ -38,8 +42,8 @@ use tokio::sync::mpsc;
 
 use crate::acquire::Acquisition;
 use crate::actuator::{ServoError, ServoState};
-use crate::clock::{Clock, ClockKind};
-use crate::frame::{FrameSet, ReceivedFrame};
+use crate::clock::Clock;
+use crate::frame::FrameSet;
 use crate::gripper::{GripperError, GripperHandle};
 use crate::hub::HubError;
 use crate::runtime::control::LoopCommand;
@@ -49,7 +53,9 @@ use crate::runtime::outcome::{EndReason, Fault, FaultKind};
 use crate::runtime::pilot::Pilot;
 use crate::runtime::ports::Sensing;
 use crate::runtime::ports::{ControlHandler, Observer, PilotControl};
-use crate::runtime::report::{DepthWindows, DrivenSet, FingerState, GripperReport, SetReport};
+use crate::runtime::report::{
+    DepthWindows, DrivenSet, FingerState, GripperReport, ServoReads, SetReport,
+};
 use crate::runtime::task_report::TaskReport;
 
 /// A failure inside the loop, typed so the loop can tell a hub from a servo from a log.
@@ -104,15 +110,6 @@ impl RuntimeError {
             }
         }
     }
-}
-
-/// What the embedding program tells a running [`Runtime::run`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum RuntimeEvent {
-    /// Stop: bring the hardware to its safe state and end with `signal`.
-    Shutdown,
-    /// E-stop: hold at the minimum current and end with `estop`.
-    Estop,
 }
 
 /// Requests queued by the page before the loop answers them.
@@ -178,6 +175,8 @@ struct ReadTrack {
     at_us: Option<u64>,
     /// The gate's refused sets last seen.
     refused: u64,
+    /// The fixed programme's read count last reported.
+    fixed_reported: u64,
 }
 
 impl std::fmt::Debug for Runtime {
@@ -466,7 +465,7 @@ impl Runtime {
             .last_report_us
             .is_none_or(|last| now.saturating_sub(last) >= QUIET_PERIOD_US);
         let read = match self.read_between_sets(now, quiet) {
-            Ok(read) => read,
+            Ok(read) => read || self.fixed_read_since_report(),
             Err(e) => return Some(self.fault(e)),
         };
         if (quiet || read)
@@ -544,9 +543,11 @@ impl Runtime {
         self.last_report_us = Some(now_us);
         let depth: Option<&dyn DepthWindows> = self.sensing.as_deref().map(|s| s as _);
         let last = &self.last;
-        let gripper = self.pilot.as_ref().zip(depth).map(|(d, depth)| {
-            let plant = d.plant();
-            GripperReport {
+        let gripper = self
+            .pilot
+            .as_ref()
+            .zip(depth)
+            .map(|(d, depth)| GripperReport {
                 fused: last.fused.as_ref().map(|(_, f)| f),
                 sensed_seq: last.fused.as_ref().map(|(seq, _)| *seq),
                 fingers: d
@@ -558,27 +559,37 @@ impl Runtime {
                         target_force_n,
                     })
                     .collect(),
-                servos: plant.states(),
-                servo_reads: plant.servo_reads(),
                 goals: last.goals.as_ref(),
                 task: d.status(),
                 latencies: last.latency.latencies(),
                 step,
                 controller_events: &events,
                 sensing: depth,
-            }
-        });
+            });
+        let servos = servo_reads(self.pilot.as_ref(), self.fixed.as_ref());
         let report = SetReport {
             now_us,
             t_s: now_us.saturating_sub(self.start_us) as f64 / 1e6,
             set,
             gate: self.acq.gate().stats(),
+            servos,
             gripper,
         };
         for observer in &mut self.observers {
             observer.observe(&report).map_err(RuntimeError::Observer)?;
         }
         Ok(())
+    }
+
+    /// Whether the fixed programme read the servos since the last report (every read is
+    /// reported, so that the observers see the joints at the servo-read rate).
+    fn fixed_read_since_report(&mut self) -> bool {
+        let Some(reads) = self.fixed.as_ref().map(|f| f.reads) else {
+            return false;
+        };
+        let new = reads != self.reads.fixed_reported && !self.observers.is_empty();
+        self.reads.fixed_reported = reads;
+        new
     }
 
     fn log_progress(&mut self, now_us: u64) {
@@ -665,47 +676,20 @@ impl Runtime {
     }
 }
 
-enum Pass {
-    Event(Option<RuntimeEvent>),
-    Deadline,
-    Tick,
-    Request(Option<LoopCommand>),
-    Step(Result<Option<FrameSet>, HubError>),
-}
-
-/// The next event; pending forever once the sender is gone (the run goes on).
-async fn next_event(events: &mut mpsc::Receiver<RuntimeEvent>, open: bool) -> Option<RuntimeEvent> {
-    if open {
-        events.recv().await
-    } else {
-        std::future::pending().await
+/// The servos' last read, from the pilot's plant or the fixed programme.
+fn servo_reads<'a>(
+    pilot: Option<&'a Pilot>,
+    fixed: Option<&'a FixedClose>,
+) -> Option<ServoReads<'a>> {
+    if let Some(pilot) = pilot {
+        let plant = pilot.plant();
+        return Some(ServoReads {
+            states: plant.states(),
+            reads: plant.servo_reads(),
+        });
     }
-}
-
-/// The dashboard's next request; never without a dashboard. `None` once every sender is
-/// gone.
-async fn next_request(control: Option<&mut mpsc::Receiver<LoopCommand>>) -> Option<LoopCommand> {
-    match control {
-        Some(rx) => rx.recv().await,
-        None => std::future::pending().await,
-    }
-}
-
-/// Resolves at `deadline_us` on a real clock; never on a virtual one (whose time only moves
-/// with the work, so the loop checks it after each pass instead).
-async fn real_deadline(clock: Arc<dyn Clock>, deadline_us: Option<u64>) {
-    match deadline_us {
-        Some(d) if clock.kind() == ClockKind::Real => clock.sleep_until(d).await,
-        _ => std::future::pending().await,
-    }
-}
-
-/// Whether `frame` is in the set `step` emitted (it completed that set).
-fn completes(step: &Result<Option<FrameSet>, HubError>, frame: &ReceivedFrame) -> bool {
-    let Ok(Some(set)) = step else {
-        return false;
-    };
-    set.frames.iter().any(|f| {
-        f.frame.sensor == frame.frame.sensor && f.frame.trigger_seq == frame.frame.trigger_seq
+    fixed.map(|f| ServoReads {
+        states: &f.last,
+        reads: f.reads,
     })
 }

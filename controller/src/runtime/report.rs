@@ -128,8 +128,22 @@ pub struct SetReport<'a> {
     pub set: Option<&'a FrameSet>,
     /// The gate's statistics.
     pub gate: &'a GateStats,
+    /// The servos' last read, from whoever drives them (a pilot, or the fixed programme of
+    /// a run without one); `None` without servos.
+    pub servos: Option<ServoReads<'a>>,
     /// The gripper's side, when a pilot runs it.
     pub gripper: Option<GripperReport<'a>>,
+}
+
+/// The servos as last read.
+#[derive(Debug, Clone, Copy)]
+pub struct ServoReads<'a> {
+    /// Their states, in finger order.
+    pub states: &'a [ServoState],
+    /// Reads so far: when it differs from the previous report's, `states` is a new read
+    /// (a pilot reads after every gated set's goals and, between sets, once per refused set
+    /// and quiet period, with nothing written; the fixed programme on every tick).
+    pub reads: u64,
 }
 
 impl SetReport<'_> {
@@ -148,12 +162,6 @@ pub struct GripperReport<'a> {
     pub sensed_seq: Option<u32>,
     /// Each finger.
     pub fingers: Vec<FingerState>,
-    /// The servos' last states.
-    pub servos: &'a [ServoState],
-    /// Servo reads so far: when it differs from the previous report's, `servos` is a new
-    /// read (one after every gated set's goals; between sets, one per refused set and one
-    /// per quiet period, with nothing written).
-    pub servo_reads: u64,
     /// The goals last written and the set they answered (`None`: a stop or e-stop).
     pub goals: Option<&'a (Option<u32>, Vec<FingerGoal>)>,
     /// The task, if any.

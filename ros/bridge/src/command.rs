@@ -172,7 +172,7 @@ impl Observer for RosCommands {
         let fingers = g
             .fingers
             .iter()
-            .zip(g.servos)
+            .zip(report.servos.map_or(&[][..], |s| s.states))
             .zip(&self.range_deg)
             .map(|((f, s), range)| FingerNow {
                 phase: f.phase,

@@ -102,12 +102,12 @@ impl RosPublisher {
 
     fn publish(&mut self, report: &SetReport<'_>) {
         let now = report.now_us;
-        if let Some(g) = &report.gripper
-            && self.published_reads != Some(g.servo_reads)
+        if let Some(read) = report.servos
+            && self.published_reads != Some(read.reads)
         {
-            self.published_reads = Some(g.servo_reads);
-            let servos: Vec<ServoSample> = g
-                .servos
+            self.published_reads = Some(read.reads);
+            let servos: Vec<ServoSample> = read
+                .states
                 .iter()
                 .map(|s| ServoSample {
                     position_deg: s.position_deg,
@@ -157,8 +157,8 @@ impl RosPublisher {
     fn diagnostics_input(&self, report: &SetReport<'_>) -> DiagnosticsInput {
         let stats = report.gate;
         let drops = drop_counts(&stats.drops);
-        let servo_faults = report.gripper.as_ref().map_or_else(Vec::new, |g| {
-            g.servos
+        let servo_faults = report.servos.map_or_else(Vec::new, |read| {
+            read.states
                 .iter()
                 .zip(&self.joints)
                 .map(|(s, j)| {
