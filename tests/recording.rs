@@ -234,3 +234,41 @@ fn a_recorder_killed_mid_run_leaves_every_whole_record_readable() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The recorder's own fault: its writes fail (here the file-size limit, EFBIG, as a full disk
+/// fails them with ENOSPC). The run goes on to its end, says so once, reports the error and
+/// the records it could not write, and what reached the disk stays readable.
+#[test]
+fn a_recorder_whose_writes_fail_lets_the_run_go_on_and_stays_readable() {
+    let dir = scratch("write-fails");
+    let bin = env!("CARGO_BIN_EXE_gelgrip");
+    // 400 blocks of 1 KiB: the first segment fails part way; SIGXFSZ is ignored, so the
+    // write returns the error instead of killing the process.
+    let script = format!(
+        "trap '' XFSZ; ulimit -f 400; exec '{bin}' run --headless --json --clock virtual \
+         --duration 3 --record '{}'",
+        dir.display()
+    );
+    let out = Command::new("bash")
+        .args(["-c", &script])
+        .env("RUST_LOG", "warn")
+        .output()
+        .expect("runs");
+    let report = common::report(&out, 0);
+    assert_eq!(report["end_reason"], "duration", "the run went on: {report}");
+    let rec = &report["recording"];
+    let error = rec["error"].as_str().unwrap_or_default();
+    assert!(error.contains("File too large"), "{rec}");
+    assert!(rec["dropped_io"].as_u64().unwrap_or(0) > 0, "{rec}");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(
+        stderr.matches("recording stopped").count(),
+        1,
+        "said once: {stderr}"
+    );
+    let i = info(&dir);
+    assert_eq!(i["crc_errors"], 0, "every whole record checks: {i}");
+    assert_eq!(i["clean_end"], false, "{i}");
+    assert!(i["records"].as_u64().unwrap_or(0) > 0, "{i}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
