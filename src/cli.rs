@@ -122,9 +122,9 @@ pub enum BenchCommand {
 // Each command's arguments live beside the command; re-exported here for the parser.
 pub use crate::commands::calibrate::BakeArgs;
 pub use crate::commands::calibrate::CollectArgs;
-pub use crate::commands::calibrate::EvalArgs;
 pub use crate::commands::calibrate::TrainArgs;
 pub use crate::commands::calibrate::TransferArgs;
+pub use crate::commands::calibrate_eval::EvalArgs;
 pub use crate::commands::calibrate_force::ForceArgs;
 pub use crate::commands::calibrate_label::LabelArgs;
 pub use crate::commands::check_config::CheckConfigArgs;

@@ -64,6 +64,39 @@ fn collect_train_eval_round_trip() {
     assert!(depth < 0.05, "depth error {depth} mm: {eval}");
     let none = eval_with("none");
     assert!(none["depth_mae_mm"].is_null(), "{none}");
+    // The ball as the truth: a sphere fitted to each reconstructed press reads the 6 mm
+    // ball's 3 mm radius (2.94 mm median on 20 such presses, docs/calibration.md).
+    assert_eq!(eval["ball_radius_mm"].as_f64(), Some(3.0), "{eval}");
+    let radii: Vec<f64> = eval["per_press"]
+        .as_array()
+        .expect("per_press")
+        .iter()
+        .map(|p| p["sphere_radius_mm"].as_f64().expect("a fitted sphere"))
+        .collect();
+    assert_eq!(radii.len(), 12, "{eval}");
+    assert!(radii.iter().all(|r| (r - 3.0).abs() < 0.45), "{radii:?}");
+    let median = eval["sphere_radius_mm_median"].as_f64().expect("median");
+    assert!(
+        (median - 3.0).abs() < 0.2,
+        "sphere radius median {median} mm"
+    );
+    assert!(none["sphere_radius_mm_median"].is_null(), "{none}");
+    assert!(none["per_press"][0]["sphere_radius_mm"].is_null(), "{none}");
+    let trained = json(&gelgrip(&[
+        "calibrate",
+        "train",
+        "--data",
+        s(&data),
+        "--model",
+        "lut",
+        "--out",
+        s(&dir.join("lut2.safetensors")),
+        "--json",
+    ]));
+    let held_out = trained["test_sphere_radius_mm_median"]
+        .as_f64()
+        .expect("held-out sphere median");
+    assert!((held_out - 3.0).abs() < 0.3, "{trained}");
 
     // `bench pipeline --model-file`: every sensor runs the file's model, and nothing is
     // collected or trained for it.

@@ -7,6 +7,7 @@ use thiserror::Error;
 pub mod collect;
 pub mod label;
 pub mod sheet;
+pub mod sphere;
 pub mod window;
 
 use crate::dataset::{DatasetError, PressDataset, PressTruth};
@@ -459,8 +460,18 @@ pub fn press_pixels(
     Ok(out)
 }
 
+/// One evaluated press.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PressEval {
+    /// Its image file.
+    pub file: String,
+    /// Radius of the sphere fitted to its reconstructed surface, mm
+    /// ([`sphere::press_sphere_radius_mm`]; `None` with no solver, or when no sphere fits).
+    pub sphere_radius_mm: Option<f64>,
+}
+
 /// Metrics of a model on some presses.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct EvalReport {
     /// Mean |gx − truth| over inside pixels.
     pub gx_mae: f64,
@@ -472,9 +483,15 @@ pub struct EvalReport {
     pub presses: usize,
     /// Inside pixels evaluated.
     pub pixels: usize,
+    /// Each press evaluated, in order.
+    pub per_press: Vec<PressEval>,
+    /// Median of the presses' `sphere_radius_mm` (`None` when none was fitted), mm: to
+    /// compare with the ball's radius, `ball_diameter_mm / 2`.
+    pub sphere_radius_mm_median: Option<f64>,
 }
 
-/// Evaluate `model` on `rows` of the dataset; depth uses `solver` over the whole frame.
+/// Evaluate `model` on `rows` of the dataset; depth uses `solver` over the whole frame, and
+/// each press's reconstructed surface is fitted with a sphere ([`sphere`]).
 pub fn evaluate(
     model: &GradientModel,
     ds: &PressDataset,
@@ -486,6 +503,7 @@ pub fn evaluate(
     let mut plan = solver.map(|s| PoissonPlan::<f64>::new(s, h, w));
     let (mut ex, mut ey, mut ed, mut n, mut presses) = (0.0, 0.0, 0.0, 0usize, 0usize);
     let (mut px, mut py, mut z) = (vec![0.0; w * h], vec![0.0; w * h], vec![0.0; w * h]);
+    let mut per_press = Vec::new();
     for press in ds.presses.get(rows).unwrap_or(&[]) {
         let img = ds.press_image(press)?;
         let truth = PressTruth::new(press, r, w, h);
@@ -505,6 +523,12 @@ pub fn evaluate(
             n += 1;
         }
         presses += 1;
+        per_press.push(PressEval {
+            file: press.file.clone(),
+            sphere_radius_mm: plan
+                .as_ref()
+                .and_then(|_| sphere::press_sphere_radius_mm(&z, w, ds.info.mm_per_px)),
+        });
     }
     let d = n.max(1) as f64;
     Ok(EvalReport {
@@ -513,6 +537,10 @@ pub fn evaluate(
         depth_mae_mm: solver.map(|_| ed / d),
         presses,
         pixels: n,
+        sphere_radius_mm_median: sphere::median(
+            per_press.iter().filter_map(|p| p.sphere_radius_mm),
+        ),
+        per_press,
     })
 }
 

@@ -1,13 +1,12 @@
 //! `gelgrip calibrate collect|train|eval|transfer|bake` (`label` is in `calibrate_label`,
 //! collecting through a hardware hub in `calibrate_collect_hw`): press datasets, LUT and MLP
-//! training, zero-shot transfer, baking and evaluation with the contract's metrics.
+//! training, zero-shot transfer and baking (`eval` is in `calibrate_eval`).
 
 use crate::cli::parse_within;
 use clap::{Args, ValueEnum};
 use serde::Serialize;
 use std::path::PathBuf;
 
-use gelgrip_plugins::calibrate::window::window_depth;
 use gelgrip_plugins::calibrate::{self, EvalReport};
 use gelgrip_plugins::dataset::PressDataset;
 use gelgrip_plugins::gradient::{GradientModel, MlpMode};
@@ -30,7 +29,7 @@ pub async fn run(cmd: CalibrateCommand) -> anyhow::Result<u8> {
         CalibrateCommand::Collect(a) => collect(a).await,
         CalibrateCommand::Label(a) => crate::commands::calibrate_label::run(a),
         CalibrateCommand::Train(a) => train(a),
-        CalibrateCommand::Eval(a) => eval(a),
+        CalibrateCommand::Eval(a) => crate::commands::calibrate_eval::run(a),
         CalibrateCommand::Transfer(a) => transfer_cmd(a),
         CalibrateCommand::Bake(a) => bake_cmd(a),
         CalibrateCommand::Force(a) => crate::commands::calibrate_force::run(a).await,
@@ -111,6 +110,10 @@ struct TrainJson {
     train_gy_mae: f64,
     test_gx_mae: f64,
     test_gy_mae: f64,
+    /// The ball's radius, mm, and the median radius of the spheres fitted to the held-out
+    /// presses' reconstructions (DST solver; null when none fitted).
+    ball_radius_mm: f64,
+    test_sphere_radius_mm_median: Option<f64>,
     train_s: f64,
     /// MLP: the validation split and curve.
     validation: Option<ValidationJson>,
@@ -164,7 +167,8 @@ fn train(args: TrainArgs) -> anyhow::Result<u8> {
     let train_s = started.elapsed().as_secs_f64();
     let model = &trained.model;
     let train = calibrate::evaluate(model, &ds, trained.train_rows.clone(), None)?;
-    let test = calibrate::evaluate(model, &ds, split..ds.presses.len(), None)?;
+    // The held-out presses are also solved for depth, for the sphere check.
+    let test = calibrate::evaluate(model, &ds, split..ds.presses.len(), Some(Solver::Dst))?;
     let validation = match trained.validated {
         Some((rows, v)) => {
             let r = calibrate::evaluate(model, &ds, rows, None)?;
@@ -198,6 +202,8 @@ fn train(args: TrainArgs) -> anyhow::Result<u8> {
         train_gy_mae: train.gy_mae,
         test_gx_mae: test.gx_mae,
         test_gy_mae: test.gy_mae,
+        ball_radius_mm: ds.info.ball_diameter_mm / 2.0,
+        test_sphere_radius_mm_median: test.sphere_radius_mm_median,
         train_s,
         validation,
     };
@@ -339,6 +345,10 @@ fn print_trained(args: &TrainArgs, out: &TrainJson, (train, test): (&EvalReport,
         "  test  MAE gx {:.4} gy {:.4} ({} presses)",
         test.gx_mae, test.gy_mae, test.presses
     );
+    println!(
+        "  test  {}",
+        crate::commands::calibrate_eval::sphere_line(test, out.ball_radius_mm)
+    );
     if let Some(v) = &out.validation {
         let stop = if v.stopped_at_epoch < v.epochs {
             format!(
@@ -429,63 +439,6 @@ fn bake_cmd(args: BakeArgs) -> anyhow::Result<u8> {
         args.bins,
         started.elapsed().as_secs_f64()
     );
-    Ok(0)
-}
-
-#[derive(Serialize)]
-struct EvalJson {
-    gx_mae: f64,
-    gy_mae: f64,
-    depth_mae_mm: Option<f64>,
-    window_depth_mae_mm: Option<f64>,
-    mean_peak_depth_mm: Option<f64>,
-    window_missed_presses: Option<usize>,
-    presses: usize,
-    pixels: usize,
-    solver: &'static str,
-}
-
-fn eval(args: EvalArgs) -> anyhow::Result<u8> {
-    let model = GradientModel::load(&args.model, MlpMode::Dense)?;
-    let ds = PressDataset::load(&args.data)?;
-    let solver = Solver::parse(&args.solver);
-    let r: EvalReport = calibrate::evaluate(&model, &ds, 0..ds.presses.len(), solver)?;
-    let window = solver
-        .map(|s| window_depth(&model, &ds, 0..ds.presses.len(), s))
-        .transpose()?;
-    let out = EvalJson {
-        gx_mae: r.gx_mae,
-        gy_mae: r.gy_mae,
-        depth_mae_mm: r.depth_mae_mm,
-        window_depth_mae_mm: window.map(|w| w.depth_mae_mm),
-        mean_peak_depth_mm: window.map(|w| w.mean_peak_depth_mm),
-        window_missed_presses: window.map(|w| w.missed_presses),
-        presses: r.presses,
-        pixels: r.pixels,
-        solver: solver.map_or("none", Solver::as_str),
-    };
-    if args.json {
-        println!("{}", serde_json::to_string(&out)?);
-    } else {
-        let depth = match (out.depth_mae_mm, window) {
-            (Some(d), Some(w)) => format!(
-                "{d:.4} mm full frame, {:.4} mm in the contact window (mean peak depth {:.4} mm, {} presses without a window)",
-                w.depth_mae_mm, w.mean_peak_depth_mm, w.missed_presses
-            ),
-            _ => "n/a (solver none)".into(),
-        };
-        println!(
-            "{} on {}: gx_mae {:.4}, gy_mae {:.4}, depth_mae {} ({} presses, {} px, solver {})",
-            args.model.display(),
-            args.data.display(),
-            out.gx_mae,
-            out.gy_mae,
-            depth,
-            out.presses,
-            out.pixels,
-            out.solver
-        );
-    }
     Ok(0)
 }
 
@@ -673,21 +626,4 @@ fn parse_tiles(s: &str) -> Result<[usize; 2], String> {
             .filter(|n| (1..=16).contains(n))
     };
     Ok([n(a).ok_or_else(bad)?, n(d).ok_or_else(bad)?])
-}
-
-/// `gelgrip calibrate eval`.
-#[derive(Debug, Args)]
-pub struct EvalArgs {
-    /// Model file.
-    #[arg(long)]
-    pub model: PathBuf,
-    /// Press dataset directory.
-    #[arg(long)]
-    pub data: PathBuf,
-    /// Depth solver for depth_mae_mm and window_depth_mae_mm (`none` skips depth).
-    #[arg(long, default_value = "dst", value_parser = ["dst", "dct", "none"])]
-    pub solver: String,
-    /// Print one JSON object.
-    #[arg(long)]
-    pub json: bool,
 }

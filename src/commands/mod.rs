@@ -3,6 +3,7 @@
 pub mod calibrate;
 pub mod calibrate_collect_hw;
 pub mod calibrate_collect_view;
+pub mod calibrate_eval;
 pub mod calibrate_force;
 pub mod calibrate_force_hw;
 pub mod calibrate_label;
