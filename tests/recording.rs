@@ -255,7 +255,10 @@ fn a_recorder_whose_writes_fail_lets_the_run_go_on_and_stays_readable() {
         .output()
         .expect("runs");
     let report = common::report(&out, 0);
-    assert_eq!(report["end_reason"], "duration", "the run went on: {report}");
+    assert_eq!(
+        report["end_reason"], "duration",
+        "the run went on: {report}"
+    );
     let rec = &report["recording"];
     let error = rec["error"].as_str().unwrap_or_default();
     assert!(error.contains("File too large"), "{rec}");

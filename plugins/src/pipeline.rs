@@ -9,8 +9,6 @@
 //! zero (DCT). All buffers are allocated up front; a solver plan is built the first time a
 //! window size appears (sizes are rounded up to multiples of 16 px, so there are few).
 
-use std::collections::HashMap;
-
 use thiserror::Error;
 
 use crate::config::SensorStages;
@@ -20,7 +18,7 @@ use crate::gradient::{GradientModel, MlpMode};
 use crate::halves::{first_half, run_halves, worth_splitting};
 use crate::lut::{Input, relative_gain};
 use crate::mlp::INPUTS;
-use crate::poisson::{PoissonPlan, Solver};
+use crate::poisson::{PlanCache, Solver};
 use crate::undistort::Remap;
 
 mod activity;
@@ -140,7 +138,7 @@ pub struct SensorPipeline {
     gx: Vec<f32>,
     gy: Vec<f32>,
     depth_px: Vec<f32>,
-    plans: HashMap<(usize, usize), PoissonPlan<f32>>,
+    plans: PlanCache<f32>,
     /// Working space for the depth anchor.
     scratch: Vec<f32>,
     noise: Option<NoiseModel>,
@@ -198,7 +196,7 @@ impl SensorPipeline {
             gx: vec![0.0; w * h],
             gy: vec![0.0; w * h],
             depth_px: vec![0.0; w * h],
-            plans: HashMap::new(),
+            plans: PlanCache::default(),
             scratch: Vec::new(),
             noise: None,
             last_window: (0, 0, 0, 0),
@@ -469,10 +467,7 @@ impl SensorPipeline {
         }
         self.window_gradients((x0, y0, w, h))?;
         let solver = self.choice.stages.solver.unwrap_or(Solver::Dst);
-        let plan = self
-            .plans
-            .entry((h, w))
-            .or_insert_with(|| PoissonPlan::new(solver, h, w));
+        let plan = self.plans.plan(solver, h, w);
         let depth = &mut self.depth_px[..w * h];
         plan.solve(&self.gx[..w * h], &self.gy[..w * h], depth);
         if solver == Solver::Dct {

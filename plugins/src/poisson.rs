@@ -32,7 +32,10 @@ use rustdct::{DctNum, DctPlanner, Dst1};
 use crate::halves::{first_half, run_halves, worth_splitting};
 use row_dct::{RowBuffers, RowDct};
 
+mod cache;
 mod row_dct;
+
+pub use cache::{PLAN_CACHE_CAPACITY, PlanCache};
 
 /// Scalar types the solvers run on (`f32` at runtime, `f64` for golden tests).
 pub trait Real: DctNum + Float {}

@@ -1,0 +1,111 @@
+//! A bounded cache of Poisson plans keyed by window size: a contact window's size changes
+//! from set to set over a long hold, and a plan per size ever seen would grow without bound
+//! (over 200 plans in a two-minute grasp hold). The least recently used plan goes when a
+//! new size comes and the cache is full; a plan rebuilt later solves bit for bit as before.
+
+use super::{PoissonPlan, Real, Solver};
+
+/// Plans kept per cache: a hold's windows stay within a few sizes of each other.
+pub const PLAN_CACHE_CAPACITY: usize = 8;
+
+/// Up to [`PLAN_CACHE_CAPACITY`] plans, the least recently used evicted first.
+#[derive(Debug)]
+pub struct PlanCache<T: Real> {
+    /// Each plan with its size `(height, width)` and the use it was last taken at.
+    plans: Vec<((usize, usize), u64, PoissonPlan<T>)>,
+    uses: u64,
+    capacity: usize,
+}
+
+impl<T: Real> Default for PlanCache<T> {
+    fn default() -> Self {
+        Self::with_capacity(PLAN_CACHE_CAPACITY)
+    }
+}
+
+impl<T: Real> PlanCache<T> {
+    /// A cache of at most `capacity` plans (at least one).
+    pub fn with_capacity(capacity: usize) -> Self {
+        Self {
+            plans: Vec::new(),
+            uses: 0,
+            capacity: capacity.max(1),
+        }
+    }
+
+    /// The plan of `solver` for a `height`×`width` window, built if it is not cached
+    /// (evicting the least recently used when full).
+    pub fn plan(&mut self, solver: Solver, height: usize, width: usize) -> &mut PoissonPlan<T> {
+        self.uses += 1;
+        let key = (height, width);
+        let found = self
+            .plans
+            .iter()
+            .position(|(k, _, p)| *k == key && p.solver() == solver);
+        let i = match found {
+            Some(i) => i,
+            None => {
+                if self.plans.len() >= self.capacity
+                    && let Some(oldest) = (0..self.plans.len()).min_by_key(|&i| self.plans[i].1)
+                {
+                    self.plans.swap_remove(oldest);
+                }
+                tracing::debug!(height, width, cached = self.plans.len(), "new Poisson plan");
+                self.plans
+                    .push((key, 0, PoissonPlan::new(solver, height, width)));
+                self.plans.len() - 1
+            }
+        };
+        self.plans[i].1 = self.uses;
+        &mut self.plans[i].2
+    }
+
+    /// Plans cached now.
+    pub fn len(&self) -> usize {
+        self.plans.len()
+    }
+
+    /// Whether none is cached.
+    pub fn is_empty(&self) -> bool {
+        self.plans.is_empty()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_cache_stays_bounded_and_a_rebuilt_plan_solves_as_before() {
+        let mut cache = PlanCache::<f32>::with_capacity(3);
+        let (h, w) = (9, 13);
+        let gx: Vec<f32> = (0..h * w)
+            .map(|i| ((i * 7) % 11) as f32 / 11.0 - 0.5)
+            .collect();
+        let gy: Vec<f32> = (0..h * w)
+            .map(|i| ((i * 5) % 13) as f32 / 13.0 - 0.5)
+            .collect();
+        let mut first = vec![0.0f32; h * w];
+        cache.plan(Solver::Dst, h, w).solve(&gx, &gy, &mut first);
+        for size in 10..40 {
+            cache.plan(Solver::Dst, size, size + 1);
+            assert!(cache.len() <= 3, "{}", cache.len());
+        }
+        let mut again = vec![0.0f32; h * w];
+        cache.plan(Solver::Dst, h, w).solve(&gx, &gy, &mut again);
+        assert!(
+            first
+                .iter()
+                .zip(&again)
+                .all(|(a, b)| a.to_bits() == b.to_bits()),
+            "bit for bit"
+        );
+        assert!(again.iter().all(|v| v.is_finite()));
+        // The most recently used survive: (h, w) was just taken, so it stays.
+        cache.plan(Solver::Dst, 50, 50);
+        cache.plan(Solver::Dst, 51, 51);
+        let before = cache.len();
+        cache.plan(Solver::Dst, h, w);
+        assert_eq!(cache.len(), before);
+    }
+}
