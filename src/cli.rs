@@ -35,6 +35,9 @@ pub enum Command {
     Calibrate(CalibrateCommand),
     /// Integrate a gradient array (.npy, H×W×2) into a depth map (.npy, H×W).
     Depth(DepthArgs),
+    /// Reconstruct your own images with a model and a background: depth (mm), gradients
+    /// and contact per image, through the pipeline `run` uses.
+    Reconstruct(ReconstructArgs),
     /// Serve emulated devices on a pseudo-terminal.
     #[command(subcommand)]
     Emulate(EmulateCommand),
@@ -131,6 +134,7 @@ pub use crate::commands::check_config::CheckConfigArgs;
 pub use crate::commands::depth::DepthArgs;
 pub use crate::commands::emulate::EmulateServosArgs;
 pub use crate::commands::emulate_hub::EmulateHubArgs;
+pub use crate::commands::reconstruct::ReconstructArgs;
 pub use crate::commands::record_export::RecordExportArgs;
 pub use crate::commands::record_info::RecordInfoArgs;
 pub use crate::commands::replay::ReplayArgs;

@@ -74,6 +74,7 @@ fn main() -> ExitCode {
             Command::Bench(bench) => run_bench(bench).await,
             Command::Calibrate(cmd) => commands::calibrate::run(cmd).await,
             Command::Depth(args) => commands::depth::run(args),
+            Command::Reconstruct(args) => commands::reconstruct::run(args),
             Command::Emulate(EmulateCommand::Servos(args)) => commands::emulate::run(args).await,
             Command::Emulate(EmulateCommand::Hub(args)) => commands::emulate_hub::run(args).await,
             Command::Servo(args) => commands::servo::run(args),

@@ -234,6 +234,18 @@ fn mlp_train_transfer_bake_eval() {
         "--tiles",
         "2x2",
     ]));
+    // Train records the dataset's pixel size; transfer and bake keep it.
+    for model in [&mlp, &moved, &baked] {
+        let meta = gelgrip_plugins::model_file::ModelFile::read(model)
+            .expect("model file")
+            .metadata;
+        assert_eq!(
+            meta.get("mm_per_px").map(String::as_str),
+            Some("0.0625"),
+            "{}",
+            model.display()
+        );
+    }
     for model in [&mlp, &moved, &baked] {
         let eval = json(&gelgrip(&[
             "calibrate",

@@ -313,6 +313,7 @@ fn train_rows(
     }
     let mut model = trainer.finish(w, h);
     model.blur_px = blur_px;
+    model.mm_per_px = shared_mm_per_px(datasets);
     Ok(model)
 }
 
@@ -342,6 +343,7 @@ pub fn mlp_samples_of(
         layers: Vec::new(),
         offset_rgb: [0.0; 3],
         gain_rgb: [1.0; 3],
+        mm_per_px: None,
     };
     let mut samples = Samples::default();
     for ds in datasets {
@@ -358,6 +360,16 @@ pub fn mlp_samples_of(
         }
     }
     Ok((samples, size))
+}
+
+/// The pixel size the datasets share, mm, recorded in the models trained on them
+/// (`None` when they differ).
+pub fn shared_mm_per_px(datasets: &[&PressDataset]) -> Option<f64> {
+    let first = datasets.first()?.info.mm_per_px;
+    datasets
+        .iter()
+        .all(|ds| ds.info.mm_per_px == first)
+        .then_some(first)
 }
 
 fn same_size(datasets: &[&PressDataset]) -> Result<(usize, usize), DatasetError> {
@@ -390,9 +402,9 @@ pub fn train_mlp_on(
     progress: impl FnMut(&EpochReport),
 ) -> Result<MlpModel, CalibrateError> {
     let (samples, size) = mlp_samples(datasets, input)?;
-    Ok(crate::mlp::train::train(
-        &samples, input, size, opts, progress,
-    )?)
+    let mut model = crate::mlp::train::train(&samples, input, size, opts, progress)?;
+    model.mm_per_px = shared_mm_per_px(datasets);
+    Ok(model)
 }
 
 /// An MLP trained with a validation split of every dataset ([`validation_split`]): early
@@ -424,8 +436,9 @@ pub fn train_mlp_validated(
     let (samples, size) = mlp_samples_of(datasets, input, |ds| of(ds).map_or(0..0, |s| s.train))?;
     let (validation, _) =
         mlp_samples_of(datasets, input, |ds| of(ds).map_or(0..0, |s| s.validation))?;
-    let (model, summary) =
+    let (mut model, summary) =
         crate::mlp::train::train_validated(&samples, &validation, input, size, opts, progress)?;
+    model.mm_per_px = shared_mm_per_px(datasets);
     Ok(ValidatedMlp {
         model,
         summary,

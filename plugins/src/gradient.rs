@@ -88,6 +88,23 @@ impl GradientModel {
         }
     }
 
+    /// The image size `(width, height)` the model was trained at, px.
+    pub fn size(&self) -> (usize, usize) {
+        match self {
+            GradientModel::Lut(l) => (l.width, l.height),
+            GradientModel::Mlp { model, .. } => (model.width, model.height),
+        }
+    }
+
+    /// Pixel size on the gel the model was trained at, mm (metadata `mm_per_px`; `None`
+    /// for a file written before it was recorded).
+    pub fn mm_per_px(&self) -> Option<f64> {
+        match self {
+            GradientModel::Lut(l) => l.mm_per_px,
+            GradientModel::Mlp { model, .. } => model.mm_per_px,
+        }
+    }
+
     /// Box-blur radius the model reads frames through, px (0 for an MLP).
     pub fn blur_px(&self) -> usize {
         match self {

@@ -7,6 +7,7 @@
 //!   frame's row-wise stages over two cores for the frame on the critical path;
 //! - [`dataset`], [`image`], [`model_file`]: the press dataset and model file formats;
 //! - [`npy`]: NumPy `.npy` gradients and depth maps;
+//! - [`reconstruct`]: the pipeline applied to a user's own images (`gelgrip reconstruct`);
 //! - [`sensing`]: the pipelines of every sensor as the runtime's `Sensing` port.
 
 pub mod calibrate;
@@ -23,5 +24,6 @@ pub mod model_file;
 pub mod npy;
 pub mod pipeline;
 pub mod poisson;
+pub mod reconstruct;
 pub mod sensing;
 pub mod undistort;

@@ -109,6 +109,9 @@ pub struct LutModel {
     /// pixel noise, since a table read through heavy noise learns gradients shrunk toward
     /// zero.
     pub blur_px: usize,
+    /// Pixel size on the gel of the presses it was trained on, mm (metadata `mm_per_px`;
+    /// `None` for a file written before it was recorded).
+    pub mm_per_px: Option<f64>,
     /// `tiles × bins³` entries of (gx, gy), tile-major.
     table: Vec<[f32; 2]>,
 }
@@ -206,6 +209,7 @@ impl LutTrainer {
             tiles: [1, 1],
             source: "presses".into(),
             blur_px: 0,
+            mm_per_px: None,
             table,
         }
     }
@@ -250,6 +254,7 @@ impl LutModel {
             tiles,
             source: source.into(),
             blur_px: 0,
+            mm_per_px: None,
             table,
         })
     }
@@ -309,6 +314,7 @@ impl LutModel {
             ("source".to_string(), self.source.clone()),
             ("blur_px".to_string(), self.blur_px.to_string()),
         ]);
+        model_file::put_mm_per_px(&mut metadata, self.mm_per_px);
         let n = self.bins;
         let values = self.table.iter().flat_map(|g| *g).collect();
         let t = self.tiles[0] * self.tiles[1];
@@ -420,6 +426,7 @@ impl LutModel {
                     expected: format!("an integer in [0, {}]", crate::image::MAX_BLUR_PX),
                 })?,
         };
+        model.mm_per_px = model_file::mm_per_px(file, &p)?;
         Ok(model)
     }
 }
@@ -454,11 +461,16 @@ mod tests {
         let mut m = t.finish(320, 240);
         m.offset_rgb = [1.0, -2.0, 0.5];
         m.blur_px = 3;
+        m.mm_per_px = Some(0.05);
         let dir = std::env::temp_dir().join(format!("gelgrip-lut-{}", std::process::id()));
         std::fs::create_dir_all(&dir).expect("tmp dir");
         let path = dir.join("m.safetensors");
         m.save(&path).expect("save");
         assert_eq!(LutModel::load(&path).expect("load"), m);
+        let mut unknown = m.clone();
+        unknown.mm_per_px = None;
+        unknown.save(&path).expect("save");
+        assert_eq!(LutModel::load(&path).expect("load").mm_per_px, None);
         let mut wide = m.clone();
         wide.blur_px = 99;
         wide.save(&path).expect("save");

@@ -1,6 +1,8 @@
 //! The gradient-model file: one `.safetensors` file whose `__metadata__` holds `format` =
 //! `gelgrip-gradient-model`, `version`, `kind` (`lut`|`mlp`), `input` (`diff`|`raw`),
-//! `width`, `height` and `offset_rgb` (CONTRACTS.md, "Model file").
+//! `width`, `height` and `offset_rgb` (CONTRACTS.md, "Model file"), and optionally
+//! `mm_per_px`, the pixel size on the gel the model was trained at (files written before
+//! it have none: [`mm_per_px`]).
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -30,6 +32,35 @@ pub fn base_metadata(
         ("height".to_string(), height.to_string()),
         ("offset_rgb".to_string(), rgb_string(offset_rgb)),
     ])
+}
+
+/// Metadata key of the pixel size the model was trained at, mm (optional).
+pub const MM_PER_PX_KEY: &str = "mm_per_px";
+
+/// Add `mm_per_px` to `metadata` when it is known.
+pub fn put_mm_per_px(metadata: &mut HashMap<String, String>, mm_per_px: Option<f64>) {
+    if let Some(mm) = mm_per_px {
+        metadata.insert(MM_PER_PX_KEY.to_string(), mm.to_string());
+    }
+}
+
+/// The file's `mm_per_px`: `None` when absent (a file written before the key); a value that
+/// is not a positive finite number is an error naming the key.
+pub fn mm_per_px(file: &ModelFile, path: &str) -> Result<Option<f64>, ModelFileError> {
+    let Some(v) = file.metadata.get(MM_PER_PX_KEY) else {
+        return Ok(None);
+    };
+    v.trim()
+        .parse::<f64>()
+        .ok()
+        .filter(|mm| mm.is_finite() && *mm > 0.0)
+        .map(Some)
+        .ok_or_else(|| ModelFileError::Metadata {
+            path: path.to_string(),
+            key: MM_PER_PX_KEY.to_string(),
+            actual: Some(v.clone()),
+            expected: "a positive number (mm per pixel)".into(),
+        })
 }
 
 /// Three numbers as metadata: `r,g,b`.

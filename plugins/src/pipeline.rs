@@ -22,6 +22,7 @@ use crate::poisson::{PlanCache, Solver};
 use crate::undistort::Remap;
 
 mod activity;
+mod calibration;
 pub mod stream;
 
 /// Registered stage names, per slot.
@@ -253,66 +254,6 @@ impl SensorPipeline {
             self.height,
             self.choice.model.blur_px(),
         );
-        Ok(())
-    }
-
-    /// Capture the reference from no-contact frames (their mean), then measure the noise
-    /// thresholds on the same frames.
-    pub fn calibrate(&mut self, no_contact: &[&[u8]]) -> Result<(), PipelineError> {
-        let frames: Vec<Frame<'_>> = no_contact.iter().map(|j| Frame::Jpeg(j)).collect();
-        self.calibrate_frames(&frames)
-    }
-
-    /// [`SensorPipeline::calibrate`] from decoded frames (RGB8, `width × height` of
-    /// [`SensorPipeline::size`]), as `calibrate eval` feeds a press dataset's images.
-    pub fn calibrate_rgb(&mut self, no_contact: &[&[u8]]) -> Result<(), PipelineError> {
-        let frames: Vec<Frame<'_>> = no_contact.iter().map(|f| Frame::Rgb(f)).collect();
-        self.calibrate_frames(&frames)
-    }
-
-    fn calibrate_frames(&mut self, no_contact: &[Frame<'_>]) -> Result<(), PipelineError> {
-        let mut sum = vec![0.0f32; self.rgb.len()];
-        for frame in no_contact {
-            self.load(*frame)?;
-            sum.iter_mut()
-                .zip(&self.rgb)
-                .for_each(|(s, v)| *s += f32::from(*v));
-        }
-        let n = no_contact.len().max(1) as f32;
-        sum.iter_mut().for_each(|s| *s /= n);
-        self.reference = Some(sum);
-        self.reference_changed();
-        self.predict_background()?;
-        let mut pixel_activity = Vec::new();
-        let (mut activity, mut depth) = (Vec::new(), Vec::new());
-        let window = self.central_window();
-        let mm = self.mm_per_px as f32;
-        for frame in no_contact {
-            self.load(*frame)?;
-            if let Some(reference) = &self.reference {
-                pixel_activity.extend(
-                    self.rgb
-                        .chunks_exact(3)
-                        .zip(reference.chunks_exact(3))
-                        .map(|(p, r)| pixel_difference(p, r)),
-                );
-            }
-            self.block_activity();
-            self.mark_near_active(None);
-            activity.extend_from_slice(&self.blocks);
-            if self.choice.stages.solver.is_some() {
-                let d = self.solve_window(window, true)?;
-                depth.extend(d.iter().map(|v| (v * mm).abs()));
-            }
-        }
-        self.pixel_threshold = if pixel_activity.is_empty() {
-            0.0
-        } else {
-            let k =
-                (pixel_activity.len() * PIXEL_NOISE_PERCENTILE / 100).min(pixel_activity.len() - 1);
-            *pixel_activity.select_nth_unstable_by(k, f32::total_cmp).1
-        };
-        self.noise = Some(NoiseModel::measure(&activity, &depth));
         Ok(())
     }
 

@@ -12,6 +12,7 @@ pub mod depth;
 pub mod emulate;
 pub mod emulate_hub;
 pub mod mcap_out;
+pub mod reconstruct;
 pub mod record_export;
 pub mod record_export_mcap;
 pub mod record_info;

@@ -79,5 +79,9 @@ pub fn bake(model: &MlpModel, opts: BakeOptions) -> Result<LutModel, MlpError> {
         "mlp",
         table,
     )
+    .map(|mut lut| {
+        lut.mm_per_px = model.mm_per_px;
+        lut
+    })
     .ok_or_else(|| MlpError::NoData("the baked table has non-finite values".into()))
 }

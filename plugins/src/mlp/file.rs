@@ -22,6 +22,7 @@ impl MlpModel {
             ("hidden".to_string(), self.hidden.to_string()),
             ("activation".to_string(), "tanh".to_string()),
         ]);
+        model_file::put_mm_per_px(&mut metadata, self.mm_per_px);
         let mut tensors = Vec::new();
         for (i, l) in self.layers.iter().enumerate() {
             tensors.push((
@@ -105,6 +106,7 @@ impl MlpModel {
             layers,
             offset_rgb,
             gain_rgb,
+            mm_per_px: model_file::mm_per_px(file, p)?,
         })
     }
 }
@@ -133,6 +135,7 @@ mod tests {
             layers,
             offset_rgb: [1.0, -2.0, 3.5],
             gain_rgb: [1.1, 0.9, 1.0],
+            mm_per_px: Some(0.0625),
         }
     }
 
@@ -146,11 +149,26 @@ mod tests {
         assert_eq!(MlpModel::load(&path).expect("load"), m);
 
         let mut file = ModelFile::read(&path).expect("read");
+        assert_eq!(
+            file.metadata.get("mm_per_px").map(String::as_str),
+            Some("0.0625")
+        );
+        // A file written before `mm_per_px` was recorded loads without it.
+        let mut old = file.clone();
+        old.metadata.remove("mm_per_px");
+        old.write(&path).expect("write");
+        assert_eq!(MlpModel::load(&path).expect("load").mm_per_px, None);
         for (key, value, expect) in [
             ("version", Some("7"), "metadata `version` is Some(\"7\")"),
             ("hidden", None, "metadata `hidden` is None"),
             ("offset_rgb", Some("1,2"), "metadata `offset_rgb`"),
             ("kind", Some("lut"), "expected mlp"),
+            (
+                "mm_per_px",
+                Some("-0.1"),
+                "metadata `mm_per_px` is Some(\"-0.1\")",
+            ),
+            ("mm_per_px", Some("NaN"), "expected a positive number"),
         ] {
             let mut f = file.clone();
             match value {

@@ -78,6 +78,9 @@ pub struct MlpModel {
     /// Per-channel gain applied to the key before the offset (1 unless transferred with
     /// `--fit offset-gain`).
     pub gain_rgb: [f32; 3],
+    /// Pixel size on the gel of the presses it was trained on, mm (metadata `mm_per_px`;
+    /// `None` for a file written before it was recorded).
+    pub mm_per_px: Option<f64>,
 }
 
 /// Grey levels per unit of network input.

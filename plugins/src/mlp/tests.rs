@@ -23,6 +23,7 @@ fn shape() -> MlpModel {
         layers: Vec::new(),
         offset_rgb: [0.0; 3],
         gain_rgb: [1.0; 3],
+        mm_per_px: None,
     }
 }
 

@@ -480,6 +480,7 @@ fn run(
         layers,
         offset_rgb: [0.0; 3],
         gain_rgb: [1.0; 3],
+        mm_per_px: None,
     };
     Ok((model, summary))
 }

@@ -1,0 +1,90 @@
+//! Calibrating a [`SensorPipeline`] on no-contact frames: its reference (their mean, or a
+//! given background) and the noise thresholds measured on the same frames.
+
+use super::{Frame, PIXEL_NOISE_PERCENTILE, PipelineError, SensorPipeline, pixel_difference};
+use crate::contact::NoiseModel;
+
+impl SensorPipeline {
+    /// Capture the reference from no-contact frames (their mean), then measure the noise
+    /// thresholds on the same frames.
+    pub fn calibrate(&mut self, no_contact: &[&[u8]]) -> Result<(), PipelineError> {
+        let frames: Vec<Frame<'_>> = no_contact.iter().map(|j| Frame::Jpeg(j)).collect();
+        self.calibrate_frames(None, &frames)
+    }
+
+    /// [`SensorPipeline::calibrate`] from decoded frames (RGB8, `width × height` of
+    /// [`SensorPipeline::size`]), as `calibrate eval` feeds a press dataset's images.
+    pub fn calibrate_rgb(&mut self, no_contact: &[&[u8]]) -> Result<(), PipelineError> {
+        let frames: Vec<Frame<'_>> = no_contact.iter().map(|f| Frame::Rgb(f)).collect();
+        self.calibrate_frames(None, &frames)
+    }
+
+    /// [`SensorPipeline::calibrate_rgb`] with `reference` (RGB8, decoded) as the reference
+    /// instead of the frames' mean: the noise thresholds are measured on `no_contact`
+    /// against it (`gelgrip reconstruct`, whose user gives the background).
+    pub fn calibrate_rgb_against(
+        &mut self,
+        reference: &[u8],
+        no_contact: &[&[u8]],
+    ) -> Result<(), PipelineError> {
+        let frames: Vec<Frame<'_>> = no_contact.iter().map(|f| Frame::Rgb(f)).collect();
+        self.calibrate_frames(Some(Frame::Rgb(reference)), &frames)
+    }
+
+    /// The reference (`reference`, else the mean of `no_contact`), then the noise thresholds
+    /// measured on `no_contact`.
+    fn calibrate_frames(
+        &mut self,
+        reference: Option<Frame<'_>>,
+        no_contact: &[Frame<'_>],
+    ) -> Result<(), PipelineError> {
+        let mut sum = vec![0.0f32; self.rgb.len()];
+        let averaged = if reference.is_some() {
+            reference.as_slice()
+        } else {
+            no_contact
+        };
+        for frame in averaged {
+            self.load(*frame)?;
+            sum.iter_mut()
+                .zip(&self.rgb)
+                .for_each(|(s, v)| *s += f32::from(*v));
+        }
+        let n = averaged.len().max(1) as f32;
+        sum.iter_mut().for_each(|s| *s /= n);
+        self.reference = Some(sum);
+        self.reference_changed();
+        self.predict_background()?;
+        let mut pixel_activity = Vec::new();
+        let (mut activity, mut depth) = (Vec::new(), Vec::new());
+        let window = self.central_window();
+        let mm = self.mm_per_px as f32;
+        for frame in no_contact {
+            self.load(*frame)?;
+            if let Some(reference) = &self.reference {
+                pixel_activity.extend(
+                    self.rgb
+                        .chunks_exact(3)
+                        .zip(reference.chunks_exact(3))
+                        .map(|(p, r)| pixel_difference(p, r)),
+                );
+            }
+            self.block_activity();
+            self.mark_near_active(None);
+            activity.extend_from_slice(&self.blocks);
+            if self.choice.stages.solver.is_some() {
+                let d = self.solve_window(window, true)?;
+                depth.extend(d.iter().map(|v| (v * mm).abs()));
+            }
+        }
+        self.pixel_threshold = if pixel_activity.is_empty() {
+            0.0
+        } else {
+            let k =
+                (pixel_activity.len() * PIXEL_NOISE_PERCENTILE / 100).min(pixel_activity.len() - 1);
+            *pixel_activity.select_nth_unstable_by(k, f32::total_cmp).1
+        };
+        self.noise = Some(NoiseModel::measure(&activity, &depth));
+        Ok(())
+    }
+}
