@@ -7,7 +7,9 @@
 //! block activity alone. Depth is solved only over the bounding box of the active blocks
 //! plus a margin, where the depth outside is zero (DST) or the window border is taken as
 //! zero (DCT). All buffers are allocated up front; a solver plan is built the first time a
-//! window size appears (sizes are rounded up to multiples of 16 px, so there are few).
+//! window size appears (sizes are rounded up to multiples of 16 px) and kept in a bounded
+//! cache of the most recently used ([`crate::poisson::PlanCache`]): over a long hold a
+//! contact's window passes through many sizes.
 
 use thiserror::Error;
 
