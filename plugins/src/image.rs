@@ -42,6 +42,19 @@ pub enum ImageError {
         /// The decoder's message.
         detail: String,
     },
+    /// A PNG whose header claims more than [`MAX_PNG_PIXELS`] pixels (refused before its
+    /// buffer is allocated).
+    #[error(
+        "{path}: PNG claims {width}x{height} pixels, more than the {MAX_PNG_PIXELS} this reader takes"
+    )]
+    TooLarge {
+        /// The file.
+        path: String,
+        /// Columns claimed.
+        width: u32,
+        /// Rows claimed.
+        height: u32,
+    },
     /// PNG with a layout this reader does not take.
     #[error("{path}: PNG is {actual}, expected 8-bit RGB or RGBA")]
     Format {
@@ -51,6 +64,11 @@ pub enum ImageError {
         actual: String,
     },
 }
+
+/// Most pixels a PNG may have (4096 x 4096, a 64 MiB RGBA buffer): a press image is a
+/// sensor's frame, far smaller; a header claiming more is refused before its buffer is
+/// allocated.
+pub const MAX_PNG_PIXELS: u64 = 1 << 24;
 
 /// Largest box-blur radius a model may ask for, px.
 pub const MAX_BLUR_PX: usize = 8;
@@ -146,11 +164,15 @@ impl RgbImage {
         let mut reader = png::Decoder::new(std::io::BufReader::new(file))
             .read_info()
             .map_err(png_err)?;
+        // Before the buffer: a header claiming 2^20 x 2^20 pixels must not allocate 4 TiB.
+        let (w, h) = (reader.info().width, reader.info().height);
         let size = reader
             .output_buffer_size()
-            .ok_or_else(|| ImageError::Format {
+            .filter(|_| u64::from(w) * u64::from(h) <= MAX_PNG_PIXELS)
+            .ok_or_else(|| ImageError::TooLarge {
                 path: p.clone(),
-                actual: "too large".into(),
+                width: w,
+                height: h,
             })?;
         let mut buf = vec![0; size];
         let info = reader.next_frame(&mut buf).map_err(png_err)?;
