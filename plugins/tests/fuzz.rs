@@ -1,10 +1,11 @@
-//! Property tests of the two files from outside this crate reads (issue 45): gradient-model
-//! files (`GradientModel::load`, what `calibrate train`, `transfer` and `bake` write and the
-//! pipelines load) and press datasets (`PressDataset::load` and `press_image`, what
-//! `calibrate collect` and `label` write and `calibrate train` reads). Each gets random bytes
-//! and mutations of a valid input; each must answer with a typed error or a valid result,
-//! never a panic, within a bound of time, and without allocating what a length field claims
-//! (a PNG that says it is 2²⁰ × 2²⁰ pixels).
+//! Property tests of the files and bytes from outside this crate reads (issue 45):
+//! gradient-model files (`GradientModel::load`, what `calibrate train`, `transfer` and
+//! `bake` write and the pipelines load), press datasets (`PressDataset::load` and
+//! `press_image`, what `calibrate collect` and `label` write and `calibrate train` reads)
+//! and the sensors' JPEG frames (`JpegStage::decode`, the pipeline's first stage). Each gets
+//! random bytes and mutations of a valid input; each must answer with a typed error or a
+//! valid result, never a panic, within a bound of time, and without allocating what a
+//! length field claims (a PNG that says it is 2^20 x 2^20 pixels).
 //!
 //! Case counts: `PROPTEST_CASES` (proptest's 256 when unset), capped per test so that
 //! `scripts/test`'s 30 000-case step stays short; `GELGRIP_FUZZ_CASES` sets the exact count
@@ -19,6 +20,7 @@ use proptest::prelude::*;
 use proptest::test_runner::TestRunner;
 
 use gelgrip_plugins::dataset::PressDataset;
+use gelgrip_plugins::decode::JpegStage;
 use gelgrip_plugins::gradient::{GradientModel, MlpMode};
 use gelgrip_plugins::image::RgbImage;
 use gelgrip_plugins::model_file::ModelFile;
@@ -629,5 +631,70 @@ fn random_dataset_files_fail_cleanly() {
             .zip(files)
             .collect();
         assert!(load_dataset(&dir, &files).is_err());
+    });
+}
+
+// ---------------------------------------------------------------------------------------
+// Sensor frames (the hub's JPEG bytes)
+
+/// Cases per frame-decode test in CI (a decode of a 32 × 24 frame takes microseconds).
+const FRAME_CI_CASES: u32 = 5000;
+
+/// A valid 32 × 24 frame.
+fn jpeg_frame() -> &'static [u8] {
+    static JPEG: OnceLock<Vec<u8>> = OnceLock::new();
+    JPEG.get_or_init(|| {
+        let rgb: Vec<u8> = (0..32 * 24 * 3).map(|i| (i * 7 % 256) as u8).collect();
+        let mut out = Vec::new();
+        jpeg_encoder::Encoder::new(&mut out, 90)
+            .encode(&rgb, 32, 24, jpeg_encoder::ColorType::Rgb)
+            .expect("encode");
+        out
+    })
+}
+
+/// Decode `jpeg` as a 32 × 24 sensor's frame at every scale: a frame, or a typed error.
+fn decode_frame(jpeg: &[u8]) -> bool {
+    let start = Instant::now();
+    let mut ok = true;
+    for scale in [1, 2, 4] {
+        let mut stage = JpegStage::new(32, 24, scale);
+        let (w, h) = stage.output_size();
+        let mut out = vec![0; w * h * 3];
+        ok &= stage.decode(jpeg, &mut out).is_ok();
+    }
+    assert!(
+        start.elapsed() < CASE_BUDGET,
+        "decode took {:?}",
+        start.elapsed()
+    );
+    ok
+}
+
+#[test]
+fn the_valid_frame_decodes() {
+    assert!(decode_frame(jpeg_frame()));
+}
+
+/// Random bytes, and valid frames with bytes changed (sizes in the header included), cut
+/// or extended: a frame or a typed error, never a panic.
+#[test]
+fn random_and_mutated_frames_decode_or_fail_cleanly() {
+    let strategy = prop_oneof![
+        proptest::collection::vec(any::<u8>(), 0..256).prop_map(|b| (b, vec![], None, vec![])),
+        (
+            Just(Vec::new()),
+            proptest::collection::vec((any::<usize>(), any::<u8>()), 1..6),
+            proptest::option::of(any::<usize>()),
+            proptest::collection::vec(any::<u8>(), 0..8),
+        ),
+    ];
+    check(FRAME_CI_CASES, strategy, |(random, edits, cut, tail)| {
+        let bytes = if random.is_empty() {
+            mutate(jpeg_frame().to_vec(), &edits, cut, &tail)
+        } else {
+            random
+        };
+        let _ = decode_frame(&bytes);
     });
 }
