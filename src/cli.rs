@@ -114,6 +114,9 @@ pub enum BenchCommand {
     /// The product under random faults (corrupt bytes, dropouts, slow sensors, hub
     /// unplugs, servo overloads, HTTP bursts) with its invariants checked (wall clock).
     Soak(BenchSoakArgs),
+    /// `calibrate label` against the simulator's truth at scale: balls pressed from light
+    /// to 0.95 of their radius, labelled; within 1 px and 5%, errors, refusals by code.
+    Label(BenchLabelArgs),
     /// The paper's Table II on seven simulated sensors: individual LUT and MLPs against
     /// zero-shot transfer, Gx and Gy MAE on held-out presses.
     Calibration(BenchCalibrationArgs),
@@ -148,6 +151,7 @@ pub use gelgrip_bench::bus::BenchBusArgs;
 pub use gelgrip_bench::calibration::BenchCalibrationArgs;
 pub use gelgrip_bench::dashboard::BenchDashboardArgs;
 pub use gelgrip_bench::grasp::BenchGraspArgs;
+pub use gelgrip_bench::label::BenchLabelArgs;
 pub use gelgrip_bench::pipeline::BenchPipelineArgs;
 pub use gelgrip_bench::soak::BenchSoakArgs;
 pub use gelgrip_bench::sync::BenchSyncArgs;

@@ -45,6 +45,7 @@ async fn run_bench(command: BenchCommand) -> anyhow::Result<u8> {
         BenchCommand::Calibration(args) => bench::calibration::run(rig, args),
         BenchCommand::Tradeoff(args) => bench::tradeoff::run(rig, args),
         BenchCommand::Soak(args) => bench::soak::run(rig, args).await,
+        BenchCommand::Label(args) => bench::label::run(rig, args),
         BenchCommand::Dashboard(args) => bench::dashboard::run(args).await,
     }
 }

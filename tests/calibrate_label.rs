@@ -556,3 +556,29 @@ fn the_press_emulator_answers_bad_lines_with_errors() {
     );
     assert_eq!(hub.ask("palm lift")["lifted"], true);
 }
+
+/// `bench label` runs end to end and reports every press it made.
+#[test]
+fn bench_label_reports_every_press() {
+    let report = json(&gelgrip(&[
+        "bench",
+        "label",
+        "--presses",
+        "3",
+        "--balls-mm",
+        "4,6",
+        "--json",
+    ]));
+    let rows = report["rows"].as_array().expect("rows");
+    assert_eq!(rows.len(), 2, "{report}");
+    for row in rows {
+        let refused: u64 = row["refused"]
+            .as_object()
+            .expect("refused")
+            .values()
+            .map(|n| n.as_u64().unwrap_or(0))
+            .sum();
+        assert_eq!(row["labelled"].as_u64().unwrap_or(0) + refused, 3, "{row}");
+    }
+    assert_eq!(report["presses"], 6, "{report}");
+}

@@ -22,6 +22,7 @@ pub mod config_files;
 pub mod dashboard;
 pub mod dashboard_child;
 pub mod grasp;
+pub mod label;
 pub mod pipeline;
 pub mod plot;
 pub mod progress;

@@ -14,6 +14,17 @@ pub fn epochs(epochs: u64) -> ProgressBar {
     bar
 }
 
+/// A bar over `n` items of `what` (presses, sets).
+pub fn bar(n: u64, what: &str) -> ProgressBar {
+    let bar = ProgressBar::new(n);
+    if let Ok(style) = ProgressStyle::with_template(&format!(
+        "  {{pos}}/{{len}} {what} [{{bar:30}}] {{elapsed_precise}} (eta {{eta}})"
+    )) {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    bar
+}
+
 /// A training callback that moves `bar`; when the bar cannot draw (no terminal), it logs a
 /// line every tenth of the epochs instead.
 pub fn epoch_reporter(
