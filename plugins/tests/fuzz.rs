@@ -66,10 +66,12 @@ where
     }
 }
 
-/// A scratch directory of this process and thread (made once; cases overwrite its files).
+/// A scratch directory of this process and thread (made once; cases overwrite its files;
+/// [`done`] removes it).
 fn scratch(name: &str) -> PathBuf {
     let thread = format!("{:?}", std::thread::current().id());
-    let dir = std::env::temp_dir()
+    // Cargo's scratch space for integration tests (under target/), not the system's.
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
         .join(format!("gelgrip-fuzz-{}", std::process::id()))
         .join(format!(
             "{name}-{}",
@@ -79,6 +81,11 @@ fn scratch(name: &str) -> PathBuf {
         std::fs::create_dir_all(&dir).expect("scratch dir");
     }
     dir
+}
+
+/// Remove this thread's scratch directory `name` (a test calls it when its cases are done).
+fn done(name: &str) {
+    let _ = std::fs::remove_dir_all(scratch(name));
 }
 
 // ---------------------------------------------------------------------------------------
@@ -135,7 +142,9 @@ fn valid_model(mlp: bool) -> &'static [u8] {
     static FILES: OnceLock<[Vec<u8>; 2]> = OnceLock::new();
     let files = FILES.get_or_init(|| {
         let dir = scratch("model-valid-bytes");
-        [bytes_of(&lut_file(), &dir), bytes_of(&mlp_file(), &dir)]
+        let files = [bytes_of(&lut_file(), &dir), bytes_of(&mlp_file(), &dir)];
+        done("model-valid-bytes");
+        files
     });
     &files[usize::from(mlp)]
 }
@@ -316,6 +325,7 @@ fn the_valid_model_files_load() {
         assert_eq!(model.size(), (8, 6), "{kind}");
         assert_eq!(model.mm_per_px(), Some(0.1), "{kind}");
     }
+    done("model-valid");
 }
 
 #[test]
@@ -328,6 +338,7 @@ fn a_header_length_of_4_gib_or_more_is_an_error_not_an_allocation() {
         let err = load_model(&dir, &b).expect_err("a header longer than the file");
         assert!(err.contains("m.safetensors"), "{err}");
     }
+    done("model-huge");
 }
 
 /// Random bytes, with or without a plausible header length in front.
@@ -345,6 +356,7 @@ fn random_bytes_are_not_a_model() {
         bytes.extend_from_slice(&body);
         let _ = load_model(&dir, &bytes);
     });
+    done("model-random");
 }
 
 /// Valid files with bytes changed, cut or extended.
@@ -361,6 +373,7 @@ fn mutated_model_bytes_load_or_fail_cleanly() {
         let valid = valid_model(mlp).to_vec();
         let _ = load_model(&dir, &mutate(valid, &edits, cut, &tail));
     });
+    done("model-bytes");
 }
 
 /// Valid files whose JSON header has tokens inserted or replaced (shapes, data offsets,
@@ -387,6 +400,7 @@ fn mutated_model_headers_load_or_fail_cleanly() {
         }
         let _ = load_model(&dir, &join_header(&header, &data));
     });
+    done("model-header");
 }
 
 /// Well-formed files whose metadata and tensors say what they should not: sizes at the
@@ -400,6 +414,7 @@ fn model_files_with_wrong_metadata_or_tensors_load_or_fail_cleanly() {
         let file = edited(if mlp { mlp_file() } else { lut_file() }, meta, tensors);
         let _ = load_model(&dir, &bytes_of(&file, &dir));
     });
+    done("model-meta");
 }
 
 // ---------------------------------------------------------------------------------------
@@ -508,6 +523,7 @@ fn load_dataset(dir: &Path, files: &[(String, Vec<u8>)]) -> Result<usize, String
 fn the_valid_dataset_loads_and_its_presses_read() {
     let dir = scratch("dataset-valid");
     assert_eq!(load_dataset(&dir, &dataset_files(&dir)), Ok(2));
+    done("dataset-valid");
 }
 
 #[test]
@@ -528,6 +544,7 @@ fn a_png_claiming_a_terabyte_is_an_error_not_an_allocation() {
         files[1].1 = png;
         assert!(load_dataset(&dir, &files).is_err(), "{w}x{h}");
     }
+    done("dataset-huge");
 }
 
 /// Which file of the dataset a case changes, and how.
@@ -617,6 +634,7 @@ fn mutated_datasets_load_or_fail_cleanly() {
         }
         let _ = load_dataset(&dir, &files);
     });
+    done("dataset-mutated");
 }
 
 /// Random bytes in every file of a dataset.
@@ -632,6 +650,7 @@ fn random_dataset_files_fail_cleanly() {
             .collect();
         assert!(load_dataset(&dir, &files).is_err());
     });
+    done("dataset-random");
 }
 
 // ---------------------------------------------------------------------------------------
