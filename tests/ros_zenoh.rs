@@ -657,22 +657,14 @@ fn two_grippers_share_a_router_in_their_own_namespaces() {
     }
 }
 
-/// A plain run (no task: the fixed servo programme, no pilot) records every servo read, so
-/// its MCAP export holds `joint_states` at the servo-read rate (50 Hz) over the whole run.
-#[test]
-#[ignore = "needs the PyPI mcap and mcap-ros2-support: run scripts/test"]
-fn a_plain_runs_export_holds_joint_states_at_the_servo_read_rate() {
-    let dir = common::scratch("ros-mcap-plain");
-    let rec = dir.join("rec");
-    let out = common::virtual_run(&["--duration", "5", "--record", common::s(&rec)])
-        .output()
-        .expect("the run");
-    common::json(&out);
+/// Export the recording `rec` as `dir/out.mcap` and read it back with the PyPI reader
+/// (tests/python/mcap_read.py): its one JSON summary.
+fn export_and_read_mcap(rec: &std::path::Path, dir: &std::path::Path) -> Value {
     let mcap = dir.join("out.mcap");
     common::ok(&common::gelgrip_cached(&[
         "record",
         "export",
-        common::s(&rec),
+        common::s(rec),
         "--mcap",
         common::s(&mcap),
     ]));
@@ -686,7 +678,21 @@ fn a_plain_runs_export_holds_joint_states_at_the_servo_read_rate() {
         "{}",
         String::from_utf8_lossy(&read.stderr)
     );
-    let summary: Value = serde_json::from_slice(&read.stdout).expect("one JSON summary");
+    serde_json::from_slice(&read.stdout).expect("one JSON summary")
+}
+
+/// A plain run (no task: the fixed servo programme, no pilot) records every servo read, so
+/// its MCAP export holds `joint_states` at the servo-read rate (50 Hz) over the whole run.
+#[test]
+#[ignore = "needs the PyPI mcap and mcap-ros2-support: run scripts/test"]
+fn a_plain_runs_export_holds_joint_states_at_the_servo_read_rate() {
+    let dir = common::scratch("ros-mcap-plain");
+    let rec = dir.join("rec");
+    let out = common::virtual_run(&["--duration", "5", "--record", common::s(&rec)])
+        .output()
+        .expect("the run");
+    common::json(&out);
+    let summary = export_and_read_mcap(&rec, &dir);
     assert_eq!(summary["errors"], serde_json::json!([]));
     let joints = &summary["topics"]["/gelgrip/joint_states"];
     let count = joints["count"]
@@ -725,25 +731,7 @@ fn an_mcap_export_reads_back_with_every_message_decoding() {
     .output()
     .expect("the run");
     let recorded = common::json(&out);
-    let mcap = dir.join("out.mcap");
-    common::ok(&common::gelgrip_cached(&[
-        "record",
-        "export",
-        common::s(&rec),
-        "--mcap",
-        common::s(&mcap),
-    ]));
-    let read = Command::new(python())
-        .arg(format!("{ROOT}/tests/python/mcap_read.py"))
-        .arg(&mcap)
-        .output()
-        .expect("the python reader");
-    assert!(
-        read.status.success(),
-        "{}",
-        String::from_utf8_lossy(&read.stderr)
-    );
-    let summary: Value = serde_json::from_slice(&read.stdout).expect("one JSON summary");
+    let summary = export_and_read_mcap(&rec, &dir);
     assert_eq!(summary["profile"], "ros2");
     assert_eq!(summary["errors"], serde_json::json!([]));
     let topics = summary["topics"].as_object().expect("topics");

@@ -16,7 +16,6 @@ use std::time::Duration;
 use axum::body::{Body, Bytes, to_bytes};
 use axum::http::{Method, Request, StatusCode, header};
 use proptest::prelude::*;
-use proptest::test_runner::TestRunner;
 use serde_json::{Value, json};
 use tokio::sync::mpsc;
 use tower::ServiceExt;
@@ -34,37 +33,9 @@ const CASE_BUDGET: Duration = Duration::from_secs(10);
 /// The token of the cases that run off loopback.
 const TOKEN: &str = "s3cret";
 
-/// Cases for a test: `GELGRIP_FUZZ_CASES` when set, else `PROPTEST_CASES` (256 when unset)
-/// capped at `ci_cap`. (The `proptest!` macro would let `PROPTEST_CASES` override any
-/// per-test count, hence a runner of our own.)
-fn config(ci_cap: u32) -> ProptestConfig {
-    let env = |k: &str| {
-        std::env::var(k)
-            .ok()
-            .and_then(|v| v.trim().parse::<u32>().ok())
-    };
-    let cases = env("GELGRIP_FUZZ_CASES")
-        .unwrap_or_else(|| env("PROPTEST_CASES").unwrap_or(256).min(ci_cap));
-    ProptestConfig {
-        cases,
-        failure_persistence: None,
-        ..ProptestConfig::default()
-    }
-}
-
-/// Run `test` on `config(CI_CASES)` cases of `strategy`; a panicking case fails, shrunk.
-fn check<S: Strategy>(strategy: S, test: impl Fn(S::Value))
-where
-    S::Value: std::fmt::Debug,
-{
-    let mut runner = TestRunner::new(config(CI_CASES));
-    if let Err(e) = runner.run(&strategy, |v| {
-        test(v);
-        Ok(())
-    }) {
-        panic!("{e}");
-    }
-}
+#[path = "../../testsupport/fuzz_runner.rs"]
+mod fuzz_runner;
+use fuzz_runner::check;
 
 const SENSORS: [&str; 3] = ["f1.middle", "f1.tip", "palm"];
 const FINGERS: [&str; 3] = ["f1", "f2", "f3"];
@@ -339,7 +310,7 @@ fn mutated_command_bodies_are_answered_never_with_a_5xx() {
         proptest::collection::vec((any::<usize>(), any::<u8>()), 0..3),
         proptest::option::of(any::<usize>()),
     );
-    check(strategy, |(route, edits, writes, cut)| {
+    check(CI_CASES, strategy, |(route, edits, writes, cut)| {
         let (path, body) = valid_bodies().swap_remove(route);
         let text = edit_body(body, &edits).to_string().into_bytes();
         answer_is_never_5xx(&rt, false, post(path, edit_bytes(text, &writes, cut)));
@@ -430,15 +401,19 @@ fn random_request() -> impl Strategy<Value = (bool, Method, String, Vec<(String,
 #[test]
 fn random_requests_are_answered_never_with_a_5xx() {
     let rt = runtime();
-    check(random_request(), |(token, method, path, headers, body)| {
-        let mut request = Request::builder().method(method).uri(path.as_str());
-        for (k, v) in &headers {
-            request = request.header(k.as_str(), v.as_str());
-        }
-        // What the HTTP layer refuses before any route sees it is not ours to test.
-        let Ok(request) = request.body(Body::from(body)) else {
-            return;
-        };
-        answer_is_never_5xx(&rt, token, request);
-    });
+    check(
+        CI_CASES,
+        random_request(),
+        |(token, method, path, headers, body)| {
+            let mut request = Request::builder().method(method).uri(path.as_str());
+            for (k, v) in &headers {
+                request = request.header(k.as_str(), v.as_str());
+            }
+            // What the HTTP layer refuses before any route sees it is not ours to test.
+            let Ok(request) = request.body(Body::from(body)) else {
+                return;
+            };
+            answer_is_never_5xx(&rt, token, request);
+        },
+    );
 }

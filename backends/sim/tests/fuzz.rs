@@ -12,7 +12,6 @@
 use std::time::{Duration, Instant};
 
 use proptest::prelude::*;
-use proptest::test_runner::TestRunner;
 
 use gelgrip_controller::actuator::MotorCommand;
 use gelgrip_controller::layout::HandLayout;
@@ -41,37 +40,9 @@ fn layout() -> HandLayout {
     HandLayout::from_toml("three-finger.toml", text).expect("layout")
 }
 
-/// Cases for a test: `GELGRIP_FUZZ_CASES` when set, else `PROPTEST_CASES` (256 when unset)
-/// capped at `ci_cap`. (The `proptest!` macro would let `PROPTEST_CASES` override any
-/// per-test count, hence a runner of our own.)
-fn config(ci_cap: u32) -> ProptestConfig {
-    let env = |k: &str| {
-        std::env::var(k)
-            .ok()
-            .and_then(|v| v.trim().parse::<u32>().ok())
-    };
-    let cases = env("GELGRIP_FUZZ_CASES")
-        .unwrap_or_else(|| env("PROPTEST_CASES").unwrap_or(256).min(ci_cap));
-    ProptestConfig {
-        cases,
-        failure_persistence: None,
-        ..ProptestConfig::default()
-    }
-}
-
-/// Run `test` on `config(ci_cap)` cases of `strategy`; a panicking case fails, shrunk.
-fn check<S: Strategy>(ci_cap: u32, strategy: S, test: impl Fn(S::Value))
-where
-    S::Value: std::fmt::Debug,
-{
-    let mut runner = TestRunner::new(config(ci_cap));
-    if let Err(e) = runner.run(&strategy, |v| {
-        test(v);
-        Ok(())
-    }) {
-        panic!("{e}");
-    }
-}
+#[path = "../../../testsupport/fuzz_runner.rs"]
+mod fuzz_runner;
+use fuzz_runner::check;
 
 /// A value a field may be given: numbers at the edges, other types, nothing.
 fn token() -> impl Strategy<Value = String> {

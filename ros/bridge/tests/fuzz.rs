@@ -11,7 +11,6 @@
 //! for a long run outside CI (docs/reliability.md).
 
 use proptest::prelude::*;
-use proptest::test_runner::TestRunner;
 
 use gelgrip_ros_bridge::command_goals::{cancel_targets, check_goal};
 use gelgrip_ros_wire::actions::{CancelCode, GoalInfo, SendGoalRequest};
@@ -20,37 +19,9 @@ use gelgrip_ros_wire::msgs::Time;
 /// Cases per test in CI: all of `scripts/test`'s 30 000 (a check takes nanoseconds).
 const CI_CASES: u32 = 30_000;
 
-/// Cases for a test: `GELGRIP_FUZZ_CASES` when set, else `PROPTEST_CASES` (256 when unset)
-/// capped at `ci_cap`. (The `proptest!` macro would let `PROPTEST_CASES` override any
-/// per-test count, hence a runner of our own.)
-fn config(ci_cap: u32) -> ProptestConfig {
-    let env = |k: &str| {
-        std::env::var(k)
-            .ok()
-            .and_then(|v| v.trim().parse::<u32>().ok())
-    };
-    let cases = env("GELGRIP_FUZZ_CASES")
-        .unwrap_or_else(|| env("PROPTEST_CASES").unwrap_or(256).min(ci_cap));
-    ProptestConfig {
-        cases,
-        failure_persistence: None,
-        ..ProptestConfig::default()
-    }
-}
-
-/// Run `test` on `config(CI_CASES)` cases of `strategy`; a panicking case fails, shrunk.
-fn check<S: Strategy>(strategy: S, test: impl Fn(S::Value))
-where
-    S::Value: std::fmt::Debug,
-{
-    let mut runner = TestRunner::new(config(CI_CASES));
-    if let Err(e) = runner.run(&strategy, |v| {
-        test(v);
-        Ok(())
-    }) {
-        panic!("{e}");
-    }
-}
+#[path = "../../../testsupport/fuzz_runner.rs"]
+mod fuzz_runner;
+use fuzz_runner::check;
 
 /// Any float a request's bytes may hold, the edges weighted up.
 fn float() -> impl Strategy<Value = f64> {
@@ -70,28 +41,32 @@ fn float() -> impl Strategy<Value = f64> {
 #[test]
 fn a_goal_is_accepted_exactly_when_its_effort_and_opening_are_in_range() {
     let strategy = (any::<[u8; 16]>(), float(), float(), 0.0f64..4.0);
-    check(strategy, |(goal_id, position, max_effort, max_opening)| {
-        let request = SendGoalRequest {
-            goal_id,
-            position,
-            max_effort,
-        };
-        let ok = max_effort.is_finite()
-            && max_effort > 0.0
-            && position.is_finite()
-            && (0.0..=max_opening).contains(&position);
-        match check_goal(&request, max_opening) {
-            Ok(goal) => {
-                assert!(ok, "{request:?} accepted");
-                assert_eq!(goal.position_rad.to_bits(), position.to_bits());
-                assert_eq!(goal.max_effort_n.to_bits(), max_effort.to_bits());
+    check(
+        CI_CASES,
+        strategy,
+        |(goal_id, position, max_effort, max_opening)| {
+            let request = SendGoalRequest {
+                goal_id,
+                position,
+                max_effort,
+            };
+            let ok = max_effort.is_finite()
+                && max_effort > 0.0
+                && position.is_finite()
+                && (0.0..=max_opening).contains(&position);
+            match check_goal(&request, max_opening) {
+                Ok(goal) => {
+                    assert!(ok, "{request:?} accepted");
+                    assert_eq!(goal.position_rad.to_bits(), position.to_bits());
+                    assert_eq!(goal.max_effort_n.to_bits(), max_effort.to_bits());
+                }
+                Err(why) => {
+                    assert!(!ok, "{request:?} refused: {why}");
+                    assert!(why.contains("command."), "{why}");
+                }
             }
-            Err(why) => {
-                assert!(!ok, "{request:?} refused: {why}");
-                assert!(why.contains("command."), "{why}");
-            }
-        }
-    });
+        },
+    );
 }
 
 /// Goal ids from a small pool (so that requests name known goals), or the zero id.
@@ -119,6 +94,7 @@ fn goal_info() -> impl Strategy<Value = GoalInfo> {
 fn a_cancel_names_only_known_running_goals_or_says_why_not() {
     let goals = proptest::collection::vec((goal_info(), any::<bool>()), 0..8);
     check(
+        CI_CASES,
         (goal_info(), goals),
         |(request, goals)| match cancel_targets(&request, &goals) {
             Ok(targets) => {

@@ -12,7 +12,6 @@
 //! for a long run outside CI (docs/reliability.md).
 
 use proptest::prelude::*;
-use proptest::test_runner::TestRunner;
 
 use gelgrip_ros_wire::actions::{
     SendGoalRequest, decode_cancel_goal, decode_get_result, decode_send_goal,
@@ -25,37 +24,9 @@ use gelgrip_ros_wire::services::decode_trigger_request;
 /// Cases per test in CI: all of `scripts/test`'s 30 000 (a decode takes nanoseconds).
 const CI_CASES: u32 = 30_000;
 
-/// Cases for a test: `GELGRIP_FUZZ_CASES` when set, else `PROPTEST_CASES` (256 when unset)
-/// capped at `ci_cap`. (The `proptest!` macro would let `PROPTEST_CASES` override any
-/// per-test count, hence a runner of our own.)
-fn config(ci_cap: u32) -> ProptestConfig {
-    let env = |k: &str| {
-        std::env::var(k)
-            .ok()
-            .and_then(|v| v.trim().parse::<u32>().ok())
-    };
-    let cases = env("GELGRIP_FUZZ_CASES")
-        .unwrap_or_else(|| env("PROPTEST_CASES").unwrap_or(256).min(ci_cap));
-    ProptestConfig {
-        cases,
-        failure_persistence: None,
-        ..ProptestConfig::default()
-    }
-}
-
-/// Run `test` on `config(CI_CASES)` cases of `strategy`; a panicking case fails, shrunk.
-fn check<S: Strategy>(strategy: S, test: impl Fn(S::Value))
-where
-    S::Value: std::fmt::Debug,
-{
-    let mut runner = TestRunner::new(config(CI_CASES));
-    if let Err(e) = runner.run(&strategy, |v| {
-        test(v);
-        Ok(())
-    }) {
-        panic!("{e}");
-    }
-}
+#[path = "../../../testsupport/fuzz_runner.rs"]
+mod fuzz_runner;
+use fuzz_runner::check;
 
 /// Every request decoder on `bytes`: each a value or a typed error; the ones that
 /// accept must agree with a reader's own view of the same bytes.
@@ -122,12 +93,12 @@ fn random_bytes_decode_or_fail_with_a_typed_error() {
             b
         }),
     ];
-    check(bytes, |b| decode_all(&b));
+    check(CI_CASES, bytes, |b| decode_all(&b));
 }
 
 #[test]
 fn valid_requests_decode_to_what_was_sent() {
-    check(request(), |r| {
+    check(CI_CASES, request(), |r| {
         let got = decode_send_goal(&send_goal(&r)).expect("a valid request");
         assert_eq!(got.goal_id, r.goal_id);
         assert_eq!(got.position.to_bits(), r.position.to_bits());
@@ -143,7 +114,7 @@ fn mutated_requests_decode_or_fail_with_a_typed_error() {
         proptest::option::of(any::<usize>()),
         proptest::collection::vec(any::<u8>(), 0..12),
     );
-    check(strategy, |(r, edits, cut, tail)| {
+    check(CI_CASES, strategy, |(r, edits, cut, tail)| {
         let mut b = send_goal(&r);
         for (at, v) in edits {
             let n = b.len();
@@ -182,7 +153,7 @@ fn any_sequence_of_reads_stays_in_bounds() {
         proptest::collection::vec(any::<u8>(), 4..80),
         proptest::collection::vec(read, 0..12),
     );
-    check(strategy, |(mut bytes, reads)| {
+    check(CI_CASES, strategy, |(mut bytes, reads)| {
         bytes[..2].copy_from_slice(&[0, 1]);
         let mut r = CdrReader::new(&bytes).expect("header");
         for read in reads {
@@ -212,7 +183,7 @@ fn attachments_parse_only_when_well_formed() {
         any::<i64>(),
         any::<[u8; 16]>(),
     );
-    check(strategy, |(bytes, seq, t, gid)| {
+    check(CI_CASES, strategy, |(bytes, seq, t, gid)| {
         let parsed = parse_attachment(&bytes);
         assert_eq!(parsed.is_some(), bytes.len() == 33 && bytes[16] == 16);
         assert_eq!(
