@@ -11,33 +11,13 @@ use std::process::{Command, Output};
 use common::press_hub::{PressHub, collect_command};
 use common::{gelgrip, json, ok, s, scratch};
 use gelgrip::wiring;
-use gelgrip_plugins::calibrate::collect::decode_frame;
+use gelgrip_plugins::calibrate::collect::{decode_frame, mean_background};
 use gelgrip_plugins::calibrate::label::detect;
 use gelgrip_plugins::dataset::PressDataset;
 use gelgrip_plugins::image::RgbImage;
 use gelgrip_sim::press_camera::sensor_camera;
 use gelgrip_sim::scene::HeightMap;
 use rand::{Rng, SeedableRng};
-
-/// The background of `cam`: the mean of ten untouched frames, as `calibrate collect` takes it.
-fn mean_background(cam: &gelgrip_sim::pool::SensorCamera) -> RgbImage {
-    let n = 10u32;
-    let mut sum = vec![0u32; cam.width * cam.height * 3];
-    for jpeg in cam
-        .untouched_frames(1_000_000, u64::from(n))
-        .expect("frames")
-    {
-        let img = decode_frame(cam, &jpeg).expect("decode");
-        sum.iter_mut()
-            .zip(&img.data)
-            .for_each(|(s, v)| *s += u32::from(*v));
-    }
-    RgbImage {
-        width: cam.width,
-        height: cam.height,
-        data: sum.iter().map(|s| ((s + n / 2) / n) as u8).collect(),
-    }
-}
 
 /// How a set of simulated presses is drawn.
 struct PressPlan<'a> {
@@ -56,7 +36,7 @@ struct PressPlan<'a> {
 fn label_accuracy(plan: &PressPlan<'_>) -> (usize, usize, f64, f64, f64) {
     let config = wiring::load_config(plan.config, &wiring::registry()).expect("the config loads");
     let (cam, _) = sensor_camera(&config, "f1.tip").expect("camera");
-    let background = mean_background(&cam);
+    let background = mean_background(&cam).expect("the background");
     let flat = RgbImage {
         width: cam.width,
         height: cam.height,

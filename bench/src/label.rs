@@ -18,7 +18,7 @@ use clap::Args;
 use rand::{Rng, SeedableRng};
 use serde::Serialize;
 
-use gelgrip_plugins::calibrate::collect::decode_frame;
+use gelgrip_plugins::calibrate::collect::{decode_frame, mean_background};
 use gelgrip_plugins::calibrate::label::{ContactCircle, Labeller, Rejection};
 use gelgrip_plugins::image::RgbImage;
 use gelgrip_sim::pool::SensorCamera;
@@ -93,7 +93,7 @@ struct Pressed {
 pub fn run(rig: &dyn Rig, args: BenchLabelArgs) -> anyhow::Result<u8> {
     let config = rig.load_config(Some(&args.config))?;
     let (cam, _) = sensor_camera(&config, SENSOR).context("the sensor's camera")?;
-    let background = mean_background(&cam)?;
+    let background = mean_background(&cam).context("the background")?;
     let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(args.seed);
     let bar = progress::bar((args.balls_mm.len() * args.presses) as u64, "presses");
     let mut rows = Vec::new();
@@ -164,23 +164,6 @@ fn press_ball(
         bar.inc(1);
     }
     Ok((images, truths))
-}
-
-/// The mean of ten untouched frames, as `calibrate collect` takes the background.
-fn mean_background(cam: &SensorCamera) -> anyhow::Result<RgbImage> {
-    let n = 10u32;
-    let mut sum = vec![0u32; cam.width * cam.height * 3];
-    for jpeg in cam.untouched_frames(1_000_000, u64::from(n))? {
-        let img = decode_frame(cam, &jpeg)?;
-        sum.iter_mut()
-            .zip(&img.data)
-            .for_each(|(s, v)| *s += u32::from(*v));
-    }
-    Ok(RgbImage {
-        width: cam.width,
-        height: cam.height,
-        data: sum.iter().map(|s| ((s + n / 2) / n) as u8).collect(),
-    })
 }
 
 fn ball_row(ball_mm: f64, pressed: &[Pressed]) -> BallRow {

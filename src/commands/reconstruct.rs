@@ -13,7 +13,7 @@ use serde::Serialize;
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 
-use crate::cli::{UsageError, parse_within};
+use crate::cli::UsageError;
 use gelgrip_plugins::gradient::{GradientModel, MlpMode};
 use gelgrip_plugins::image::RgbImage;
 use gelgrip_plugins::npy;
@@ -242,10 +242,6 @@ fn report(
     Ok(())
 }
 
-fn parse_mm_per_px(s: &str) -> Result<f64, String> {
-    parse_within(s, "a pixel size", "mm", 1e-4..=10.0)
-}
-
 /// `gelgrip reconstruct`.
 #[derive(Debug, Args)]
 pub struct ReconstructArgs {
@@ -262,7 +258,7 @@ pub struct ReconstructArgs {
     #[arg(long)]
     pub out: PathBuf,
     /// Pixel size on the gel, mm (default: the model file's `mm_per_px`).
-    #[arg(long, value_parser = parse_mm_per_px)]
+    #[arg(long, value_parser = crate::commands::calibrate_label::parse_mm_per_px)]
     pub mm_per_px: Option<f64>,
     /// Depth solver: dct (the pipeline's default) or dst.
     #[arg(long, default_value = "dct", value_parser = ["dct", "dst"])]

@@ -69,8 +69,9 @@ pub fn decode_frame(cam: &dyn PressCamera, jpeg: &[u8]) -> Result<RgbImage, Deco
     Ok(img)
 }
 
-/// The mean of [`BACKGROUND_FRAMES`] untouched frames, rounded.
-fn background(cam: &dyn PressCamera) -> Result<RgbImage, CollectError> {
+/// The mean of [`BACKGROUND_FRAMES`] untouched frames, rounded: the background a collected
+/// dataset gets (and `bench label` and the label tests label against).
+pub fn mean_background(cam: &dyn PressCamera) -> Result<RgbImage, CollectError> {
     let (w, h) = cam.size_px();
     let mut sum = vec![0u32; w * h * 3];
     for nth in FIRST_BACKGROUND_FRAME..FIRST_BACKGROUND_FRAME + BACKGROUND_FRAMES {
@@ -95,7 +96,7 @@ pub fn collect(
     out: &Path,
     mut progress: impl FnMut(usize),
 ) -> Result<PressDataset, CollectError> {
-    let background = background(cam)?;
+    let background = mean_background(cam)?;
     let (w, h) = cam.size_px();
     let mm_per_px = cam.mm_per_px();
     let mut rng = Pcg64Mcg::seed_from_u64(balls.seed ^ PRESS_SEED);
