@@ -17,8 +17,10 @@ pub struct RunReport {
     pub set_rate_hz: f64,
     /// p99 capture spread, null without sets.
     pub spread_us_p99: Option<u64>,
-    /// Faults during the run.
+    /// Faults during the run: the first 256 (`FAULTS_KEPT`) in full.
     pub faults: Vec<String>,
+    /// Faults beyond those, counted (a long run under faults meets thousands).
+    pub faults_omitted: u64,
     /// Frames dropped by reason.
     pub drops: ReasonCounts,
     /// Sets rejected by reason.
@@ -75,6 +77,9 @@ pub struct RunReport {
     /// Frames delivered in emitted sets, each counted once (`7 × sets` while every sensor
     /// is in, fewer while the gate excludes some).
     pub frames_in_sets: u64,
+    /// Sets delivered whose trigger sequence was not past the last set's (delivered twice,
+    /// or out of order): 0 in a sound run.
+    pub duplicate_sets: u64,
     /// Sensors left out of the sets at the end of the run because they kept failing the
     /// gate's window (the rest went on without them).
     pub excluded_sensors: Vec<ExcludedSensor>,
@@ -107,6 +112,12 @@ impl RunReport {
         s += &format!("  sets rejected {}\n", counts_text(&self.sets_rejected));
         for f in &self.faults {
             s += &format!("  fault: {f}\n");
+        }
+        if self.faults_omitted > 0 {
+            s += &format!(
+                "  ({} more faults counted, not listed)\n",
+                self.faults_omitted
+            );
         }
         if let Some(servos) = &self.servos {
             let line: Vec<String> = servos

@@ -52,10 +52,12 @@ impl Rig for ProgramRig {
     async fn start(&self, options: &RunOptions) -> anyhow::Result<StartedRun> {
         let session = Session::open(options).await?;
         let dashboard_url = session.dashboard_url().map(str::to_string);
+        let world = session.world().cloned();
         let (events, rx) = mpsc::channel(1);
         let end = tokio::spawn(async move { run_end(&session.run(rx).await) });
         Ok(StartedRun {
             dashboard_url,
+            world,
             events,
             end,
         })

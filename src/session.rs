@@ -327,6 +327,11 @@ impl Session {
         self.dashboard_url.as_deref()
     }
 
+    /// The simulated world, on the simulated hub.
+    pub fn world(&self) -> Option<&SharedWorld> {
+        self.world.as_ref()
+    }
+
     /// The run's config.
     pub fn config(&self) -> &AppConfig {
         &self.config
@@ -364,7 +369,12 @@ impl Session {
     /// Bring the hardware to its safe state after `end`, close the recording, and report.
     pub fn finish(mut self, end: EndReason) -> RunReport {
         let summary = self.runtime.finish(end);
-        let mut faults: Vec<String> = summary.faults.iter().map(ToString::to_string).collect();
+        let mut faults: Vec<String> = summary
+            .faults
+            .faults()
+            .iter()
+            .map(ToString::to_string)
+            .collect();
         let scene = self.world.as_ref().and_then(|w| {
             let w = w.lock().ok()?;
             SceneReport::of(&w, &self.config.layout)
@@ -393,6 +403,7 @@ impl Session {
             set_rate_hz: stats.set_rate_hz(),
             spread_us_p99: stats.spread_us_p99(),
             faults,
+            faults_omitted: summary.faults.omitted(),
             drops: stats.drops,
             sets_rejected: stats.sets_rejected,
             end_reason: summary.end_reason,
@@ -412,6 +423,7 @@ impl Session {
             frames_received: stats.frames_in,
             frames_reused: stats.frames_reused,
             frames_in_sets: stats.frames_out,
+            duplicate_sets: summary.duplicate_sets,
             excluded_sensors: self.excluded_sensors(stats),
             spread_histogram_us: stats.spread_buckets(),
             object: scene.as_ref().map(|s| s.object.clone()),

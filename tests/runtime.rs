@@ -76,7 +76,11 @@ async fn an_estop_mid_squeeze_holds_every_finger_at_the_minimum_current() {
     assert_eq!(end, EndReason::Estop);
     let summary = session.runtime.finish(end);
     assert!(
-        summary.faults.iter().any(|f| f.kind == FaultKind::Estop),
+        summary
+            .faults
+            .faults()
+            .iter()
+            .any(|f| f.kind == FaultKind::Estop),
         "{:?}",
         summary.faults
     );

@@ -5,8 +5,9 @@
 //! configs, open hubs and run the gripper; the rest they build from the adapters
 //! directly (simulated cameras, pipelines, emulators).
 //!
-//! - the benches: [`bus`], [`pipeline`], [`grasp`], [`sync`], [`dashboard`], [`soak`],
-//!   [`calibration`], [`tradeoff`]; and [`task_log_plot`] (`gelgrip plot`);
+//! - the benches: [`bus`], [`pipeline`], [`grasp`], [`sync`], [`dashboard`], [`soak`]
+//!   (and [`soak_storm`], its virtual-clock storm), [`calibration`], [`label`],
+//!   [`tradeoff`]; and [`task_log_plot`] (`gelgrip plot`);
 //! - their parts: [`plot`] (figures as SVG or PNG), [`config_files`] (configs derived from
 //!   a base file), [`sensor_models`] (a simulated hand's calibrated models),
 //!   [`dashboard_child`] (a `gelgrip run` child serving its dashboard), [`progress`];
@@ -29,6 +30,7 @@ pub mod progress;
 pub mod rig;
 pub mod sensor_models;
 pub mod soak;
+pub mod soak_storm;
 pub mod sync;
 pub mod task_log_plot;
 pub mod tradeoff;

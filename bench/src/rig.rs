@@ -29,6 +29,8 @@ pub struct RunEnd {
 pub struct StartedRun {
     /// Its dashboard's URL (`None` when headless).
     pub dashboard_url: Option<String>,
+    /// Its simulated world (`None` on real hardware): the virtual soak's storm runs in it.
+    pub world: Option<gelgrip_sim::world::SharedWorld>,
     /// Where to send it events (`RuntimeEvent::Shutdown` ends it).
     pub events: mpsc::Sender<RuntimeEvent>,
     /// Its end, once it has ended (a join error if its task panicked).

@@ -23,6 +23,7 @@ use rand_pcg::Pcg64Mcg;
 use serde::Serialize;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 
+use gelgrip_controller::clock::ClockKind;
 use gelgrip_controller::runtime::RuntimeEvent;
 use gelgrip_controller::runtime::options::RunOptions;
 use tokio::sync::mpsc;
@@ -30,16 +31,16 @@ use tokio::sync::mpsc;
 use crate::rig::{Rig, RunEnd};
 
 /// The controller phases docs/control.md documents.
-const PHASES: [&str; 7] = [
+pub(crate) const PHASES: [&str; 7] = [
     "open", "approach", "contact", "squeeze", "hold", "release", "fault",
 ];
 /// Sensors of the default gripper and the fingers.
 const SENSORS: [&str; 7] = [
     "f1.tip", "f1.base", "f2.tip", "f2.base", "f3.tip", "f3.base", "palm",
 ];
-const FINGERS: [&str; 3] = ["f1", "f2", "f3"];
+pub(crate) const FINGERS: [&str; 3] = ["f1", "f2", "f3"];
 /// Frames that may still wait in the gate at the end: two sets of seven.
-const PENDING_FRAMES: u64 = 14;
+pub(crate) const PENDING_FRAMES: u64 = 14;
 
 /// The `--json` report.
 #[derive(Debug, Serialize)]
@@ -75,7 +76,12 @@ pub struct SoakReport {
 const HTTP_TIMEOUT: Duration = Duration::from_secs(30);
 
 /// One HTTP/1.1 request with `Connection: close`; the status and the body.
-async fn http(addr: &str, method: &str, path: &str, body: &str) -> Option<(u16, String)> {
+pub(crate) async fn http(
+    addr: &str,
+    method: &str,
+    path: &str,
+    body: &str,
+) -> Option<(u16, String)> {
     let attempt = async {
         let mut s = tokio::net::TcpStream::connect(addr).await.ok()?;
         let req = format!(
@@ -96,7 +102,7 @@ async fn http(addr: &str, method: &str, path: &str, body: &str) -> Option<(u16, 
         .flatten()
 }
 
-fn rss_kb(pid: u32) -> u64 {
+pub(crate) fn rss_kb(pid: u32) -> u64 {
     std::fs::read_to_string(format!("/proc/{pid}/status"))
         .ok()
         .and_then(|s| {
@@ -108,7 +114,7 @@ fn rss_kb(pid: u32) -> u64 {
 }
 
 /// Answers by class, shared with the bursts running in the background.
-type StatusCounts = std::sync::Arc<std::sync::Mutex<BTreeMap<String, u64>>>;
+pub(crate) type StatusCounts = std::sync::Arc<std::sync::Mutex<BTreeMap<String, u64>>>;
 
 struct Soak {
     addr: String,
@@ -120,7 +126,7 @@ struct Soak {
 }
 
 /// Send a request and count its answer's class (`none`: no answer within the timeout).
-async fn counted(
+pub(crate) async fn counted(
     addr: String,
     status: StatusCounts,
     method: &str,
@@ -193,17 +199,7 @@ impl Soak {
                 None
             }
             _ => {
-                // Twenty requests at once, answered in the background (a grasp answers
-                // when it is done).
-                for k in 0..20 {
-                    let (method, path, body) = match (k + self.rng.random_range(0..6)) % 6 {
-                        0 => ("POST", "/api/grasp", r#"{"target_force_n": 2.0}"#),
-                        1 => ("POST", "/api/release", "{}"),
-                        2 => ("GET", "/api/state", ""),
-                        3 => ("POST", "/api/grasp", "{not json"),
-                        4 => ("GET", "/api/nothing-here", ""),
-                        _ => ("POST", "/api/stop", "{}"),
-                    };
+                for (method, path, body) in burst(&mut self.rng) {
                     self.requests += 1;
                     let (addr, status) = (self.addr.clone(), self.status.clone());
                     self.bursts.spawn(async move {
@@ -216,9 +212,27 @@ impl Soak {
     }
 }
 
-/// Run the bench; returns the exit code.
+/// The requests a burst draws from: grasps, releases, state reads, malformed bodies,
+/// unknown paths, stops.
+const BURST_REQUESTS: [(&str, &str, &str); 6] = [
+    ("POST", "/api/grasp", r#"{"target_force_n": 2.0}"#),
+    ("POST", "/api/release", "{}"),
+    ("GET", "/api/state", ""),
+    ("POST", "/api/grasp", "{not json"),
+    ("GET", "/api/nothing-here", ""),
+    ("POST", "/api/stop", "{}"),
+];
+
+/// Twenty HTTP commands sent at once, answered in the background (a grasp answers when it
+/// is done), drawn from [`BURST_REQUESTS`].
+pub(crate) fn burst(rng: &mut Pcg64Mcg) -> Vec<(&'static str, &'static str, &'static str)> {
+    (0..20)
+        .map(|k| BURST_REQUESTS[(k + rng.random_range(0..6)) % BURST_REQUESTS.len()])
+        .collect()
+}
+
 /// Count every panic in this process from now on (then the previous hook reports it).
-fn count_panics() -> Arc<AtomicU64> {
+pub(crate) fn count_panics() -> Arc<AtomicU64> {
     let panics = Arc::new(AtomicU64::new(0));
     let seen = panics.clone();
     let previous = std::panic::take_hook();
@@ -230,16 +244,20 @@ fn count_panics() -> Arc<AtomicU64> {
 }
 
 /// The gripper under test, running in this process with its dashboard.
-struct Gripper {
-    addr: String,
+pub(crate) struct Gripper {
+    pub(crate) addr: String,
+    /// The simulated world (`None` on real hardware).
+    pub(crate) world: Option<gelgrip_sim::world::SharedWorld>,
     stop: mpsc::Sender<RuntimeEvent>,
     run: tokio::task::JoinHandle<anyhow::Result<RunEnd>>,
 }
 
 impl Gripper {
-    async fn start(rig: &dyn Rig) -> anyhow::Result<Self> {
+    /// Start the gripper on `clock` with its dashboard on a free local port.
+    pub(crate) async fn start(rig: &dyn Rig, clock: ClockKind) -> anyhow::Result<Self> {
         let options = RunOptions {
             http: Some(std::net::SocketAddr::from(([127, 0, 0, 1], 0))),
+            clock,
             ..RunOptions::default()
         };
         let started = rig.start(&options).await?;
@@ -252,13 +270,14 @@ impl Gripper {
             .to_string();
         Ok(Self {
             addr,
+            world: started.world,
             stop: started.events,
             run: started.end,
         })
     }
 
     /// Stop the run and take its report (`None` if the run's task panicked).
-    async fn stop(self) -> anyhow::Result<Option<RunEnd>> {
+    pub(crate) async fn stop(self) -> anyhow::Result<Option<RunEnd>> {
         let _ = self.stop.send(RuntimeEvent::Shutdown).await;
         match self.run.await {
             Ok(end) => end.map(Some),
@@ -268,11 +287,22 @@ impl Gripper {
     }
 }
 
-/// Run the soak; returns the exit code, or an error when an invariant failed (after the
-/// report).
+/// Run the soak on the clock `args` names; returns the exit code, or an error when an
+/// invariant failed (after the report).
 pub async fn run(rig: &dyn Rig, args: BenchSoakArgs) -> anyhow::Result<u8> {
+    match args.clock {
+        SoakClock::Virtual => crate::soak_storm::run(rig, &args).await,
+        SoakClock::Real if args.faults.is_some() => {
+            bail!("--faults counts the virtual soak's fault events: add --clock virtual")
+        }
+        SoakClock::Real => run_real(rig, &args, args.minutes.unwrap_or(10.0)).await,
+    }
+}
+
+/// The soak on the real clock for `minutes`, a fault every two seconds.
+async fn run_real(rig: &dyn Rig, args: &BenchSoakArgs, minutes: f64) -> anyhow::Result<u8> {
     let panic_count = count_panics();
-    let gripper = Gripper::start(rig).await?;
+    let gripper = Gripper::start(rig, ClockKind::Real).await?;
     let addr = gripper.addr.clone();
     let mut soak = Soak {
         addr,
@@ -282,7 +312,7 @@ pub async fn run(rig: &dyn Rig, args: BenchSoakArgs) -> anyhow::Result<u8> {
         requests: 0,
         bursts: tokio::task::JoinSet::new(),
     };
-    let total = Duration::from_secs_f64(args.minutes * 60.0);
+    let total = Duration::from_secs_f64(minutes * 60.0);
     let warm_up = (total / 10).clamp(Duration::from_secs(5), Duration::from_secs(60));
     let start = Instant::now();
     // The tennis ball within reach, so grasps find something.
@@ -335,7 +365,7 @@ pub async fn run(rig: &dyn Rig, args: BenchSoakArgs) -> anyhow::Result<u8> {
         && samples > 0
         && exit_code == 0;
     let report = SoakReport {
-        minutes: args.minutes,
+        minutes,
         seed: args.seed,
         passed,
         panics,
@@ -472,12 +502,31 @@ fn print_report(report: &SoakReport, five_xx: u64) {
     );
 }
 
+/// The clock a soak runs on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum SoakClock {
+    /// Wall-clock time: a fault every two seconds through the dashboard's API.
+    Real,
+    /// Virtual time at the host's pace: a seeded storm of faults in the simulated world's
+    /// time (docs/soak.md).
+    Virtual,
+}
+
 /// `gelgrip bench soak`.
 #[derive(Debug, Args)]
 pub struct BenchSoakArgs {
-    /// How long, in minutes.
-    #[arg(long, default_value = "10", value_parser = parse_minutes)]
-    pub minutes: f64,
+    /// How long, in minutes: wall-clock minutes on the real clock (default 10); virtual
+    /// minutes on the virtual clock (no limit unless given: it ends after `--faults`).
+    #[arg(long, value_parser = parse_minutes)]
+    pub minutes: Option<f64>,
+    /// The clock: `real` (today's soak), or `virtual` (a storm of fault events).
+    #[arg(long, value_enum, default_value = "real")]
+    pub clock: SoakClock,
+    /// On the virtual clock: end once this many fault events were injected (default
+    /// 100000; every corrupted or dropped frame is one, every unplug, slow-sensor episode,
+    /// servo overload or HTTP burst is one).
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+    pub faults: Option<u64>,
     /// Seed of the fault schedule.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,

@@ -247,6 +247,8 @@ impl Dashboard {
             set_rate_hz: stats.set_rate_hz(),
             spread_us_p99: stats.spread_us_p99(),
             spread_histogram_us: stats.spread_buckets(),
+            frames_received: stats.frames_in,
+            frames_in_sets: stats.frames_out,
             drops: stats.drops,
             sets_rejected: stats.sets_rejected,
             loop_latency_ms_p99: report.gripper.as_ref().and_then(|g| g.latencies.loop_p99),

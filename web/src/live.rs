@@ -79,6 +79,10 @@ pub struct SyncView {
     pub spread_us_p99: Option<u64>,
     /// Spread histogram: `[upper bound µs, sets]`.
     pub spread_histogram_us: Vec<(u64, u64)>,
+    /// Frames the gate received.
+    pub frames_received: u64,
+    /// Frames delivered in sets, each counted once.
+    pub frames_in_sets: u64,
     /// Frames dropped, by reason.
     pub drops: ReasonCounts,
     /// Sets refused, by reason.

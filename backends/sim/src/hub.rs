@@ -66,6 +66,22 @@ impl Scene {
         }
     }
 
+    /// Apply the world's storm of faults due by `now_us` (the virtual-clock soak).
+    fn apply_fault_storm(&self, now_us: u64) {
+        if let Ok(mut w) = self.world.lock() {
+            w.apply_fault_storm(now_us);
+        }
+    }
+
+    /// Count frames corrupted and dropped by faults in the world's storm tally.
+    fn count_faulted_frames(&self, corrupted: u64, dropped: u64) {
+        if (corrupted, dropped) != (0, 0)
+            && let Ok(mut w) = self.world.lock()
+        {
+            w.count_faulted_frames(corrupted, dropped);
+        }
+    }
+
     /// Whether the world has the hub unplugged at host time `at_us`.
     fn hub_unplugged(&self, at_us: u64) -> bool {
         self.world.lock().is_ok_and(|w| w.hub_unplugged(at_us))
@@ -252,7 +268,8 @@ impl SimHub {
             u8::try_from(n).unwrap_or(u8::MAX),
             self.bus.i2c_hz,
         );
-        (0..n)
+        let (mut corrupted, mut dropped) = (0u64, 0u64);
+        let boards = (0..n)
             .map(|b| {
                 let faults = d
                     .injected
@@ -268,6 +285,8 @@ impl SimHub {
                     silent || (faults.drop_rate > 0.0 && self.rng.random_bool(faults.drop_rate));
                 let corrupt =
                     faults.corrupt_rate > 0.0 && self.rng.random_bool(faults.corrupt_rate);
+                dropped += u64::from(lost && !silent);
+                corrupted += u64::from(corrupt && !lost);
                 let capture_delay_ns = u64::from(faults.capture_delay_us) * 1000;
                 let capture_ns =
                     start_ns + receipts.get(b).copied().unwrap_or(0) + jitter_ns + capture_delay_ns;
@@ -304,7 +323,11 @@ impl SimHub {
                 };
                 (input, wire, silent)
             })
-            .collect()
+            .collect();
+        if let Some(scene) = &self.scene {
+            scene.count_faulted_frames(corrupted, dropped);
+        }
+        boards
     }
 
     /// A uniform draw in 0..=`bound_us` µs, ns; no draw at all for 0 (so a config without
@@ -469,6 +492,7 @@ impl HubTransport for SimHub {
         let (frames, unplugged, injected) = match &self.scene {
             Some(scene) => {
                 let maps = height_maps(&scene.world, scene.sensors, now_us);
+                scene.apply_fault_storm(now_us);
                 (
                     Some(scene.renderer.render(maps, nth)),
                     scene.hub_unplugged(now_us),

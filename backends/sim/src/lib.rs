@@ -10,6 +10,7 @@
 //!   buffering, SPI transfer of each frame's actual length), which produces every timestamp;
 //! - [`hub`]: [`hub::SimHub`], the `HubTransport` that plays that timeline on the injected
 //!   clock, with fault injection from config; [`board_clock`]: a board's drifting clock;
+//! - [`fault_storm`]: a seeded storm of faults in virtual time (the virtual-clock soak);
 //! - [`config`] and [`factory`]: the `[hub.sim]` section and the registry entry;
 //! - the world: [`shapes`] and [`scene_spec`] (scene files), [`object`] (slip, crush, the
 //!   screwdriver's trigger and bolt), [`finger`] (cable-driven finger mechanics),
@@ -26,6 +27,7 @@ pub mod board_clock;
 pub mod config;
 pub mod contact;
 pub mod factory;
+pub mod fault_storm;
 pub mod finger;
 pub mod hub;
 pub mod motor;

@@ -17,6 +17,7 @@ use gelgrip_controller::layout::{HandLayout, Placement};
 
 use crate::config::SensorFaults;
 use crate::contact::{PadContact, PadGrid, height_map, pad_contact};
+use crate::fault_storm::{FaultStorm, FaultTally, StormEvent};
 use crate::finger::{FingerMechanics, PadFrame, PadLoad};
 use crate::motor::Xm430Motor;
 use crate::object::ObjectState;
@@ -81,6 +82,8 @@ pub struct World {
     /// When the scene was set (its fixture's release time counts from here), µs of
     /// simulated time.
     scene_since_us: u64,
+    /// The virtual-clock soak's storm of faults, applied at every trigger.
+    fault_storm: Option<FaultStorm>,
 }
 
 fn palm_frame(xyz_mm: [f64; 3], rpy_deg: [f64; 3]) -> PadFrame {
@@ -162,6 +165,7 @@ impl World {
             injected_faults: Vec::new(),
             hub_unplugged_until_us: None,
             scene_since_us: 0,
+            fault_storm: None,
         }
     }
 
@@ -206,6 +210,55 @@ impl World {
     pub fn hub_unplugged(&self, at_us: u64) -> bool {
         self.hub_unplugged_until_us
             .is_some_and(|until| at_us < until)
+    }
+
+    /// Let `storm` inject its faults from now on (`None`: stop it; faults it opened stay
+    /// until replaced).
+    pub fn set_fault_storm(&mut self, storm: Option<FaultStorm>) {
+        self.fault_storm = storm;
+    }
+
+    /// Apply the storm's episodes due by host time `now_us` (the hub calls it at each
+    /// trigger).
+    pub fn apply_fault_storm(&mut self, now_us: u64) {
+        let Some(events) = self.fault_storm.as_mut().map(|s| s.due(now_us)) else {
+            return;
+        };
+        for event in events {
+            match event {
+                StormEvent::Sensor { sensor, faults, .. } => {
+                    self.inject_faults(sensor, Some(faults));
+                }
+                StormEvent::SensorEnd { sensor } => self.inject_faults(sensor, None),
+                StormEvent::Unplug { until_us } => self.unplug_hub(until_us),
+                StormEvent::ServoOverload { finger } => {
+                    self.change_motor(finger, Xm430Motor::overloaded);
+                }
+                StormEvent::HttpBurst => {}
+            }
+        }
+    }
+
+    /// Count frames the hub corrupted and dropped (while a storm runs).
+    pub fn count_faulted_frames(&mut self, corrupted: u64, dropped: u64) {
+        if let Some(s) = self.fault_storm.as_mut() {
+            s.count_frames(corrupted, dropped);
+        }
+    }
+
+    /// The storm's events so far (`None`: no storm).
+    pub fn fault_tally(&self) -> Option<FaultTally> {
+        self.fault_storm.as_ref().map(FaultStorm::tally)
+    }
+
+    /// Take the storm's HTTP bursts due since the last call.
+    pub fn take_http_bursts(&mut self) -> u64 {
+        self.fault_storm.as_mut().map_or(0, FaultStorm::take_bursts)
+    }
+
+    /// Number of sensors.
+    pub fn sensors(&self) -> usize {
+        self.mounts.len()
     }
 
     /// Share it between the hub and the servo bus.

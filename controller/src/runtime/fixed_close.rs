@@ -8,7 +8,7 @@
 
 use crate::actuator::{FingerGoal, ServoBus, ServoError, ServoState};
 use crate::layout::HandLayout;
-use crate::runtime::outcome::Fault;
+use crate::runtime::outcome::{Fault, FaultLog};
 use crate::runtime::plant::off_executor;
 
 /// Time to ramp the goal current to its cap, s.
@@ -30,7 +30,7 @@ pub struct FixedClose {
     /// Reads that succeeded so far.
     pub reads: u64,
     /// Faults recovered so far.
-    pub recovered: Vec<Fault>,
+    pub recovered: FaultLog,
 }
 
 impl FixedClose {
@@ -58,7 +58,7 @@ impl FixedClose {
             next_us: now_us,
             last: Vec::new(),
             reads: 0,
-            recovered: Vec::new(),
+            recovered: FaultLog::default(),
         })
     }
 

@@ -23,6 +23,10 @@ pub(crate) struct LastPass {
     pub(crate) latency: LoopLatency,
     /// The last set's loop time less its sensing, ms, until the observers have run.
     own_pending_ms: Option<f64>,
+    /// The trigger sequence of the last set delivered.
+    last_seq: Option<u32>,
+    /// Sets delivered whose sequence was not past the last one's.
+    pub(crate) duplicate_sets: u64,
 }
 
 impl LastPass {
@@ -40,6 +44,18 @@ impl LastPass {
             self.goals = Some((Some(sensed.trigger_seq), goals));
         }
         self.fused = Some((sensed.trigger_seq, sensed.fused));
+    }
+
+    /// A set with trigger sequence `seq` was delivered: count it when it is not past the
+    /// last one (sequences wrap at 2³²; half the range counts as past).
+    pub(crate) fn delivered(&mut self, seq: u32) {
+        if let Some(last) = self.last_seq
+            && (seq.wrapping_sub(last) as i32) <= 0
+        {
+            self.duplicate_sets += 1;
+            tracing::error!(seq, last, "a set delivered again or out of order");
+        }
+        self.last_seq = Some(seq);
     }
 
     /// Take in goals the pilot wrote at once since last seen.

@@ -41,7 +41,7 @@ use thiserror::Error;
 use tokio::sync::mpsc;
 
 use crate::acquire::Acquisition;
-use crate::actuator::{ServoError, ServoState};
+use crate::actuator::ServoError;
 use crate::clock::Clock;
 use crate::frame::FrameSet;
 use crate::gripper::{GripperError, GripperHandle};
@@ -49,14 +49,14 @@ use crate::hub::HubError;
 use crate::runtime::control::LoopCommand;
 use crate::runtime::fixed_close::FixedClose;
 use crate::runtime::last_pass::LastPass;
-use crate::runtime::outcome::{EndReason, Fault, FaultKind};
+pub use crate::runtime::outcome::RunSummary;
+use crate::runtime::outcome::{EndReason, Fault, FaultKind, FaultLog};
 use crate::runtime::pilot::Pilot;
 use crate::runtime::ports::Sensing;
 use crate::runtime::ports::{ControlHandler, Observer, PilotControl};
 use crate::runtime::report::{
     DepthWindows, DrivenSet, FingerState, GripperReport, ServoReads, SetReport,
 };
-use crate::runtime::task_report::TaskReport;
 
 /// A failure inside the loop, typed so the loop can tell a hub from a servo from a log.
 #[derive(Debug, Error)]
@@ -124,21 +124,6 @@ const QUIET_PERIOD_US: u64 = 100_000;
 /// passing one, whose goals were just followed by a read, needs no other).
 const MIN_READ_GAP_US: u64 = 10_000;
 
-/// What a run ended with, once the hardware is safe.
-#[derive(Debug, Clone)]
-pub struct RunSummary {
-    /// Why it ended.
-    pub end_reason: EndReason,
-    /// Faults, recovered ones first.
-    pub faults: Vec<Fault>,
-    /// The task fields (none without a task).
-    pub task: Option<TaskReport>,
-    /// The servos' last states, in finger order (none without servos).
-    pub servos: Option<Vec<ServoState>>,
-    /// Run time on the runtime's clock, from [`Runtime::run`]'s start (or the first step).
-    pub elapsed_s: f64,
-}
-
 struct Progress {
     last_log_us: u64,
     last_sets: u64,
@@ -155,7 +140,7 @@ pub struct Runtime {
     fixed: Option<FixedClose>,
     observers: Vec<Box<dyn Observer>>,
     control: Option<(Box<dyn ControlHandler>, mpsc::Receiver<LoopCommand>)>,
-    faults: Vec<Fault>,
+    faults: FaultLog,
     start_us: u64,
     run_start_us: Option<u64>,
     deadline_us: Option<u64>,
@@ -201,7 +186,7 @@ impl Runtime {
             fixed: None,
             observers: Vec::new(),
             control: None,
-            faults: Vec::new(),
+            faults: FaultLog::default(),
             start_us,
             run_start_us: None,
             deadline_us: None,
@@ -422,6 +407,7 @@ impl Runtime {
         if let Some(sensed) = driven.sensed.take() {
             self.last.sensed(sensed);
         }
+        self.last.delivered(set.trigger_seq);
         let observers = std::time::Instant::now();
         let reported = self.report(Some((set, &mut driven)), now);
         self.last.observed(observers.elapsed().as_secs_f64() * 1e3);
@@ -635,7 +621,7 @@ impl Runtime {
     pub fn finish(&mut self, end: EndReason) -> RunSummary {
         let mut faults = std::mem::take(&mut self.faults);
         if let Some(s) = self.fixed.as_mut() {
-            faults.splice(0..0, s.recovered.drain(..));
+            faults = faults.after(std::mem::take(&mut s.recovered));
             if end == EndReason::Estop {
                 s.estop();
             } else if let Err(e) = s.stop() {
@@ -643,7 +629,7 @@ impl Runtime {
             }
         }
         if let Some(d) = self.pilot.as_mut() {
-            faults.splice(0..0, d.take_recovered());
+            faults = faults.after(d.take_recovered());
             if end == EndReason::Estop {
                 d.estop();
             } else {
@@ -661,6 +647,7 @@ impl Runtime {
         RunSummary {
             end_reason: end,
             faults,
+            duplicate_sets: self.last.duplicate_sets,
             task: self
                 .pilot
                 .as_ref()

@@ -1,10 +1,11 @@
-//! Typed outcomes of a run: why it ended, why a task script stopped, and the faults met on
+//! Typed outcomes of a run: what it ended with ([`RunSummary`]), why it ended, why a task script stopped, and the faults met on
 //! the way. Each serialises to the string CONTRACTS.md gives it (`end_reason`, the entries
 //! of `faults`).
 
 use serde::Serialize;
 
-use crate::actuator::{RecoveredFault, ServoError};
+use crate::actuator::{RecoveredFault, ServoError, ServoState};
+use crate::runtime::task_report::TaskReport;
 
 /// Why a run ended (`end_reason` in `run --json`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -136,6 +137,27 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_fault_log_keeps_the_first_faults_and_counts_the_rest() {
+        let fault = |n: usize| Fault::new(FaultKind::Watchdog, format!("fault {n}"));
+        let mut earlier = FaultLog::default();
+        earlier.extend((0..200).map(fault));
+        let mut later = FaultLog::default();
+        later.extend((200..1000).map(fault));
+        assert_eq!(
+            (later.faults().len(), later.omitted()),
+            (FAULTS_KEPT, 800 - FAULTS_KEPT as u64)
+        );
+        let log = later.after(earlier);
+        assert_eq!(log.faults().len(), FAULTS_KEPT);
+        assert_eq!(log.omitted(), 1000 - FAULTS_KEPT as u64);
+        assert_eq!(log.faults()[0].detail, "fault 0");
+        assert_eq!(
+            log.faults()[FAULTS_KEPT - 1].detail,
+            format!("fault {}", FAULTS_KEPT - 1)
+        );
+    }
+
+    #[test]
     fn end_reasons_serialise_to_the_contracts_strings() {
         for (reason, text) in [
             (EndReason::Done, "done"),
@@ -180,4 +202,69 @@ mod tests {
             "servo 2 (finger 2): overload recovered after 1 reboot(s)"
         );
     }
+}
+
+/// Faults a run keeps in full; beyond them it counts (a soak meets thousands).
+pub const FAULTS_KEPT: usize = 256;
+
+/// The faults of a run, bounded: the first [`FAULTS_KEPT`] in full, the rest counted.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct FaultLog {
+    kept: Vec<Fault>,
+    omitted: u64,
+}
+
+impl FaultLog {
+    /// Keep `fault`, or count it once the log is full.
+    pub fn push(&mut self, fault: Fault) {
+        if self.kept.len() < FAULTS_KEPT {
+            self.kept.push(fault);
+        } else {
+            self.omitted += 1;
+        }
+    }
+
+    /// Keep each of `faults` in turn.
+    pub fn extend(&mut self, faults: impl IntoIterator<Item = Fault>) {
+        for f in faults {
+            self.push(f);
+        }
+    }
+
+    /// `earlier` before these faults, within the bound.
+    pub fn after(self, earlier: FaultLog) -> FaultLog {
+        let mut log = earlier;
+        let omitted = self.omitted;
+        log.extend(self.kept);
+        log.omitted += omitted;
+        log
+    }
+
+    /// The faults kept.
+    pub fn faults(&self) -> &[Fault] {
+        &self.kept
+    }
+
+    /// Faults counted beyond the kept ones.
+    pub fn omitted(&self) -> u64 {
+        self.omitted
+    }
+}
+
+/// What a run ended with, once the hardware is safe.
+#[derive(Debug, Clone)]
+pub struct RunSummary {
+    /// Why it ended.
+    pub end_reason: EndReason,
+    /// Faults, recovered ones first: the first [`FAULTS_KEPT`] in full, the rest counted.
+    pub faults: FaultLog,
+    /// Sets delivered whose trigger sequence was not past the last set's (a set delivered
+    /// twice, or out of order): 0 in a sound run.
+    pub duplicate_sets: u64,
+    /// The task fields (none without a task).
+    pub task: Option<TaskReport>,
+    /// The servos' last states, in finger order (none without servos).
+    pub servos: Option<Vec<ServoState>>,
+    /// Run time on the runtime's clock, from [`Runtime::run`]'s start (or the first step).
+    pub elapsed_s: f64,
 }

@@ -8,7 +8,7 @@ use crate::grasp::Phase;
 use crate::gripper::{GripperHandle, GripperService, ServiceEvent};
 use crate::runtime::commanded::CommandedGripper;
 use crate::runtime::gentle_grasp::{GentleGrasp, TASK_NAME};
-use crate::runtime::outcome::{EndReason, Fault, ScriptEnd};
+use crate::runtime::outcome::{EndReason, FaultLog, ScriptEnd};
 use crate::runtime::plant::Plant;
 use crate::runtime::ports::{PilotControl, Sensing};
 use crate::runtime::report::DrivenSet;
@@ -113,7 +113,7 @@ impl Pilot {
     }
 
     /// Recovered servo faults (taken).
-    pub fn take_recovered(&mut self) -> Vec<Fault> {
+    pub fn take_recovered(&mut self) -> FaultLog {
         std::mem::take(&mut self.plant_mut().recovered)
     }
 

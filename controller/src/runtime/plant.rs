@@ -17,7 +17,7 @@ use crate::grasp::Phase;
 use crate::gripper::GripperService;
 use crate::layout::HandLayout;
 use crate::runtime::RuntimeError;
-use crate::runtime::outcome::Fault;
+use crate::runtime::outcome::{Fault, FaultLog};
 use crate::runtime::ports::{GroundTruth, Sensing};
 use crate::runtime::report::Sensed;
 
@@ -63,7 +63,7 @@ pub struct Plant {
     /// Servo reads that succeeded so far (after a set's goals, or between sets).
     servo_reads: u64,
     /// Recovered servo faults.
-    pub recovered: Vec<Fault>,
+    pub recovered: FaultLog,
 }
 
 impl std::fmt::Debug for Plant {
@@ -96,7 +96,7 @@ impl Plant {
             last_set_us: None,
             written_at_once: (0, None),
             servo_reads: 0,
-            recovered: Vec::new(),
+            recovered: FaultLog::default(),
         })
     }
 
