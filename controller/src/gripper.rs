@@ -10,7 +10,13 @@
 //! replaced by another, released, stopped (by a call or the run loop's watchdog) or
 //! e-stopped resolves at once with that reason,
 //! and when the run loop ends every waiting call gets [`GripperError::Stopped`].
+//!
+//! The queue holds [`COMMAND_QUEUE`] commands (the loop drains it on every pass, so it fills
+//! only while the loop is stuck): a grasp or release beyond it is refused with
+//! [`GripperError::QueueFull`]; a stop or e-stop is never refused: it is kept aside (an
+//! e-stop over a stop) and applied after the queue at the next drain.
 
+use std::sync::atomic::{AtomicU8, Ordering};
 use std::sync::{Arc, Mutex};
 
 use serde::{Deserialize, Serialize};
@@ -37,6 +43,14 @@ pub enum GripperError {
         /// The task's name.
         task: String,
     },
+    /// The command queue is full: the run loop has not taken a command for a while.
+    #[error(
+        "the gripper's command queue is full ({capacity} commands): the run loop is not keeping up; try again"
+    )]
+    QueueFull {
+        /// Its capacity.
+        capacity: usize,
+    },
     /// The request cannot be carried out as given.
     #[error("invalid grasp request: {field} = {value} ({expected})")]
     InvalidRequest {
@@ -61,6 +75,15 @@ pub enum CommandKind {
     /// `estop`.
     Estop,
 }
+
+/// Commands the queue holds; it fills only while the run loop is stuck.
+pub const COMMAND_QUEUE: usize = 256;
+
+/// A stop or e-stop kept aside while the queue was full (0: none): the most urgent wins.
+const URGENT_NONE: u8 = 0;
+const URGENT_STOP: u8 = 1;
+const URGENT_WATCHDOG: u8 = 2;
+const URGENT_ESTOP: u8 = 3;
 
 enum Command {
     Grasp(GraspRequest, oneshot::Sender<GraspOutcome>),
@@ -142,7 +165,9 @@ impl PendingGrasp {
 /// The caller's side of the grasp API; clone it freely.
 #[derive(Debug, Clone)]
 pub struct GripperHandle {
-    tx: mpsc::UnboundedSender<Command>,
+    tx: mpsc::Sender<Command>,
+    /// A stop or e-stop that found the queue full (`URGENT_*`).
+    urgent: Arc<AtomicU8>,
     fingers: usize,
     /// What the hand can do: a request's force, speed and timeout are refused outside it
     /// (`None`: only their signs are checked, for a service made without a layout).
@@ -276,7 +301,25 @@ impl GripperHandle {
     }
 
     fn send(&self, command: Command) -> Result<(), GripperError> {
-        self.tx.send(command).map_err(|_| GripperError::Stopped)
+        use mpsc::error::TrySendError;
+        let command = match self.tx.try_send(command) {
+            Ok(()) => return Ok(()),
+            Err(TrySendError::Closed(_)) => return Err(GripperError::Stopped),
+            Err(TrySendError::Full(command)) => command,
+        };
+        let urgent = match command {
+            Command::Stop(GraspReason::Watchdog) => URGENT_WATCHDOG,
+            Command::Stop(_) => URGENT_STOP,
+            Command::Estop => URGENT_ESTOP,
+            Command::Grasp(..) | Command::Release => {
+                return Err(GripperError::QueueFull {
+                    capacity: COMMAND_QUEUE,
+                });
+            }
+        };
+        tracing::warn!("grasp-API queue full: a stop or e-stop kept aside for the next pass");
+        self.urgent.fetch_max(urgent, Ordering::SeqCst);
+        Ok(())
     }
 }
 
@@ -284,7 +327,8 @@ impl GripperHandle {
 /// through the handles.
 #[derive(Debug)]
 pub struct GripperService {
-    rx: mpsc::UnboundedReceiver<Command>,
+    rx: mpsc::Receiver<Command>,
+    urgent: Arc<AtomicU8>,
     tuning: Tuning,
     close_deg: Vec<f64>,
     open_deg: Vec<f64>,
@@ -306,15 +350,18 @@ impl GripperService {
         open_deg: Vec<f64>,
         current_limit_ma: f64,
     ) -> (Self, GripperHandle) {
-        let (tx, rx) = mpsc::unbounded_channel();
+        let (tx, rx) = mpsc::channel(COMMAND_QUEUE);
+        let urgent = Arc::new(AtomicU8::new(URGENT_NONE));
         let handle = GripperHandle {
             tx,
+            urgent: urgent.clone(),
             fingers: close_deg.len(),
             limits: None,
             busy: Arc::new(Mutex::new(None)),
         };
         let service = Self {
             rx,
+            urgent,
             tuning,
             close_deg,
             open_deg,
@@ -426,6 +473,15 @@ impl GripperService {
     pub fn apply_commands(&mut self, positions: &[f64]) -> bool {
         let mut urgent = false;
         while let Ok(command) = self.rx.try_recv() {
+            urgent |= self.apply(command, positions);
+        }
+        let aside = match self.urgent.swap(URGENT_NONE, Ordering::SeqCst) {
+            URGENT_ESTOP => Some(Command::Estop),
+            URGENT_WATCHDOG => Some(Command::Stop(GraspReason::Watchdog)),
+            URGENT_STOP => Some(Command::Stop(GraspReason::Stopped)),
+            _ => None,
+        };
+        if let Some(command) = aside {
             urgent |= self.apply(command, positions);
         }
         urgent

@@ -416,6 +416,7 @@ pub(crate) fn gripper_error(e: &GripperError) -> Response {
     match e {
         GripperError::Stopped => error(StatusCode::SERVICE_UNAVAILABLE, e.to_string()),
         GripperError::Busy { .. } => error(StatusCode::CONFLICT, e.to_string()),
+        GripperError::QueueFull { .. } => error(StatusCode::SERVICE_UNAVAILABLE, e.to_string()),
         GripperError::InvalidRequest { .. } => error(StatusCode::BAD_REQUEST, e.to_string()),
     }
 }

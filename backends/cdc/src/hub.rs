@@ -63,9 +63,13 @@ enum LinkEvent {
 }
 
 /// An open link: the writer and the reader thread feeding `rx`.
+/// Messages the reader thread may have decoded ahead of the driver. Past it the reader
+/// waits, and the device's writes wait on USB flow control (its ring keeps the sets).
+pub const LINK_QUEUE: usize = 256;
+
 struct Link {
     writer: Box<dyn serialport::SerialPort>,
-    rx: mpsc::UnboundedReceiver<LinkEvent>,
+    rx: mpsc::Receiver<LinkEvent>,
     stop: Arc<AtomicBool>,
     time: HubTimeMap,
 }
@@ -178,7 +182,7 @@ fn connect(
     let reader = port
         .try_clone()
         .map_err(|e| io_error("cloning the port", e))?;
-    let (tx, rx) = mpsc::unbounded_channel();
+    let (tx, rx) = mpsc::channel(LINK_QUEUE);
     let stop = Arc::new(AtomicBool::new(false));
     let thread_stop = stop.clone();
     let meter = cfg.cpu_clock.map(|c| (c, reader_cpu_ns.clone()));
@@ -200,7 +204,7 @@ type CpuMeter = (fn() -> u64, Arc<AtomicU64>);
 fn read_loop(
     mut port: Box<dyn serialport::SerialPort>,
     mut decoder: CdcStreamDecoder,
-    tx: mpsc::UnboundedSender<LinkEvent>,
+    tx: mpsc::Sender<LinkEvent>,
     stop: Arc<AtomicBool>,
     meter: Option<CpuMeter>,
 ) {
@@ -214,15 +218,17 @@ fn read_loop(
         }
         match port.read(&mut buf) {
             Ok(0) => {}
+            // A full queue makes this thread wait (the driver is behind); a closed one
+            // means the hub was dropped.
             Ok(n) => decoder.push(&buf[..n], |m| {
-                let _ = tx.send(match m {
+                let _ = tx.blocking_send(match m {
                     Ok(m) => LinkEvent::Message(m),
                     Err(e) => LinkEvent::Corrupt(e.to_string()),
                 });
             }),
             Err(e) if crate::transient(&e) => {}
             Err(e) => {
-                let _ = tx.send(LinkEvent::Closed(e.to_string()));
+                let _ = tx.blocking_send(LinkEvent::Closed(e.to_string()));
                 return;
             }
         }

@@ -262,3 +262,32 @@ fn goal_positions(svc: &GripperService) -> Vec<f64> {
     let goals = svc.goals().expect("goals");
     goals.iter().map(|g| g.position_deg).collect()
 }
+
+#[test]
+fn a_full_queue_refuses_grasps_but_never_a_stop_or_an_e_stop() {
+    let (mut svc, handle) = service();
+    for _ in 0..COMMAND_QUEUE {
+        handle.release().expect("room in the queue");
+    }
+    assert_eq!(
+        handle.release(),
+        Err(GripperError::QueueFull {
+            capacity: COMMAND_QUEUE
+        })
+    );
+    assert!(matches!(
+        handle.start_grasp(request(1.0)),
+        Err(GripperError::QueueFull { .. })
+    ));
+    // A stop and an e-stop on a full queue are kept aside, the e-stop over the stop, and
+    // applied after everything queued before them.
+    handle.stop().expect("a stop is never refused");
+    handle.estop().expect("an e-stop is never refused");
+    assert!(svc.apply_commands(&[0.0; 3]), "the e-stop is urgent");
+    assert_eq!(svc.commands_applied(), COMMAND_QUEUE as u64 + 1);
+    assert_eq!(svc.last_command(), Some(CommandKind::Estop));
+    // The queue has room again, and nothing is kept aside.
+    handle.release().expect("room again");
+    assert!(!svc.apply_commands(&[0.0; 3]));
+    assert_eq!(svc.last_command(), Some(CommandKind::Release));
+}
