@@ -63,9 +63,10 @@ enum LinkEvent {
 }
 
 /// An open link: the writer and the reader thread feeding `rx`.
-/// Messages the reader thread may have decoded ahead of the driver. Past it the reader
+/// Messages the reader thread may have decoded ahead of the driver (about five seconds of
+/// seven sensors at 30 Hz, at most some 20 MB). Past it the reader
 /// waits, and the device's writes wait on USB flow control (its ring keeps the sets).
-pub const LINK_QUEUE: usize = 256;
+pub const LINK_QUEUE: usize = 1024;
 
 struct Link {
     writer: Box<dyn serialport::SerialPort>,
