@@ -11,6 +11,7 @@
 //! plugins' sensing, the simulator's ground truth, the web crate's dashboard feed, the
 //! recorder's observer) with its `run --json` report ([`output`]).
 
+pub mod calibration;
 pub mod catalog;
 pub mod embedded;
 pub mod error;

@@ -86,6 +86,47 @@ pub struct Reconstruction {
     pub summary: ContactSummary,
 }
 
+/// A reconstruction's figures as `gelgrip reconstruct --json` reports them: a value that
+/// is missing or not finite reads 0, a centroid that is not finite none.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContactFigures {
+    /// Anything in contact.
+    pub in_contact: bool,
+    /// Contact area, mm².
+    pub area_mm2: f64,
+    /// Deepest point, mm.
+    pub max_depth_mm: f64,
+    /// Indentation volume, mm³.
+    pub volume_mm3: f64,
+    /// Contact centroid `[x, y]`, px; none without contact.
+    pub centroid_px: Option<[f64; 2]>,
+}
+
+impl Reconstruction {
+    /// The contact's figures, as reported.
+    pub fn figures(&self) -> ContactFigures {
+        let finite = |v: Option<f64>| v.filter(|x| x.is_finite()).unwrap_or(0.0);
+        let s = &self.summary;
+        ContactFigures {
+            in_contact: s.in_contact,
+            area_mm2: finite(Some(s.area_mm2)),
+            max_depth_mm: finite(s.max_depth_mm),
+            volume_mm3: finite(s.volume_mm3),
+            centroid_px: s
+                .centroid_px
+                .filter(|(x, y)| x.is_finite() && y.is_finite())
+                .map(|(x, y)| [x, y]),
+        }
+    }
+}
+
+/// Which of `n` images measure the noise thresholds: up to [`QUIET_FRAMES`] of them,
+/// evenly spaced (indices into the `n`).
+pub fn quiet_sample_indices(n: usize) -> Vec<usize> {
+    let take = n.min(QUIET_FRAMES);
+    (0..take).map(|k| k * n / take).collect()
+}
+
 /// A pipeline set up for one model, background, pixel size and solver.
 #[derive(Debug)]
 pub struct Reconstructor {

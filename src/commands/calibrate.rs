@@ -9,17 +9,18 @@ use std::path::PathBuf;
 
 use gelgrip_plugins::calibrate::{self, EvalReport};
 use gelgrip_plugins::dataset::PressDataset;
-use gelgrip_plugins::gradient::{GradientModel, MlpMode};
 use gelgrip_plugins::lut::Input;
 use gelgrip_plugins::mlp::MlpModel;
 use gelgrip_plugins::mlp::bake::{BakeOptions, bake};
-use gelgrip_plugins::mlp::train::{InputNorm, Loss, TrainOptions, ValidationSummary};
+use gelgrip_plugins::mlp::train::{InputNorm, Loss};
 use gelgrip_plugins::mlp::transfer::{Fit, transfer};
-use gelgrip_plugins::poisson::Solver;
 
 use crate::cli::{CalibrateCommand, DEFAULT_EPOCHS, ModelKind, UsageError};
+use gelgrip::calibration::{
+    self,
+    train::{ModelChoice, TrainReport, TrainRequest},
+};
 use gelgrip::wiring;
-use gelgrip_bench::progress;
 use gelgrip_plugins::calibrate::collect::{BallPresses, collect as collect_presses};
 use gelgrip_sim::press_camera::sensor_camera;
 
@@ -93,227 +94,40 @@ async fn collect(args: CollectArgs) -> anyhow::Result<u8> {
     Ok(0)
 }
 
-#[derive(Serialize)]
-struct TrainJson {
-    model: &'static str,
-    input: &'static str,
-    hidden: Option<usize>,
-    parameters: Option<usize>,
-    epochs: Option<u32>,
-    blur_px: Option<usize>,
-    /// MLP: the training loss and input scaling.
-    loss: Option<&'static str>,
-    input_norm: Option<&'static str>,
-    train_presses: usize,
-    test_presses: usize,
-    train_gx_mae: f64,
-    train_gy_mae: f64,
-    test_gx_mae: f64,
-    test_gy_mae: f64,
-    /// The ball's radius, mm, and the median radius of the spheres fitted to the held-out
-    /// presses' reconstructions (DST solver; null when none fitted).
-    ball_radius_mm: f64,
-    test_sphere_radius_mm_median: Option<f64>,
-    train_s: f64,
-    /// MLP: the validation split and curve.
-    validation: Option<ValidationJson>,
-}
-
-#[derive(Serialize)]
-struct ValidationJson {
-    presses: usize,
-    gx_mae: f64,
-    gy_mae: f64,
-    best_epoch: usize,
-    train_loss: f64,
-    validation_loss: f64,
-    stopped_at_epoch: usize,
-    epochs: usize,
-    patience: usize,
-}
-
-/// A model `calibrate train` trained, with what its report needs.
-struct Trained {
-    model: GradientModel,
-    name: &'static str,
-    hidden: Option<usize>,
-    parameters: Option<usize>,
-    blur_px: Option<usize>,
-    /// The rows trained on.
-    train_rows: std::ops::Range<usize>,
-    /// MLP: the validation rows and the curve's summary.
-    validated: Option<(std::ops::Range<usize>, ValidationSummary)>,
-}
-
 fn train(args: TrainArgs) -> anyhow::Result<u8> {
-    // clap allows only the names Input parses.
-    let input = Input::parse(&args.input).unwrap_or(Input::Diff);
-    let ds = PressDataset::load(&args.data)?;
-    if ds.presses.is_empty() {
-        // A table or network fitted to no press predicts zero everywhere.
-        return Err(UsageError(format!(
-            "{}: presses.csv lists no presses, so there is nothing to train on: collect \
-             (`calibrate collect`) or label (`calibrate label`) presses into it first",
-            args.data.display()
-        ))
-        .into());
-    }
-    let split = calibrate::split_index(ds.presses.len());
-    let started = std::time::Instant::now();
-    let trained = match args.model {
-        ModelKind::Lut => train_lut(&args, &ds, input, split)?,
-        ModelKind::Mlp => train_mlp(&args, &ds, input)?,
+    let request = TrainRequest {
+        // clap allows only the names Input parses.
+        input: Input::parse(&args.input).unwrap_or(Input::Diff),
+        bins: usize::from(args.bins),
+        blur_px: args.blur_px.map(usize::from),
+        hidden: usize::from(args.hidden),
+        epochs: args.epochs as usize,
+        dropout: args.dropout,
+        learning_rate: args.learning_rate,
+        patience: args.patience as usize,
+        seed: args.seed,
+        loss: args.loss.into(),
+        input_norm: args.input_norm.into(),
+        ..TrainRequest::new(
+            args.data.clone(),
+            match args.model {
+                ModelKind::Lut => ModelChoice::Lut,
+                ModelKind::Mlp => ModelChoice::Mlp,
+            },
+        )
     };
-    let train_s = started.elapsed().as_secs_f64();
-    let model = &trained.model;
-    let train = calibrate::evaluate(model, &ds, trained.train_rows.clone(), None)?;
-    // The held-out presses are also solved for depth, for the sphere check.
-    let test = calibrate::evaluate(model, &ds, split..ds.presses.len(), Some(Solver::Dst))?;
-    let validation = match trained.validated {
-        Some((rows, v)) => {
-            let r = calibrate::evaluate(model, &ds, rows, None)?;
-            Some(ValidationJson {
-                presses: r.presses,
-                gx_mae: r.gx_mae,
-                gy_mae: r.gy_mae,
-                best_epoch: v.best_epoch,
-                train_loss: v.train_loss,
-                validation_loss: v.validation_loss,
-                stopped_at_epoch: v.stopped_at,
-                epochs: v.epochs,
-                patience: args.patience as usize,
-            })
-        }
-        None => None,
-    };
-    let mlp = args.model == ModelKind::Mlp;
-    let out = TrainJson {
-        model: trained.name,
-        input: input.as_str(),
-        hidden: trained.hidden,
-        parameters: trained.parameters,
-        epochs: mlp.then_some(args.epochs),
-        blur_px: trained.blur_px,
-        loss: mlp.then(|| Loss::from(args.loss).as_str()),
-        input_norm: mlp.then(|| InputNorm::from(args.input_norm).as_str()),
-        train_presses: train.presses,
-        test_presses: test.presses,
-        train_gx_mae: train.gx_mae,
-        train_gy_mae: train.gy_mae,
-        test_gx_mae: test.gx_mae,
-        test_gy_mae: test.gy_mae,
-        ball_radius_mm: ds.info.ball_diameter_mm / 2.0,
-        test_sphere_radius_mm_median: test.sphere_radius_mm_median,
-        train_s,
-        validation,
-    };
+    let trained = calibration::train::train(&request)?;
+    trained.model.save(&args.out)?;
     if args.json {
-        println!("{}", serde_json::to_string(&out)?);
+        println!("{}", serde_json::to_string(&trained.report)?);
         return Ok(0);
     }
-    print_trained(&args, &out, (&train, &test));
+    print_trained(&args, &trained.report, (&trained.train, &trained.test));
     Ok(0)
 }
 
-/// Train a LUT on the training rows, through the box blur `--blur-px` names or the one
-/// the presses' noise calls for, and save it.
-fn train_lut(
-    args: &TrainArgs,
-    ds: &PressDataset,
-    input: Input,
-    split: usize,
-) -> anyhow::Result<Trained> {
-    eprintln!(
-        "training lut ({} input, {} bins) on {} presses, testing on {}",
-        input.as_str(),
-        args.bins,
-        split,
-        ds.presses.len() - split
-    );
-    let bins = usize::from(args.bins);
-    let blur_px = match args.blur_px {
-        Some(r) => usize::from(r),
-        None => {
-            let choice = calibrate::blur_choice(&[ds], input, bins)?;
-            eprintln!(
-                "pixel noise {:.1} grey levels (RMS, away from the contact)",
-                choice.noise
-            );
-            if !choice.sweep.is_empty() {
-                let listed: Vec<String> = choice
-                    .sweep
-                    .iter()
-                    .map(|(r, e)| format!("{r} px: {e:.4}"))
-                    .collect();
-                eprintln!(
-                    "blur radius, validation error (mean of gx and gy): {}",
-                    listed.join(", ")
-                );
-            }
-            choice.blur_px
-        }
-    };
-    eprintln!("frames read through a box blur of radius {blur_px} px");
-    let lut = calibrate::train_lut_blurred(&[ds], input, bins, blur_px)?;
-    lut.save(&args.out)?;
-    Ok(Trained {
-        model: GradientModel::lut(lut),
-        name: "lut",
-        hidden: None,
-        parameters: None,
-        blur_px: Some(blur_px),
-        train_rows: 0..split,
-        validated: None,
-    })
-}
-
-/// Train an MLP with early stopping on the validation rows, and save it.
-fn train_mlp(args: &TrainArgs, ds: &PressDataset, input: Input) -> anyhow::Result<Trained> {
-    let opts = TrainOptions {
-        hidden: usize::from(args.hidden),
-        dropout: args.dropout as f32,
-        learning_rate: args.learning_rate,
-        epochs: args.epochs as usize,
-        seed: args.seed,
-        patience: args.patience as usize,
-        loss: args.loss.into(),
-        input_norm: args.input_norm.into(),
-        ..TrainOptions::default()
-    };
-    let rows = calibrate::validation_split_of(ds)?;
-    eprintln!(
-        "training mlp 5-{h}-{h}-{h}-2 (tanh, dropout {}, {} loss, {} inputs, learning rate {}, {} input) on {} presses, validating on {}, testing on {}, up to {} epochs (patience {})",
-        args.dropout,
-        opts.loss.as_str(),
-        opts.input_norm.as_str(),
-        args.learning_rate,
-        input.as_str(),
-        rows.train.len(),
-        rows.validation.len(),
-        rows.test.len(),
-        args.epochs,
-        args.patience,
-        h = args.hidden
-    );
-    let bar = progress::epochs(args.epochs as u64);
-    let v = calibrate::train_mlp_validated(&[ds], input, &opts, progress::epoch_reporter(&bar))?;
-    bar.finish();
-    let mlp = v.model;
-    mlp.save(&args.out)?;
-    let (h, n) = (mlp.hidden, mlp.parameters());
-    Ok(Trained {
-        model: GradientModel::mlp(mlp, MlpMode::Dense)?,
-        name: "mlp",
-        hidden: Some(h),
-        parameters: Some(n),
-        blur_px: None,
-        train_rows: rows.train,
-        validated: Some((rows.validation, v.summary)),
-    })
-}
-
 /// `calibrate train`'s report as text.
-fn print_trained(args: &TrainArgs, out: &TrainJson, (train, test): (&EvalReport, &EvalReport)) {
+fn print_trained(args: &TrainArgs, out: &TrainReport, (train, test): (&EvalReport, &EvalReport)) {
     match (out.hidden, out.parameters) {
         (Some(h), Some(n)) => println!(
             "{}: mlp 5-{h}-{h}-{h}-2 ({n} parameters), {} input, {} epochs in {:.1} s",

@@ -18,7 +18,9 @@ use gelgrip_plugins::gradient::{GradientModel, MlpMode};
 use gelgrip_plugins::image::RgbImage;
 use gelgrip_plugins::npy;
 use gelgrip_plugins::poisson::Solver;
-use gelgrip_plugins::reconstruct::{QUIET_FRAMES, Reconstruction, Reconstructor, depth_view};
+use gelgrip_plugins::reconstruct::{
+    Reconstruction, Reconstructor, depth_view, quiet_sample_indices,
+};
 
 /// One reconstructed image in `--json`.
 #[derive(Debug, Serialize)]
@@ -134,13 +136,12 @@ fn pixel_size(args: &ReconstructArgs, model: &GradientModel) -> anyhow::Result<f
     }
 }
 
-/// Up to [`QUIET_FRAMES`] of the images, evenly spaced, that can be read (the noise
+/// Up to [`QUIET_FRAMES`](gelgrip_plugins::reconstruct::QUIET_FRAMES) of the images, evenly spaced, that can be read (the noise
 /// thresholds are measured on them; the reconstructor skips any of the wrong size).
 fn sample_images(images: &[PathBuf]) -> Vec<RgbImage> {
-    let n = images.len();
-    let take = n.min(QUIET_FRAMES);
-    (0..take)
-        .filter_map(|k| read_image(&images[k * n / take]).ok())
+    quiet_sample_indices(images.len())
+        .into_iter()
+        .filter_map(|k| read_image(&images[k]).ok())
         .collect()
 }
 
@@ -194,18 +195,14 @@ fn write_outputs(r: &Reconstruction, out: &Path, name: &str) -> anyhow::Result<(
 }
 
 fn image_json(path: &Path, r: &Reconstruction) -> ImageJson {
-    let finite = |v: Option<f64>| v.filter(|x| x.is_finite()).unwrap_or(0.0);
-    let s = &r.summary;
+    let f = r.figures();
     ImageJson {
         file: path.display().to_string(),
-        in_contact: s.in_contact,
-        area_mm2: finite(Some(s.area_mm2)),
-        max_depth_mm: finite(s.max_depth_mm),
-        volume_mm3: finite(s.volume_mm3),
-        centroid_px: s
-            .centroid_px
-            .filter(|(x, y)| x.is_finite() && y.is_finite())
-            .map(|(x, y)| [x, y]),
+        in_contact: f.in_contact,
+        area_mm2: f.area_mm2,
+        max_depth_mm: f.max_depth_mm,
+        volume_mm3: f.volume_mm3,
+        centroid_px: f.centroid_px,
     }
 }
 

@@ -1,56 +1,15 @@
 //! `gelgrip record info DIR [--json]`: what a recording holds, and whether it is whole.
 
 use clap::Args;
-use serde::Serialize;
 use std::path::PathBuf;
 
-use gelgrip_record::format::Meta;
+use gelgrip_record::info::RecordingInfo;
 use gelgrip_record::reader::Recording;
-
-/// The `--json` object.
-#[derive(Debug, Serialize)]
-struct Info {
-    records: u64,
-    segments: u32,
-    frames: u64,
-    duration_s: f64,
-    truncated_tail_bytes: u64,
-    crc_errors: u64,
-    /// Records the recorder dropped under back-pressure (noted in the recording).
-    dropped_records: u64,
-    /// Whether the recorder closed it (false after a crash or a kill).
-    clean_end: bool,
-    transport: String,
-    sensors: Vec<String>,
-    format_version: u32,
-}
 
 /// Run the command; returns the exit code.
 pub fn run(args: RecordInfoArgs) -> anyhow::Result<u8> {
     let recording = Recording::open(&args.dir)?;
-    let Meta::Header {
-        transport,
-        sensors,
-        format_version,
-        ..
-    } = recording.header()?
-    else {
-        anyhow::bail!("{}: no header", args.dir.display());
-    };
-    let summary = recording.scan(|_| {})?;
-    let info = Info {
-        records: summary.records,
-        segments: summary.segments,
-        frames: summary.frames,
-        duration_s: summary.duration_s,
-        truncated_tail_bytes: summary.truncated_tail_bytes,
-        crc_errors: summary.crc_errors,
-        dropped_records: summary.dropped_noted,
-        clean_end: summary.clean_end,
-        transport,
-        sensors,
-        format_version,
-    };
+    let info = RecordingInfo::of(&recording)?;
     if args.json {
         println!("{}", serde_json::to_string(&info)?);
     } else {

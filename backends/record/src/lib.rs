@@ -5,6 +5,7 @@
 //! - [`writer`]: [`writer::Recorder`], which never blocks its caller: records go through a
 //!   bounded queue to a writer thread (segment rotation, flush and fsync policy), and a
 //!   full queue drops with a count and a reason;
+//! - [`info`]: what a recording holds (`record info --json`);
 //! - [`reader`]: reads a recording's segments in order, checking every CRC, and reports a
 //!   torn tail (a crash mid-write) instead of failing;
 //! - [`observer`]: `run --record DIR`'s side of the run loop: the acquisition's tap and the
@@ -14,6 +15,7 @@
 
 pub mod factory;
 pub mod format;
+pub mod info;
 pub mod observer;
 pub mod reader;
 pub mod replay;
