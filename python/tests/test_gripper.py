@@ -1,0 +1,64 @@
+"""The gripper on the runtime the CLI runs: set reports, a grasp of the simulated tennis
+ball on the virtual clock (`grasped: true`, as `run --task gentle-grasp`), the bounded
+set queue, and the errors of bad scenes and closed grippers."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+import gelgrip
+
+
+def test_a_grasp_of_the_tennis_ball() -> None:
+    with gelgrip.Gripper(clock="virtual", scene="tennis-ball") as g:
+        s = g.next_set(timeout=30.0)
+        assert s.t_s >= 0 and len(s.sensors) == 7 and len(s.fingers) == 3
+        assert len(s.servos) == 3 and s.gate["sets"] >= 1
+        result = g.grasp(target_force_n=1.5)
+        assert result["grasped"] is True, result
+        assert result["reason"] and len(result["status"]) == 3
+        later = g.next_set(timeout=30.0)
+        assert later.t_s > s.t_s
+        assert any(f["force_n"] > 0 for f in later.fingers)
+        g.release()
+        handle = g.start_grasp(target_force_n=1.5)
+        again = handle.wait(timeout=60.0)
+        assert again["grasped"] is True and handle.done()
+        assert handle.wait() == again
+        g.stop()
+    report = g.close()
+    assert report is not None and report["end_reason"] == "signal"
+    assert g.closed
+
+
+def test_a_slow_reader_is_told_what_it_missed() -> None:
+    with gelgrip.Gripper(clock="virtual", scene="tennis-ball", queue=2) as g:
+        g.next_set(timeout=30.0)
+        time.sleep(1.0)
+        s = g.next_set(timeout=30.0)
+        assert s.dropped > 0
+        seen = 0
+        for s in g.sets():
+            seen += 1
+            if seen == 3:
+                break
+
+
+def test_bad_requests_and_a_closed_gripper() -> None:
+    with pytest.raises(gelgrip.ConfigError, match="no-such-scene"):
+        gelgrip.Gripper(clock="virtual", scene="no-such-scene")
+    with pytest.raises(ValueError, match="clock"):
+        gelgrip.Gripper(clock="wall")
+    with pytest.raises(FileNotFoundError):
+        gelgrip.Gripper(config="/nonexistent/gripper.toml")
+    g = gelgrip.Gripper(clock="virtual", scene="tennis-ball")
+    with pytest.raises(ValueError, match="target_force_n"):
+        g.grasp(target_force_n=-1.0)
+    g.close()
+    for call in (g.release, g.stop, g.estop, lambda: g.grasp(), lambda: g.start_grasp()):
+        with pytest.raises(gelgrip.GripperError, match="closed"):
+            call()
+    with pytest.raises(gelgrip.GripperError):
+        g.next_set(timeout=1.0)
