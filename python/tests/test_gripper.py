@@ -62,3 +62,19 @@ def test_bad_requests_and_a_closed_gripper() -> None:
             call()
     with pytest.raises(gelgrip.GripperError):
         g.next_set(timeout=1.0)
+
+
+def test_ctrl_c_during_a_grasp_raises_and_stops_it() -> None:
+    import _thread
+    import threading
+
+    with gelgrip.Gripper(clock="virtual", scene="tennis-ball") as g:
+        g.next_set(timeout=30.0)
+        timer = threading.Timer(0.05, _thread.interrupt_main)
+        timer.start()
+        with pytest.raises(KeyboardInterrupt):
+            g.grasp(target_force_n=1.5)
+        timer.join()
+        # The fingers were stopped, the run goes on and takes the next grasp.
+        assert g.next_set(timeout=30.0).t_s > 0
+        assert g.grasp(target_force_n=1.5)["grasped"] is True
