@@ -131,13 +131,11 @@ fn simulator_presses_are_labelled_to_a_pixel() {
 
 /// Deep presses on the realistic optics (fitted to the real Mini: LED falloff, shadowing at
 /// steep slopes, gamma, its noise): balls of 3 to 6 mm, pressed from a contact radius of 0.3
-/// to 0.95 of the ball's or 2 mm deep, whichever is shallower. The issue asks for 95% within
-/// 1 px and 5%; measured 18 of 24 (docs/calibration.md: the deepest presses' centres sit
-/// 1.2–1.6 px low, the smallest contacts' radii 0.4–0.6 px wide). Held here to what it does,
-/// so that it cannot get worse unseen: three quarters within 1 px and 5%, and every press
-/// labelled within 2 px and 8%.
+/// to 0.95 of the ball's or 2 mm deep, whichever is shallower: the centre within 1 px and
+/// the radius within 5% of the truth on at least 95% (the issue's acceptance; `gelgrip
+/// bench label` runs 120 of these), and every press within 2 px and 8%.
 #[test]
-fn deep_presses_on_realistic_optics_are_labelled_within_two_pixels() {
+fn deep_presses_on_realistic_optics_are_labelled_to_a_pixel() {
     let (good, total, worst_c, worst_r, _) = label_accuracy(&PressPlan {
         config: Some(Path::new("configs/gelgripper-sim-realistic.toml")),
         balls_mm: &[3.0, 4.5, 6.0],
@@ -146,7 +144,7 @@ fn deep_presses_on_realistic_optics_are_labelled_within_two_pixels() {
         max_depth_mm: 2.0,
         seed: 41,
     });
-    assert!(good as f64 >= 0.75 * total as f64, "{good} of {total}");
+    assert!(good as f64 >= 0.95 * total as f64, "{good} of {total}");
     assert!(worst_c <= 2.0 && worst_r <= 0.08, "{worst_c} px, {worst_r}");
 }
 

@@ -13,6 +13,7 @@
 //! That is the nominal optics. A config may ask for [`realistic`] optics instead
 //! (`[hub.sim] optics = "realistic"`), fitted to a real GelSight Mini by [`fit`].
 
+pub mod facet;
 pub mod fit;
 pub mod realistic;
 
@@ -101,31 +102,36 @@ impl Shader {
         }
     }
 
-    /// Noise-free RGB of pixel (`x`, `y`) of `map`.
+    /// Noise-free RGB of pixel (`x`, `y`) of `map`: the light of its footprint, the
+    /// pressed share's slope and the rest flat ([`facet`]).
     pub fn pixel(&self, map: &HeightMap, x: usize, y: usize) -> [f64; 3] {
-        let (w, h) = (map.width_px, map.height_px);
-        let depth = |x: usize, y: usize| f64::from(map.depth_mm[y * w + x]);
-        // Central differences (one-sided at the border), in mm per mm.
-        let (x0, x1) = (x.saturating_sub(1), (x + 1).min(w - 1));
-        let (y0, y1) = (y.saturating_sub(1), (y + 1).min(h - 1));
-        let gx = (depth(x1, y) - depth(x0, y)) / (((x1 - x0).max(1)) as f64 * self.mm_per_px);
-        let gy = (depth(x, y1) - depth(x, y0)) / (((y1 - y0).max(1)) as f64 * self.mm_per_px);
+        let f = facet::facet(map, x, y, self.mm_per_px);
         if let Some(r) = &self.realistic {
-            return r.shade(x, y, gx, gy);
+            return r.shade_covered(x, y, (f.gx, f.gy), f.coverage);
         }
-        let norm = (gx * gx + gy * gy + 1.0).sqrt();
-        let n = [gx / norm, gy / norm, 1.0 / norm];
+        let (w, h) = (map.width_px, map.height_px);
         let dx = x as f64 - w as f64 / 2.0;
         let dy = y as f64 - h as f64 / 2.0;
         let vignette = 1.0 - self.unit.vignetting * (dx * dx + dy * dy) / self.half_diag2;
+        let pressed = self.shades(f.gx, f.gy);
         let mut rgb = [0.0; 3];
         for (c, v) in rgb.iter_mut().enumerate() {
-            let l = self.lights[c];
-            let lambert = (n[0] * l[0] + n[1] * l[1] + n[2] * l[2]).max(0.0);
-            let shade = (AMBIENT + DIRECTIONAL * lambert) / (AMBIENT + DIRECTIONAL * l[2]);
+            // A flat facet's shade is 1; the camera's light is linear in it.
+            let shade = f.coverage * pressed[c] + (1.0 - f.coverage);
             *v = self.unit.led_gain[c] * vignette * BASE_RGB[c] * shade + self.unit.offset[c];
         }
         rgb
+    }
+
+    /// The nominal optics' shade per channel of a facet with gradient (`gx`, `gy`),
+    /// relative to a flat one's.
+    fn shades(&self, gx: f64, gy: f64) -> [f64; 3] {
+        let norm = (gx * gx + gy * gy + 1.0).sqrt();
+        let n = [gx / norm, gy / norm, 1.0 / norm];
+        self.lights.map(|l| {
+            let lambert = (n[0] * l[0] + n[1] * l[1] + n[2] * l[2]).max(0.0);
+            (AMBIENT + DIRECTIONAL * lambert) / (AMBIENT + DIRECTIONAL * l[2])
+        })
     }
 }
 

@@ -16,11 +16,14 @@
 //!    a contact's magnitude may dip below the threshold there); a blob beyond that, of
 //!    comparable size, is a second contact. A contact whose peak is under [`SHALLOW_SNR`]
 //!    times the camera's noise is too shallow;
-//! 3. from the contact's centroid, [`RAYS`] rays out to the ball's radius: along each, the
-//!    outer point where the magnitude falls half way from the untouched gel to the ray's own
-//!    peak (a step blurred by the optics is at half height at the step, whatever the LEDs'
-//!    gain for that direction), interpolated between samples; where that point lies beyond
-//!    the ball (the gel's shading around a deep press), the steepest fall within it;
+//! 3. from the contact's centroid, [`RAYS`] rays out to 1.5 times the ball's radius: along
+//!    each, the outer point where the magnitude falls half way from the untouched gel to the
+//!    ray's own peak, moved to the colour's largest change near it; and, near it too, the
+//!    step fitted to the camera's channels (`edge`: a line either side of a jump, blurred
+//!    by the detector's own box across a circular rim). Where the contact's rim is a step
+//!    (its median ray's jump at least a quarter of the ray's peak: the simulator's gel,
+//!    whose slope jumps to flat at the rim), the fitted steps are the rim; where it is not
+//!    (a real gel's slope runs on past the contact), the falls are;
 //! 4. a least-squares circle through those rim points (outliers dropped, then refitted),
 //!    and the rays cast again from its centre, [`ITERATIONS`] times. A circle as wide as the
 //!    ball is refused: no press of that ball can make it.
@@ -30,6 +33,7 @@
 
 use crate::image::RgbImage;
 
+mod edge;
 mod field;
 mod fit;
 

@@ -166,6 +166,43 @@ impl RealisticShader {
     /// The camera's encoded RGB (before noise and clamping) of the facet with gradient
     /// (`gx`, `gy`) at pixel (`x`, `y`).
     pub fn shade(&self, x: usize, y: usize, gx: f64, gy: f64) -> [f64; 3] {
+        self.shade_covered(x, y, (gx, gy), 1.0)
+    }
+
+    /// The encoded RGB of pixel (`x`, `y`) whose footprint is `coverage` (0–1) a facet
+    /// with gradient (`gx`, `gy`) and the rest flat gel: the two lights mixed in linear
+    /// light, as the sensor adds them, then encoded.
+    pub fn shade_covered(
+        &self,
+        x: usize,
+        y: usize,
+        (gx, gy): (f64, f64),
+        coverage: f64,
+    ) -> [f64; 3] {
+        let p = &self.params;
+        let f = if coverage.is_finite() {
+            coverage.clamp(0.0, 1.0)
+        } else {
+            1.0
+        };
+        let s = self.relative_light(gx, gy);
+        let at = (y * self.width_px + x) * 3;
+        let x_talk = p.crosstalk.clamp(0.0, 0.5);
+        [0, 1, 2].map(|c| {
+            let mix: f64 = s
+                .iter()
+                .enumerate()
+                .map(|(k, s)| if k == c { 1.0 - 2.0 * x_talk } else { x_talk } * s)
+                .sum();
+            // A flat facet's light is 1 for every LED, so 1 after the crosstalk too.
+            let mix = f * mix + (1.0 - f);
+            let lin = f64::from(self.linear.get(at + c).copied().unwrap_or(0.0)) * mix;
+            to_encoded(lin, p.gamma) + self.offset[c]
+        })
+    }
+
+    /// Each LED's light on the facet with gradient (`gx`, `gy`), relative to a flat one's.
+    fn relative_light(&self, gx: f64, gy: f64) -> [f64; 3] {
         let p = &self.params;
         let (gx, gy) = if gx.is_finite() && gy.is_finite() {
             (gx, gy)
@@ -176,21 +213,10 @@ impl RealisticShader {
         let slope = gx.hypot(gy);
         let n = normalise([gx, gy, 1.0]);
         let reach = 1.0 / (1.0 + (slope / p.shadow_slope.max(1e-6)).powi(2));
-        let s: [f64; 3] = [0, 1, 2].map(|k| {
+        [0, 1, 2].map(|k| {
             let diffuse = wrapped(dot(n, self.lights[k]), p.wrap);
             let specular = p.specular * lobe(dot(n, self.halves[k]), p.shininess);
             (p.ambient[k] + reach * (diffuse + specular)) / self.flat[k]
-        });
-        let at = (y * self.width_px + x) * 3;
-        let x_talk = p.crosstalk.clamp(0.0, 0.5);
-        [0, 1, 2].map(|c| {
-            let mix: f64 = s
-                .iter()
-                .enumerate()
-                .map(|(k, s)| if k == c { 1.0 - 2.0 * x_talk } else { x_talk } * s)
-                .sum();
-            let lin = f64::from(self.linear.get(at + c).copied().unwrap_or(0.0)) * mix;
-            to_encoded(lin, p.gamma) + self.offset[c]
         })
     }
 

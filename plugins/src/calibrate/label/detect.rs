@@ -45,11 +45,6 @@ pub(super) fn contact(
             percent: clipped * 100.0,
         });
     }
-    if main.touches_border {
-        return Err(Rejection::CutByBorder {
-            detail: "the contact reaches the image's edge".into(),
-        });
-    }
     let peak = main.peak - field.baseline();
     let unit = field.magnitude_noise(noise);
     if peak < SHALLOW_SNR * unit {
@@ -61,8 +56,32 @@ pub(super) fn contact(
             ),
         });
     }
-    let circle = rim_circle(&field, main.centroid, threshold, unit, ball_px)?;
+    let circle = match rim_circle(&field, main.centroid, threshold, unit, ball_px) {
+        // Rays that run off the image find no rim there.
+        Err(Rejection::NotRound { rays_found, .. }) if main.touches_border => {
+            return Err(Rejection::CutByBorder {
+                detail: format!(
+                    "the contact reaches the image's edge (its rim found on {rays_found} of \
+                     {RAYS} rays)"
+                ),
+            });
+        }
+        found => found?,
+    };
     check_circle(&circle, ball_px, press)?;
+    // The blob is the blurred signal: it reaches the border when the contact does, or
+    // when the contact comes within the blur's reach (and the camera's) of it. The rays
+    // towards the border found the rim or were dropped; a contact cut by the border has
+    // its circle run past the edge, one beside it keeps the blur's reach inside.
+    if main.touches_border && !inside_by(&circle, BLUR_PX as f64, press) {
+        return Err(Rejection::CutByBorder {
+            detail: format!(
+                "the contact reaches the image's edge (its circle at ({:.1}, {:.1}) px, radius \
+                 {:.1} px, within the blur's {BLUR_PX} px of it)",
+                circle.center_x_px, circle.center_y_px, circle.contact_radius_px
+            ),
+        });
+    }
     Ok(circle)
 }
 
@@ -164,8 +183,7 @@ fn check_circle(c: &ContactCircle, ball_px: f64, press: &RgbImage) -> Result<(),
             ball_radius_px: ball_px,
         });
     }
-    let (w, h) = (press.width as f64, press.height as f64);
-    if cx - r < 0.0 || cy - r < 0.0 || cx + r > w - 1.0 || cy + r > h - 1.0 {
+    if !inside_by(c, 0.0, press) {
         return Err(Rejection::CutByBorder {
             detail: format!(
                 "the circle at ({cx:.1}, {cy:.1}) px, radius {r:.1} px, runs past the {}x{} image",
@@ -174,4 +192,15 @@ fn check_circle(c: &ContactCircle, ball_px: f64, press: &RgbImage) -> Result<(),
         });
     }
     Ok(())
+}
+
+/// Whether circle `c` lies inside `press` with `margin_px` to spare.
+fn inside_by(c: &ContactCircle, margin_px: f64, press: &RgbImage) -> bool {
+    let (cx, cy, r) = (
+        c.center_x_px,
+        c.center_y_px,
+        c.contact_radius_px + margin_px,
+    );
+    let (w, h) = (press.width as f64, press.height as f64);
+    cx - r >= 0.0 && cy - r >= 0.0 && cx + r <= w - 1.0 && cy + r <= h - 1.0
 }

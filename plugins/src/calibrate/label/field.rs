@@ -5,6 +5,7 @@
 
 use crate::image::RgbImage;
 
+use super::edge;
 use super::{BACKGROUND_SMOOTH_PX, MIN_BLOB_PX, NOISE_SIGMAS, RIM_FRACTION, SIGNAL_SIGMAS};
 
 /// Step along a ray, px.
@@ -24,6 +25,10 @@ pub struct DiffField {
     magnitude: Vec<f32>,
     /// The blurred difference divided by the light, channel by channel.
     channels: Vec<Vec<f32>>,
+    /// The blurred difference as the camera gives it, channel by channel: where a step is
+    /// (the light is smooth across it, and dividing by it would scale up the noise and the
+    /// JPEG's ringing where the pad is dark).
+    camera: Vec<Vec<f32>>,
     /// `signal`'s median.
     baseline: f64,
     /// `magnitude`'s median.
@@ -97,6 +102,7 @@ impl DiffField {
         };
         let signal = magnitude_of(&raw);
         let magnitude = magnitude_of(&channels);
+        let camera = raw;
         let (baseline, spread) = level_and_spread(&signal);
         let (lit_baseline, _) = level_and_spread(&magnitude);
         Self {
@@ -105,6 +111,7 @@ impl DiffField {
             signal,
             magnitude,
             channels,
+            camera,
             baseline,
             lit_baseline,
             spread,
@@ -245,12 +252,12 @@ impl DiffField {
         self.sample(&self.magnitude, x, y)
     }
 
-    /// The blurred difference's three channels at (`x`, `y`); `None` outside the image.
-    fn colour_at(&self, x: f64, y: f64) -> Option<[f64; 3]> {
+    /// The three channels of `planes` at (`x`, `y`); `None` outside the image.
+    fn colour_at(&self, planes: &[Vec<f32>], x: f64, y: f64) -> Option<[f64; 3]> {
         Some([
-            self.sample(&self.channels[0], x, y)?,
-            self.sample(&self.channels[1], x, y)?,
-            self.sample(&self.channels[2], x, y)?,
+            self.sample(&planes[0], x, y)?,
+            self.sample(&planes[1], x, y)?,
+            self.sample(&planes[2], x, y)?,
         ])
     }
 
@@ -271,14 +278,11 @@ impl DiffField {
 
     /// Rim points on `rays` rays from `centre`, out to [`RAY_REACH`] times the ball's radius
     /// `ball_px` (a rim beyond the ball is found, and its circle refused, rather than cut
-    /// down to size). On each ray whose signal rises above `threshold`: the outer point where
-    /// the lit magnitude falls [`RIM_FRACTION`] of the way from the untouched gel to the
-    /// ray's own peak (a step in slope blurred by the optics is at half height at the step,
-    /// whatever the LEDs' gain for the slope's direction); then, within [`STEP_WINDOW`] of
-    /// the ball's radius of it, the centre of the colour's largest change, where that change
-    /// stands [`STEP_SNR`] times above the noise (`noise_unit`): where the LEDs' response
-    /// turns over at steep slopes, the magnitude falls before the rim, the colour still
-    /// steps at it.
+    /// down to size). On each ray whose signal rises above `threshold`, the rim is read two
+    /// ways (see [`Self::read_rim`]); where the contact's rim is a step (on the median ray
+    /// the fitted jump is at least [`STEP_SHARE`] of the ray's peak), the step fitted on
+    /// each ray is its rim, else the reading from the magnitude's fall and the colour's
+    /// change.
     pub fn rim_points(
         &self,
         (cx, cy): (f64, f64),
@@ -288,49 +292,107 @@ impl DiffField {
         noise_unit: f64,
     ) -> Vec<(f64, f64)> {
         let steps = (ball_px * RAY_REACH / RAY_STEP_PX).ceil() as usize;
-        let window = (STEP_WINDOW * ball_px / RAY_STEP_PX).ceil() as usize;
-        let mut cast = Vec::with_capacity(rays);
-        for k in 0..rays {
-            let (s, c) = (std::f64::consts::TAU * k as f64 / rays as f64).sin_cos();
-            let (mut profile, mut colours) = (Vec::new(), Vec::new());
-            let mut signal_peak = f64::MIN;
-            for i in 0..=steps {
-                let (x, y) = (
-                    cx + i as f64 * RAY_STEP_PX * c,
-                    cy + i as f64 * RAY_STEP_PX * s,
-                );
-                match (
-                    self.at(x, y),
-                    self.colour_at(x, y),
-                    self.sample(&self.signal, x, y),
-                ) {
-                    (Some(v), Some(col), Some(sig)) => {
-                        profile.push(v);
-                        colours.push(col);
-                        signal_peak = signal_peak.max(sig);
-                    }
-                    _ => break,
-                }
-            }
-            if signal_peak > threshold {
-                cast.push(((s, c), profile, colours));
-            }
-        }
-        let mut out = Vec::with_capacity(rays);
-        for ((s, c), profile, colours) in cast {
-            let Some(fall) = self.rim_fall(&profile) else {
-                continue;
+        let blur = edge::BoxBlur::new(self.blur_px);
+        let readings: Vec<((f64, f64), RimReading)> = (0..rays)
+            .filter_map(|k| {
+                let (s, c) = (std::f64::consts::TAU * k as f64 / rays as f64).sin_cos();
+                let ray = self.cast((cx, cy), (c, s), steps, threshold)?;
+                let reading = self.read_rim(&ray, (c, s), &blur, ball_px, noise_unit)?;
+                Some(((c, s), reading))
+            })
+            .collect();
+        let mut shares: Vec<f32> = readings
+            .iter()
+            .map(|(_, r)| r.step.map_or(0.0, |st| (st.jump / r.peak) as f32))
+            .collect();
+        let stepped = !shares.is_empty() && median(std::mem::take(&mut shares)) >= STEP_SHARE;
+        readings
+            .into_iter()
+            .map(|((c, s), r)| {
+                let rho = match r.step {
+                    Some(st) if stepped => st.rho,
+                    _ => r.from_fall,
+                };
+                (cx + rho * c, cy + rho * s)
+            })
+            .collect()
+    }
+
+    /// The ray from `centre` in direction `dir`, every [`RAY_STEP_PX`] for `steps` steps
+    /// or to the image's edge; `None` when the signal never rises above `threshold` on it.
+    fn cast(
+        &self,
+        (cx, cy): (f64, f64),
+        (c, s): (f64, f64),
+        steps: usize,
+        threshold: f64,
+    ) -> Option<Ray> {
+        let mut ray = Ray {
+            profile: Vec::new(),
+            colours: Vec::new(),
+            camera: Vec::new(),
+            signal_peak: f64::MIN,
+        };
+        for i in 0..=steps {
+            let (x, y) = (
+                cx + i as f64 * RAY_STEP_PX * c,
+                cy + i as f64 * RAY_STEP_PX * s,
+            );
+            let (Some(v), Some(col), Some(cam), Some(sig)) = (
+                self.at(x, y),
+                self.colour_at(&self.channels, x, y),
+                self.colour_at(&self.camera, x, y),
+                self.sample(&self.signal, x, y),
+            ) else {
+                break;
             };
-            let centre = (fall / RAY_STEP_PX).round() as usize;
-            let from = centre.saturating_sub(window);
-            let to = (centre + window).min(colours.len().saturating_sub(1));
-            let rho = match colour_step(&colours, from, to) {
-                Some((rho, change)) if change >= STEP_SNR * noise_unit => rho,
-                _ => fall,
-            };
-            out.push((cx + rho * c, cy + rho * s));
+            ray.profile.push(v);
+            ray.colours.push(col);
+            ray.camera.push(cam);
+            ray.signal_peak = ray.signal_peak.max(sig);
         }
-        out
+        (ray.signal_peak > threshold).then_some(ray)
+    }
+
+    /// A ray's rim read from its lit `profile` and `colours`: the outer point where the
+    /// magnitude falls [`RIM_FRACTION`] of the way from the untouched gel to the ray's own
+    /// peak (a step in slope blurred by the optics is at half height at the step, whatever
+    /// the LEDs' gain for the slope's direction), moved to the centre of the colour's
+    /// largest change within [`STEP_WINDOW`] of the ball's radius where that change stands
+    /// [`STEP_SNR`] times above the noise (`noise_unit`); and, in the same window, the
+    /// step fitted to the channels ([`edge::fit_step`]) where its jump stands
+    /// [`STEP_SNR`] times above the noise. `None` when the magnitude never falls.
+    fn read_rim(
+        &self,
+        ray: &Ray,
+        direction: (f64, f64),
+        blur: &edge::BoxBlur,
+        ball_px: f64,
+        noise_unit: f64,
+    ) -> Option<RimReading> {
+        let fall = self.rim_fall(&ray.profile)?;
+        let window = STEP_WINDOW * ball_px;
+        let centre = (fall / RAY_STEP_PX).round() as usize;
+        let half = (window / RAY_STEP_PX).ceil() as usize;
+        let to = (centre + half).min(ray.colours.len().saturating_sub(1));
+        let from_fall = match colour_step(&ray.colours, centre.saturating_sub(half), to) {
+            Some((rho, change)) if change >= STEP_SNR * noise_unit => rho,
+            _ => fall,
+        };
+        let samples = edge::RaySamples {
+            colours: &ray.camera,
+            step_px: RAY_STEP_PX,
+            direction,
+            blur,
+        };
+        let step = edge::fit_step(samples, (fall - window, fall + window), blur.width_px())
+            .filter(|st| st.jump >= STEP_SNR * noise_unit);
+        let peak = ray.signal_peak - self.baseline;
+        Some(RimReading {
+            from_fall,
+            step,
+            peak,
+        })
     }
 
     /// Where the lit `profile` (sampled every [`RAY_STEP_PX`]) falls to the rim level after
@@ -357,9 +419,39 @@ impl DiffField {
     }
 }
 
-/// A ray's colour step counts as its rim when it is this many times the camera's noise in
-/// the blurred magnitude; a fainter one is read from the magnitude's fall instead.
+/// A ray's colour step (or fitted jump) counts when it is this many times the camera's
+/// noise in the blurred magnitude; a fainter one is read from the magnitude's fall instead.
 const STEP_SNR: f64 = 8.0;
+/// A contact's rim is a step when, on its median ray, the fitted jump is at least this
+/// share of the ray's peak: on the simulator's presses the median share is 0.48 or more
+/// (its gel's slope jumps from the ball's to flat at the rim), on the GelSight Mini's at
+/// most 0.09 (the real gel's slope runs on past the contact; the ray with the largest
+/// share there has 0.29). A quarter lies between, with room either side.
+const STEP_SHARE: f64 = 0.25;
+
+/// One ray's samples.
+#[derive(Debug, Clone)]
+struct Ray {
+    /// The lit magnitude.
+    profile: Vec<f64>,
+    /// The lit channels.
+    colours: Vec<[f64; 3]>,
+    /// The camera's channels.
+    camera: Vec<[f64; 3]>,
+    /// The largest signal (the camera's magnitude) on the ray.
+    signal_peak: f64,
+}
+
+/// A ray's rim, read both ways (see [`DiffField::read_rim`]).
+#[derive(Debug, Clone, Copy)]
+struct RimReading {
+    /// From the magnitude's fall and the colour's largest change, px from the centre.
+    from_fall: f64,
+    /// The step fitted to the channels, where its jump stands above the noise.
+    step: Option<edge::Step>,
+    /// The ray's peak signal over the untouched gel's.
+    peak: f64,
+}
 /// How far either side of the magnitude's fall a ray looks for the colour's step, in units
 /// of the ball's radius.
 const STEP_WINDOW: f64 = 0.15;

@@ -336,7 +336,8 @@ fn noisy(img: &RgbImage, amp: i16, seed: u64) -> RgbImage {
 #[test]
 fn synthetic_disc_is_found_to_subpixel() {
     let bg = flat(120, 90, [120, 110, 100]);
-    let c = detect(&disc(&bg, (60.3, 44.6), 20.0, 60), &bg, 30.0).expect("contact");
+    let img = disc(&bg, (60.3, 44.6), 20.0, 60);
+    let c = detect(&img, &bg, 30.0).expect("contact");
     assert!((c.center_x_px - 60.3).abs() < 0.5, "{c:?}");
     assert!((c.center_y_px - 44.6).abs() < 0.5, "{c:?}");
     assert!((c.contact_radius_px - 20.0).abs() < 1.0, "{c:?}");
