@@ -27,6 +27,7 @@
 use std::sync::Arc;
 
 use rustdct::num_traits::Float;
+use rustdct::rustfft::num_complex::Complex;
 use rustdct::{DctNum, DctPlanner, Dst1};
 
 use crate::halves::{first_half, run_halves, worth_splitting};
@@ -114,13 +115,67 @@ fn t<T: Real>(v: f64) -> T {
     T::from_f64(v).unwrap_or_else(T::zero)
 }
 
+/// A plan's window-sized buffers, handed from a plan to the one that replaces it.
+struct PlanBuffers<T: Real> {
+    eigen: Vec<T>,
+    work: Vec<T>,
+    transposed: Vec<T>,
+    /// The DCT passes' row pairs: rows' two halves, then the columns'.
+    pairs: [Vec<Complex<T>>; 4],
+}
+
+/// `v` as `len` zeros, in its own allocation when that is large enough.
+fn zeros_in<T: Real>(mut v: Vec<T>, len: usize) -> Vec<T> {
+    v.clear();
+    v.resize(len, T::zero());
+    v
+}
+
 impl<T: Real> PoissonPlan<T> {
     /// Plan a solve of `height × width` gradients (each at least 1).
     pub fn new(solver: Solver, height: usize, width: usize) -> Self {
+        let none = PlanBuffers {
+            eigen: Vec::new(),
+            work: Vec::new(),
+            transposed: Vec::new(),
+            pairs: Default::default(),
+        };
+        Self::with_buffers(solver, height, width, none)
+    }
+
+    /// This plan's buffers re-planned for a `height × width` solve: the same plan as
+    /// [`PoissonPlan::new`]'s, bit for bit, without allocating window-sized buffers again
+    /// once they are large enough (a cache replacing plans over a long hold would otherwise
+    /// allocate and free hundreds of kilobytes per new window size, and the allocator's
+    /// heap would fragment: docs/architecture.md, "Memory over a long run").
+    pub fn replanned(self, solver: Solver, height: usize, width: usize) -> Self {
+        let pairs = match self.transforms {
+            Transforms::Dct(passes) => {
+                let DctPasses {
+                    row_buffers: [a, b],
+                    col_buffers: [c, d],
+                    ..
+                } = *passes;
+                [a, b, c, d].map(RowDct::into_pairs)
+            }
+            Transforms::Dst { .. } => Default::default(),
+        };
+        let buffers = PlanBuffers {
+            eigen: self.eigen,
+            work: self.work,
+            transposed: self.transposed,
+            pairs,
+        };
+        Self::with_buffers(solver, height, width, buffers)
+    }
+
+    fn with_buffers(solver: Solver, height: usize, width: usize, buf: PlanBuffers<T>) -> Self {
         let (h, w) = (height.max(1), width.max(1));
+        let mut eigen = buf.eigen;
+        eigen.clear();
         let mut planner = DctPlanner::<T>::new();
         let pi = std::f64::consts::PI;
-        let (grid_h, grid_w, transforms, eigen) = match solver {
+        let (grid_h, grid_w, transforms) = match solver {
             Solver::Dst => {
                 let (m, n) = (h.saturating_sub(2), w.saturating_sub(2));
                 let ey: Vec<f64> = (1..=m)
@@ -129,15 +184,15 @@ impl<T: Real> PoissonPlan<T> {
                 let ex: Vec<f64> = (1..=n)
                     .map(|k| 2.0 * (pi * k as f64 / (n + 1) as f64).cos() - 2.0)
                     .collect();
-                let eigen = ey
-                    .iter()
-                    .flat_map(|y| ex.iter().map(move |x| t::<T>(x + y)))
-                    .collect();
+                eigen.extend(
+                    ey.iter()
+                        .flat_map(|y| ex.iter().map(move |x| t::<T>(x + y))),
+                );
                 let tr = Transforms::Dst {
                     rows: planner.plan_dst1(n.max(1)),
                     cols: planner.plan_dst1(m.max(1)),
                 };
-                (m, n, tr, eigen)
+                (m, n, tr)
             }
             Solver::Dct => {
                 // sin²(πk/2N) per axis, once per coefficient (not per cell: a plan is
@@ -150,25 +205,26 @@ impl<T: Real> PoissonPlan<T> {
                 let (sx, sy) = (sin2(w), sin2(h));
                 // The inverse eigenvalues times the transforms' normalisation, 4/(HW).
                 let scale = 4.0 / (h * w) as f64;
-                let eigen = sx
-                    .iter()
-                    .flat_map(|x| sy.iter().map(move |y| -4.0 * (x + y)))
-                    .map(|e| {
-                        if e == 0.0 {
-                            T::zero()
-                        } else {
-                            t::<T>(scale / e)
-                        }
-                    })
-                    .collect();
+                eigen.extend(
+                    sx.iter()
+                        .flat_map(|x| sy.iter().map(move |y| -4.0 * (x + y)))
+                        .map(|e| {
+                            if e == 0.0 {
+                                T::zero()
+                            } else {
+                                t::<T>(scale / e)
+                            }
+                        }),
+                );
                 let (rows, cols) = (RowDct::new(w), RowDct::new(h));
+                let [a, b, c, d] = buf.pairs;
                 let tr = Transforms::Dct(Box::new(DctPasses {
-                    row_buffers: [rows.buffers(), rows.buffers()],
-                    col_buffers: [cols.buffers(), cols.buffers()],
+                    row_buffers: [rows.buffers_in(a), rows.buffers_in(b)],
+                    col_buffers: [cols.buffers_in(c), cols.buffers_in(d)],
                     rows,
                     cols,
                 }));
-                (h, w, tr, eigen)
+                (h, w, tr)
             }
         };
         let scratch_len = match &transforms {
@@ -181,8 +237,8 @@ impl<T: Real> PoissonPlan<T> {
             width: w,
             transforms,
             eigen,
-            work: vec![T::zero(); grid_h * grid_w],
-            transposed: vec![T::zero(); grid_h * grid_w],
+            work: zeros_in(buf.work, grid_h * grid_w),
+            transposed: zeros_in(buf.transposed, grid_h * grid_w),
             scratch: vec![T::zero(); scratch_len],
         }
     }

@@ -37,6 +37,13 @@ pub fn encode_jpeg(
     Ok(out)
 }
 
+thread_local! {
+    /// The frame [`SceneCamera::jpeg`] renders before encoding, one per rendering thread
+    /// and kept: a frame-sized buffer allocated per frame leaves the allocator's heap to
+    /// fragment over a long run (docs/architecture.md, "Memory over a long run").
+    static RGB_SCRATCH: std::cell::RefCell<Vec<u8>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
 /// One simulated sensor's camera: its unit variation, optics and encoder.
 #[derive(Debug, Clone)]
 pub struct SensorCamera {
@@ -177,18 +184,22 @@ impl SceneCamera {
     /// Render `map` with the noise of frame `frame` and encode it.
     pub fn jpeg(&self, map: &HeightMap, frame: u64) -> Result<Vec<u8>, EncodeError> {
         let (w, h) = (self.camera.width, self.camera.height);
-        let mut img = self.base.clone();
-        if let Some((x0, y0, x1, y1)) = touched_box(map) {
-            for y in y0.saturating_sub(1)..(y1 + 1).min(h) {
-                for x in x0.saturating_sub(1)..(x1 + 1).min(w) {
-                    let rgb = self.shader.pixel(map, x, y);
-                    let at = (y * w + x) * 3;
-                    for c in 0..3 {
-                        img[at + c] = rgb[c] as f32;
-                    }
+        RGB_SCRATCH.with_borrow_mut(|rgb| {
+            self.render_into(map, frame, rgb);
+            encode_jpeg(rgb, w as u16, h as u16, self.camera.quality).map_err(|source| {
+                EncodeError {
+                    sensor: self.camera.index,
+                    source,
                 }
-            }
-        }
+            })
+        })
+    }
+
+    /// Render `map` with the noise of frame `frame` into `rgb` (interleaved 8-bit): the flat
+    /// gel's shading everywhere, re-shaded around the indentation, plus the noise plane read
+    /// at the frame's offset.
+    fn render_into(&self, map: &HeightMap, frame: u64, rgb: &mut Vec<u8>) {
+        let (w, h) = (self.camera.width, self.camera.height);
         let n = w * h * 3;
         let offset = (frame.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 20) as usize % n.max(1);
         // Per-channel noise keeps its channels aligned (uniform noise reads anywhere).
@@ -199,15 +210,20 @@ impl SceneCamera {
             offset - offset % 3
         };
         let noise = &self.noise[offset..offset + n];
-        let rgb: Vec<u8> = img
-            .iter()
-            .zip(noise)
-            .map(|(v, e)| (v + e).round().clamp(0.0, 255.0) as u8)
-            .collect();
-        encode_jpeg(&rgb, w as u16, h as u16, self.camera.quality).map_err(|source| EncodeError {
-            sensor: self.camera.index,
-            source,
-        })
+        let quantise = |v: f32, e: f32| (v + e).round().clamp(0.0, 255.0) as u8;
+        rgb.clear();
+        rgb.extend(self.base.iter().zip(noise).map(|(v, e)| quantise(*v, *e)));
+        if let Some((x0, y0, x1, y1)) = touched_box(map) {
+            for y in y0.saturating_sub(1)..(y1 + 1).min(h) {
+                for x in x0.saturating_sub(1)..(x1 + 1).min(w) {
+                    let shaded = self.shader.pixel(map, x, y);
+                    let at = (y * w + x) * 3;
+                    for c in 0..3 {
+                        rgb[at + c] = quantise(shaded[c] as f32, noise[at + c]);
+                    }
+                }
+            }
+        }
     }
 }
 

@@ -4,7 +4,10 @@
 //! the configured diameter pressed to the configured depth, at a position that differs from
 //! sensor to sensor so the views are distinguishable.
 
-/// Depth into the gel per pixel, row-major, in mm.
+use std::sync::Mutex;
+
+/// Depth into the gel per pixel, row-major, in mm. Its buffer goes back to a bounded spare
+/// list when it is dropped, for the next map of its size.
 #[derive(Debug, Clone, PartialEq)]
 pub struct HeightMap {
     /// Columns.
@@ -15,13 +18,59 @@ pub struct HeightMap {
     pub depth_mm: Vec<f32>,
 }
 
+/// Frame-sized depth buffers of dropped maps, kept for the next maps of their size: a
+/// scene's pads give a map per capture, and allocating each afresh (300 KB at 320×240)
+/// leaves the allocator's heap to fragment over a long run (docs/architecture.md, "Memory
+/// over a long run").
+static SPARE_DEPTHS: Mutex<Vec<Vec<f32>>> = Mutex::new(Vec::new());
+
+/// At most this many spare buffers are kept (the pads of a few captures in flight); more
+/// are freed.
+const SPARE_DEPTHS_KEPT: usize = 32;
+
+/// Maps smaller than this many pixels are left to the allocator.
+const SPARE_DEPTHS_MIN_PX: usize = 16 * 1024;
+
+/// A zeroed buffer of `n` depths, a spare one when there is one of that size.
+fn zeroed_depths(n: usize) -> Vec<f32> {
+    let spare = (n >= SPARE_DEPTHS_MIN_PX)
+        .then(|| SPARE_DEPTHS.lock().ok())
+        .flatten()
+        .and_then(|mut spare| {
+            let i = spare.iter().position(|v| v.capacity() == n)?;
+            Some(spare.swap_remove(i))
+        });
+    match spare {
+        Some(mut depth) => {
+            depth.clear();
+            depth.resize(n, 0.0);
+            depth
+        }
+        None => vec![0.0; n],
+    }
+}
+
+impl Drop for HeightMap {
+    fn drop(&mut self) {
+        let depth = std::mem::take(&mut self.depth_mm);
+        if depth.capacity() < SPARE_DEPTHS_MIN_PX {
+            return;
+        }
+        if let Ok(mut spare) = SPARE_DEPTHS.lock()
+            && spare.len() < SPARE_DEPTHS_KEPT
+        {
+            spare.push(depth);
+        }
+    }
+}
+
 impl HeightMap {
     /// A flat, untouched gel.
     pub fn flat(width_px: usize, height_px: usize) -> Self {
         Self {
             width_px,
             height_px,
-            depth_mm: vec![0.0; width_px * height_px],
+            depth_mm: zeroed_depths(width_px * height_px),
         }
     }
 

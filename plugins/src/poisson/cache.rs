@@ -1,7 +1,8 @@
 //! A bounded cache of Poisson plans keyed by window size: a contact window's size changes
 //! from set to set over a long hold, and a plan per size ever seen would grow without bound
 //! (over 200 plans in a two-minute grasp hold). The least recently used plan goes when a
-//! new size comes and the cache is full; a plan rebuilt later solves bit for bit as before.
+//! new size comes and the cache is full, and its buffers serve the new plan; a plan rebuilt
+//! later solves bit for bit as before.
 
 use super::{PoissonPlan, Real, Solver};
 
@@ -45,14 +46,16 @@ impl<T: Real> PlanCache<T> {
         let i = match found {
             Some(i) => i,
             None => {
-                if self.plans.len() >= self.capacity
-                    && let Some(oldest) = (0..self.plans.len()).min_by_key(|&i| self.plans[i].1)
-                {
-                    self.plans.swap_remove(oldest);
-                }
+                let oldest = (self.plans.len() >= self.capacity)
+                    .then(|| (0..self.plans.len()).min_by_key(|&i| self.plans[i].1))
+                    .flatten();
+                // The evicted plan's buffers serve the new one.
+                let plan = match oldest {
+                    Some(i) => self.plans.swap_remove(i).2.replanned(solver, height, width),
+                    None => PoissonPlan::new(solver, height, width),
+                };
                 tracing::debug!(height, width, cached = self.plans.len(), "new Poisson plan");
-                self.plans
-                    .push((key, 0, PoissonPlan::new(solver, height, width)));
+                self.plans.push((key, 0, plan));
                 self.plans.len() - 1
             }
         };
@@ -107,5 +110,33 @@ mod tests {
         let before = cache.len();
         cache.plan(Solver::Dst, h, w);
         assert_eq!(cache.len(), before);
+    }
+
+    /// A plan made from another's buffers (smaller, larger, the other solver) solves as a
+    /// fresh one, bit for bit.
+    #[test]
+    fn a_replanned_plan_solves_as_a_new_one() {
+        let sizes = [(40, 56), (9, 13), (64, 48), (17, 17), (3, 5)];
+        let mut reused = PoissonPlan::<f32>::new(Solver::Dct, 33, 21);
+        for (k, &(h, w)) in sizes.iter().enumerate() {
+            for solver in [Solver::Dst, Solver::Dct] {
+                let gx: Vec<f32> = (0..h * w)
+                    .map(|i| ((i * 7 + k) % 11) as f32 / 11.0 - 0.5)
+                    .collect();
+                let gy: Vec<f32> = (0..h * w)
+                    .map(|i| ((i * 5 + k) % 13) as f32 / 13.0 - 0.5)
+                    .collect();
+                let (mut fresh, mut again) = (vec![0.0f32; h * w], vec![0.0f32; h * w]);
+                PoissonPlan::new(solver, h, w).solve(&gx, &gy, &mut fresh);
+                reused = reused.replanned(solver, h, w);
+                reused.solve(&gx, &gy, &mut again);
+                let same = fresh
+                    .iter()
+                    .zip(&again)
+                    .all(|(a, b)| a.to_bits() == b.to_bits());
+                assert!(same, "{solver:?} {h}x{w}");
+                assert!(again.iter().all(|v| v.is_finite()), "{solver:?} {h}x{w}");
+            }
+        }
     }
 }

@@ -58,16 +58,24 @@ impl<T: Real> RowDct<T> {
         }
     }
 
-    /// Buffers for one thread's share of the rows.
-    pub(super) fn buffers(&self) -> RowBuffers<T> {
+    /// Buffers for one thread's share of the rows, whose row pairs grow in `pairs`'
+    /// allocation (empty, or another plan's: window-sized, so not allocated again when a
+    /// cache replaces a plan).
+    pub(super) fn buffers_in(&self, mut pairs: Vec<Complex<T>>) -> RowBuffers<T> {
         let scratch_len = self
             .forward
             .get_inplace_scratch_len()
             .max(self.inverse.get_inplace_scratch_len());
+        pairs.clear();
         RowBuffers {
-            pairs: Vec::new(),
+            pairs,
             scratch: vec![Complex::new(T::zero(), T::zero()); scratch_len],
         }
+    }
+
+    /// The row pairs' allocation of `buf`, for [`RowDct::buffers_in`].
+    pub(super) fn into_pairs(buf: RowBuffers<T>) -> Vec<Complex<T>> {
+        buf.pairs
     }
 
     /// Makhoul's reordering of rows `2p` and `2p + 1` of `data` (`rows` rows) into pair
