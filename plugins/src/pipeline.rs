@@ -410,9 +410,9 @@ impl SensorPipeline {
         }
         self.window_gradients((x0, y0, w, h))?;
         let solver = self.choice.stages.solver.unwrap_or(Solver::Dst);
-        let plan = self.plans.plan(solver, h, w);
+        let gradients = (&self.gx[..w * h], &self.gy[..w * h]);
         let depth = &mut self.depth_px[..w * h];
-        plan.solve(&self.gx[..w * h], &self.gy[..w * h], depth);
+        self.plans.solve(solver, (h, w), gradients, depth);
         if solver == Solver::Dct {
             // Neumann leaves a free constant. Zero depth is on the window's sides inside
             // the image (the margin around the contact); a side on the image edge may cut

@@ -27,7 +27,6 @@
 use std::sync::Arc;
 
 use rustdct::num_traits::Float;
-use rustdct::rustfft::num_complex::Complex;
 use rustdct::{DctNum, DctPlanner, Dst1};
 
 use crate::halves::{first_half, run_halves, worth_splitting};
@@ -75,15 +74,44 @@ enum Transforms<T: Real> {
         rows: Arc<dyn Dst1<T>>,
         cols: Arc<dyn Dst1<T>>,
     },
-    Dct(Box<DctPasses<T>>),
+    Dct {
+        rows: RowDct<T>,
+        cols: RowDct<T>,
+    },
 }
 
-/// The DCT solve's row and column transforms, with each half's buffers (`halves`).
-struct DctPasses<T: Real> {
-    rows: RowDct<T>,
-    cols: RowDct<T>,
+/// The window-sized scratch a solve works in: grown to the largest window solved, then
+/// reused. A [`PlanCache`] keeps one for all its plans (it solves one window at a time),
+/// so the memory of a cache of plans is their spectra's multipliers alone; a plan used on
+/// its own keeps its own.
+pub struct SolveBuffers<T: Real> {
+    work: Vec<T>,
+    transposed: Vec<T>,
+    /// DST-I's scratch.
+    scratch: Vec<T>,
+    /// The DCT passes' buffers, for each half of the rows (`halves`).
     row_buffers: [RowBuffers<T>; 2],
     col_buffers: [RowBuffers<T>; 2],
+}
+
+impl<T: Real> Default for SolveBuffers<T> {
+    fn default() -> Self {
+        Self {
+            work: Vec::new(),
+            transposed: Vec::new(),
+            scratch: Vec::new(),
+            row_buffers: Default::default(),
+            col_buffers: Default::default(),
+        }
+    }
+}
+
+impl<T: Real> std::fmt::Debug for SolveBuffers<T> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SolveBuffers")
+            .field("work_len", &self.work.len())
+            .finish()
+    }
 }
 
 /// A solver planned for one image size, with its buffers.
@@ -96,9 +124,8 @@ pub struct PoissonPlan<T: Real> {
     /// (the normalisation over the eigenvalue, 0 for the free constant), column-major
     /// (`[k_x][k_y]`, the order the row transforms leave the spectrum in).
     eigen: Vec<T>,
-    work: Vec<T>,
-    transposed: Vec<T>,
-    scratch: Vec<T>,
+    /// What [`PoissonPlan::solve`] works in (empty until it is first called).
+    buffers: SolveBuffers<T>,
 }
 
 impl<T: Real> std::fmt::Debug for PoissonPlan<T> {
@@ -115,67 +142,27 @@ fn t<T: Real>(v: f64) -> T {
     T::from_f64(v).unwrap_or_else(T::zero)
 }
 
-/// A plan's window-sized buffers, handed from a plan to the one that replaces it.
-struct PlanBuffers<T: Real> {
-    eigen: Vec<T>,
-    work: Vec<T>,
-    transposed: Vec<T>,
-    /// The DCT passes' row pairs: rows' two halves, then the columns'.
-    pairs: [Vec<Complex<T>>; 4],
-}
-
-/// `v` as `len` zeros, in its own allocation when that is large enough.
-fn zeros_in<T: Real>(mut v: Vec<T>, len: usize) -> Vec<T> {
-    v.clear();
-    v.resize(len, T::zero());
-    v
-}
-
 impl<T: Real> PoissonPlan<T> {
     /// Plan a solve of `height × width` gradients (each at least 1).
     pub fn new(solver: Solver, height: usize, width: usize) -> Self {
-        let none = PlanBuffers {
-            eigen: Vec::new(),
-            work: Vec::new(),
-            transposed: Vec::new(),
-            pairs: Default::default(),
-        };
-        Self::with_buffers(solver, height, width, none)
+        Self::with_eigen(solver, height, width, Vec::new())
     }
 
-    /// This plan's buffers re-planned for a `height × width` solve: the same plan as
-    /// [`PoissonPlan::new`]'s, bit for bit, without allocating window-sized buffers again
-    /// once they are large enough (a cache replacing plans over a long hold would otherwise
-    /// allocate and free hundreds of kilobytes per new window size, and the allocator's
-    /// heap would fragment: docs/architecture.md, "Memory over a long run").
+    /// A plan for a `height × width` solve made in this one's allocations: the same plan as
+    /// [`PoissonPlan::new`]'s, bit for bit, without allocating its window-sized multipliers
+    /// again once they are large enough (a cache replacing plans over a long hold would
+    /// otherwise allocate and free hundreds of kilobytes per new window size, and the
+    /// allocator's heap would fragment: docs/architecture.md, "Memory over a long run").
     pub fn replanned(self, solver: Solver, height: usize, width: usize) -> Self {
-        let pairs = match self.transforms {
-            Transforms::Dct(passes) => {
-                let DctPasses {
-                    row_buffers: [a, b],
-                    col_buffers: [c, d],
-                    ..
-                } = *passes;
-                [a, b, c, d].map(RowDct::into_pairs)
-            }
-            Transforms::Dst { .. } => Default::default(),
-        };
-        let buffers = PlanBuffers {
-            eigen: self.eigen,
-            work: self.work,
-            transposed: self.transposed,
-            pairs,
-        };
-        Self::with_buffers(solver, height, width, buffers)
+        Self::with_eigen(solver, height, width, self.eigen)
     }
 
-    fn with_buffers(solver: Solver, height: usize, width: usize, buf: PlanBuffers<T>) -> Self {
+    fn with_eigen(solver: Solver, height: usize, width: usize, mut eigen: Vec<T>) -> Self {
         let (h, w) = (height.max(1), width.max(1));
-        let mut eigen = buf.eigen;
         eigen.clear();
         let mut planner = DctPlanner::<T>::new();
         let pi = std::f64::consts::PI;
-        let (grid_h, grid_w, transforms) = match solver {
+        let transforms = match solver {
             Solver::Dst => {
                 let (m, n) = (h.saturating_sub(2), w.saturating_sub(2));
                 let ey: Vec<f64> = (1..=m)
@@ -188,11 +175,10 @@ impl<T: Real> PoissonPlan<T> {
                     ey.iter()
                         .flat_map(|y| ex.iter().map(move |x| t::<T>(x + y))),
                 );
-                let tr = Transforms::Dst {
+                Transforms::Dst {
                     rows: planner.plan_dst1(n.max(1)),
                     cols: planner.plan_dst1(m.max(1)),
-                };
-                (m, n, tr)
+                }
             }
             Solver::Dct => {
                 // sin²(πk/2N) per axis, once per coefficient (not per cell: a plan is
@@ -216,20 +202,11 @@ impl<T: Real> PoissonPlan<T> {
                             }
                         }),
                 );
-                let (rows, cols) = (RowDct::new(w), RowDct::new(h));
-                let [a, b, c, d] = buf.pairs;
-                let tr = Transforms::Dct(Box::new(DctPasses {
-                    row_buffers: [rows.buffers_in(a), rows.buffers_in(b)],
-                    col_buffers: [cols.buffers_in(c), cols.buffers_in(d)],
-                    rows,
-                    cols,
-                }));
-                (h, w, tr)
+                Transforms::Dct {
+                    rows: RowDct::new(w),
+                    cols: RowDct::new(h),
+                }
             }
-        };
-        let scratch_len = match &transforms {
-            Transforms::Dst { rows, cols } => rows.get_scratch_len().max(cols.get_scratch_len()),
-            Transforms::Dct { .. } => 0,
         };
         Self {
             solver,
@@ -237,9 +214,7 @@ impl<T: Real> PoissonPlan<T> {
             width: w,
             transforms,
             eigen,
-            work: zeros_in(buf.work, grid_h * grid_w),
-            transposed: zeros_in(buf.transposed, grid_h * grid_w),
-            scratch: vec![T::zero(); scratch_len],
+            buffers: SolveBuffers::default(),
         }
     }
 
@@ -256,19 +231,35 @@ impl<T: Real> PoissonPlan<T> {
     /// Solve for `z` (row-major `height × width`) from `gx` and `gy` of the same size.
     /// Non-finite gradients are treated as 0, so the output is always finite.
     pub fn solve(&mut self, gx: &[T], gy: &[T], z: &mut [T]) {
+        let mut buffers = std::mem::take(&mut self.buffers);
+        self.solve_in(&mut buffers, gx, gy, z);
+        self.buffers = buffers;
+    }
+
+    /// [`PoissonPlan::solve`] working in `buffers` (another plan's, or a cache's shared
+    /// ones): the same result, bit for bit.
+    pub fn solve_in(&self, buffers: &mut SolveBuffers<T>, gx: &[T], gy: &[T], z: &mut [T]) {
         let (h, w) = (self.height, self.width);
         let n = h * w;
         if gx.len() < n || gy.len() < n || z.len() < n {
             return;
         }
         z[..n].fill(T::zero());
-        match self.solver {
-            Solver::Dst => self.solve_dst(gx, gy, z),
-            Solver::Dct => self.solve_dct(gx, gy, z),
+        match &self.transforms {
+            Transforms::Dst { rows, cols } => {
+                let (m, n) = (h.saturating_sub(2), w.saturating_sub(2));
+                let scratch = rows.get_scratch_len().max(cols.get_scratch_len());
+                buffers.fit(m * n, scratch);
+                self.solve_dst(buffers, gx, gy, z);
+            }
+            Transforms::Dct { .. } => {
+                buffers.fit(n, 0);
+                self.solve_dct(buffers, gx, gy, z);
+            }
         }
     }
 
-    fn solve_dst(&mut self, gx: &[T], gy: &[T], z: &mut [T]) {
+    fn solve_dst(&self, b: &mut SolveBuffers<T>, gx: &[T], gy: &[T], z: &mut [T]) {
         let (h, w) = (self.height, self.width);
         let (m, n) = (h.saturating_sub(2), w.saturating_sub(2));
         if m == 0 || n == 0 {
@@ -280,57 +271,43 @@ impl<T: Real> PoissonPlan<T> {
                 let (r, c) = (i + 1, j + 1);
                 let div = g(gx[r * w + c]) - g(gx[r * w + c - 1]) + g(gy[r * w + c])
                     - g(gy[(r - 1) * w + c]);
-                self.work[i * n + j] = div;
+                b.work[i * n + j] = div;
             }
         }
         let Transforms::Dst { rows, cols } = &self.transforms else {
             return;
         };
-        let (rows, cols) = (rows.clone(), cols.clone());
-        self.dst_2d(&*rows, &*cols, m, n);
-        for (v, e) in self.work.iter_mut().zip(&self.eigen) {
+        dst_2d(b, &**rows, &**cols, m, n);
+        for (v, e) in b.work.iter_mut().zip(&self.eigen) {
             *v = *v / *e;
         }
-        self.dst_2d(&*rows, &*cols, m, n);
+        dst_2d(b, &**rows, &**cols, m, n);
         let scale = t::<T>(4.0 / ((m + 1) * (n + 1)) as f64);
         for i in 0..m {
             for j in 0..n {
-                z[(i + 1) * w + j + 1] = self.work[i * n + j] * scale;
+                z[(i + 1) * w + j + 1] = b.work[i * n + j] * scale;
             }
         }
     }
 
-    fn dst_2d(&mut self, rows: &dyn Dst1<T>, cols: &dyn Dst1<T>, m: usize, n: usize) {
-        for row in self.work.chunks_exact_mut(n) {
-            self.scratch.fill(T::zero());
-            rows.process_dst1_with_scratch(row, &mut self.scratch);
-        }
-        transpose(&self.work, &mut self.transposed, m, n);
-        for col in self.transposed.chunks_exact_mut(m) {
-            self.scratch.fill(T::zero());
-            cols.process_dst1_with_scratch(col, &mut self.scratch);
-        }
-        transpose(&self.transposed, &mut self.work, n, m);
-    }
-
-    fn solve_dct(&mut self, gx: &[T], gy: &[T], z: &mut [T]) {
+    fn solve_dct(&self, b: &mut SolveBuffers<T>, gx: &[T], gy: &[T], z: &mut [T]) {
         let (h, w) = (self.height, self.width);
-        let Transforms::Dct(passes) = &mut self.transforms else {
+        let Transforms::Dct { rows, cols } = &self.transforms else {
             return;
         };
-        let DctPasses {
-            rows,
-            cols,
+        let SolveBuffers {
+            work,
+            transposed,
             row_buffers: [row_a, row_b],
             col_buffers: [col_a, col_b],
-        } = &mut **passes;
-        let (rows, cols) = (&*rows, &*cols);
+            ..
+        } = b;
         // Each pass in two halves of its rows (`halves`), split at an even row: the
         // transforms pair rows, and each half pairs them as one pass over all would.
         let split = worth_splitting(h * w);
         // Forward over rows: the divergence and each row's DCT-II.
         let mid_y = first_half(h, 2, split);
-        let (work_a, work_b) = self.work[..h * w].split_at_mut(mid_y * w);
+        let (work_a, work_b) = work[..h * w].split_at_mut(mid_y * w);
         let forward = |first: usize, part: &mut [T], buf: &mut RowBuffers<T>| {
             divergence(gx, gy, (h, w), first, part);
             rows.dct2_rows(buf, part);
@@ -342,9 +319,9 @@ impl<T: Real> PoissonPlan<T> {
         );
         // Columns, transposed (the spectrum is `[k_x][k_y]`): DCT-II, the inverse
         // eigenvalues, DCT-III.
-        let work = &self.work[..h * w];
+        let work = &work[..h * w];
         let mid_x = first_half(w, 2, split);
-        let (spec_a, spec_b) = self.transposed[..h * w].split_at_mut(mid_x * h);
+        let (spec_a, spec_b) = transposed[..h * w].split_at_mut(mid_x * h);
         let (eigen_a, eigen_b) = self.eigen.split_at(mid_x * h);
         let columns = |first: usize, part: &mut [T], eigen: &[T], buf: &mut RowBuffers<T>| {
             transpose_rows(work, part, (h, w), first);
@@ -360,7 +337,7 @@ impl<T: Real> PoissonPlan<T> {
             || columns(mid_x, spec_b, eigen_b, col_b),
         );
         // Back over rows: transposed back into `z`, each row's DCT-III.
-        let spectrum = &self.transposed[..h * w];
+        let spectrum = &transposed[..h * w];
         let (z_a, z_b) = z[..h * w].split_at_mut(mid_y * w);
         let inverse = |first: usize, part: &mut [T], buf: &mut RowBuffers<T>| {
             transpose_rows(spectrum, part, (w, h), first);
@@ -371,6 +348,36 @@ impl<T: Real> PoissonPlan<T> {
             || inverse(0, z_a, row_a),
             || inverse(mid_y, z_b, row_b),
         );
+    }
+}
+
+/// DST-I of `b.work` (`m × n`) along its rows, then its columns, back in `b.work`.
+fn dst_2d<T: Real>(
+    b: &mut SolveBuffers<T>,
+    rows: &dyn Dst1<T>,
+    cols: &dyn Dst1<T>,
+    m: usize,
+    n: usize,
+) {
+    for row in b.work.chunks_exact_mut(n) {
+        b.scratch.fill(T::zero());
+        rows.process_dst1_with_scratch(row, &mut b.scratch);
+    }
+    transpose(&b.work, &mut b.transposed, m, n);
+    for col in b.transposed.chunks_exact_mut(m) {
+        b.scratch.fill(T::zero());
+        cols.process_dst1_with_scratch(col, &mut b.scratch);
+    }
+    transpose(&b.transposed, &mut b.work, n, m);
+}
+
+impl<T: Real> SolveBuffers<T> {
+    /// The work grids `grid` long and the DST scratch `scratch` long (allocating only to
+    /// grow; every solve overwrites them whole before reading).
+    fn fit(&mut self, grid: usize, scratch: usize) {
+        self.work.resize(grid, T::zero());
+        self.transposed.resize(grid, T::zero());
+        self.scratch.resize(scratch, T::zero());
     }
 }
 

@@ -1,10 +1,11 @@
 //! A bounded cache of Poisson plans keyed by window size: a contact window's size changes
 //! from set to set over a long hold, and a plan per size ever seen would grow without bound
 //! (over 200 plans in a two-minute grasp hold). The least recently used plan goes when a
-//! new size comes and the cache is full, and its buffers serve the new plan; a plan rebuilt
-//! later solves bit for bit as before.
+//! new size comes and the cache is full, and its allocation serves the new plan; a plan
+//! rebuilt later solves bit for bit as before. The plans solve in one set of buffers, the
+//! cache's, grown to the largest window (a plan's own would be as large as its window, each).
 
-use super::{PoissonPlan, Real, Solver};
+use super::{PoissonPlan, Real, SolveBuffers, Solver};
 
 /// Plans kept per cache: a hold's windows stay within a few sizes of each other.
 pub const PLAN_CACHE_CAPACITY: usize = 8;
@@ -16,6 +17,8 @@ pub struct PlanCache<T: Real> {
     plans: Vec<((usize, usize), u64, PoissonPlan<T>)>,
     uses: u64,
     capacity: usize,
+    /// The scratch every plan here solves in (one window at a time).
+    buffers: SolveBuffers<T>,
 }
 
 impl<T: Real> Default for PlanCache<T> {
@@ -31,12 +34,34 @@ impl<T: Real> PlanCache<T> {
             plans: Vec::new(),
             uses: 0,
             capacity: capacity.max(1),
+            buffers: SolveBuffers::default(),
         }
     }
 
     /// The plan of `solver` for a `height`×`width` window, built if it is not cached
     /// (evicting the least recently used when full).
     pub fn plan(&mut self, solver: Solver, height: usize, width: usize) -> &mut PoissonPlan<T> {
+        let i = self.index_of(solver, height, width);
+        &mut self.plans[i].2
+    }
+
+    /// Solve `height × width` gradients `gx`, `gy` into `z` with the cached plan of `solver`
+    /// (planned if new), in the cache's own buffers: [`PoissonPlan::solve`]'s result, bit for
+    /// bit, with no window-sized allocation once the buffers have grown to the largest
+    /// window.
+    pub fn solve(
+        &mut self,
+        solver: Solver,
+        (height, width): (usize, usize),
+        (gx, gy): (&[T], &[T]),
+        z: &mut [T],
+    ) {
+        let i = self.index_of(solver, height, width);
+        self.plans[i].2.solve_in(&mut self.buffers, gx, gy, z);
+    }
+
+    /// Where the plan of `solver` for `height × width` is, built if it was not cached.
+    fn index_of(&mut self, solver: Solver, height: usize, width: usize) -> usize {
         self.uses += 1;
         let key = (height, width);
         let found = self
@@ -49,7 +74,7 @@ impl<T: Real> PlanCache<T> {
                 let oldest = (self.plans.len() >= self.capacity)
                     .then(|| (0..self.plans.len()).min_by_key(|&i| self.plans[i].1))
                     .flatten();
-                // The evicted plan's buffers serve the new one.
+                // The evicted plan's multipliers' allocation serves the new one.
                 let plan = match oldest {
                     Some(i) => self.plans.swap_remove(i).2.replanned(solver, height, width),
                     None => PoissonPlan::new(solver, height, width),
@@ -60,7 +85,7 @@ impl<T: Real> PlanCache<T> {
             }
         };
         self.plans[i].1 = self.uses;
-        &mut self.plans[i].2
+        i
     }
 
     /// Plans cached now.
@@ -95,7 +120,7 @@ mod tests {
             assert!(cache.len() <= 3, "{}", cache.len());
         }
         let mut again = vec![0.0f32; h * w];
-        cache.plan(Solver::Dst, h, w).solve(&gx, &gy, &mut again);
+        cache.solve(Solver::Dst, (h, w), (&gx, &gy), &mut again);
         assert!(
             first
                 .iter()

@@ -27,13 +27,24 @@ pub(super) struct RowDct<T: Real> {
     inverse: Arc<dyn Fft<T>>,
     /// `e^{-iπk/2N}` for `k` in `0..N`.
     twiddles: Vec<Complex<T>>,
+    /// The FFTs' in-place scratch, complex values.
+    scratch_len: usize,
 }
 
-/// One thread's buffers for [`RowDct`]'s transforms (they allocate nothing once these
-/// have grown to the rows' size).
+/// One thread's buffers for [`RowDct`]'s transforms, of any length (they allocate nothing
+/// once these have grown to the rows' size).
 pub(super) struct RowBuffers<T: Real> {
     pairs: Vec<Complex<T>>,
     scratch: Vec<Complex<T>>,
+}
+
+impl<T: Real> Default for RowBuffers<T> {
+    fn default() -> Self {
+        Self {
+            pairs: Vec::new(),
+            scratch: Vec::new(),
+        }
+    }
 }
 
 impl<T: Real> RowDct<T> {
@@ -50,32 +61,22 @@ impl<T: Real> RowDct<T> {
                 Complex::new(t(a.cos()), t(-a.sin()))
             })
             .collect();
+        let scratch_len = forward
+            .get_inplace_scratch_len()
+            .max(inverse.get_inplace_scratch_len());
         Self {
             len,
             forward,
             inverse,
             twiddles,
+            scratch_len,
         }
     }
 
-    /// Buffers for one thread's share of the rows, whose row pairs grow in `pairs`'
-    /// allocation (empty, or another plan's: window-sized, so not allocated again when a
-    /// cache replaces a plan).
-    pub(super) fn buffers_in(&self, mut pairs: Vec<Complex<T>>) -> RowBuffers<T> {
-        let scratch_len = self
-            .forward
-            .get_inplace_scratch_len()
-            .max(self.inverse.get_inplace_scratch_len());
-        pairs.clear();
-        RowBuffers {
-            pairs,
-            scratch: vec![Complex::new(T::zero(), T::zero()); scratch_len],
-        }
-    }
-
-    /// The row pairs' allocation of `buf`, for [`RowDct::buffers_in`].
-    pub(super) fn into_pairs(buf: RowBuffers<T>) -> Vec<Complex<T>> {
-        buf.pairs
+    /// `buf`'s FFT scratch as long as these transforms need (allocating only to grow).
+    fn fit_scratch(&self, buf: &mut RowBuffers<T>) {
+        buf.scratch
+            .resize(self.scratch_len, Complex::new(T::zero(), T::zero()));
     }
 
     /// Makhoul's reordering of rows `2p` and `2p + 1` of `data` (`rows` rows) into pair
@@ -118,6 +119,7 @@ impl<T: Real> RowDct<T> {
         if rows == 0 {
             return;
         }
+        self.fit_scratch(buf);
         self.pack_reordered(&mut buf.pairs, data, rows);
         self.forward
             .process_with_scratch(&mut buf.pairs, &mut buf.scratch);
@@ -160,6 +162,7 @@ impl<T: Real> RowDct<T> {
         if rows == 0 {
             return;
         }
+        self.fit_scratch(buf);
         let pairs = &mut buf.pairs;
         pairs.clear();
         pairs.resize(rows.div_ceil(2) * n, Complex::new(T::zero(), T::zero()));

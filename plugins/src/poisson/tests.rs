@@ -147,7 +147,7 @@ fn paired_row_transforms_equal_rustdcts() {
     for n in lengths {
         let reference = planner.plan_dct2(n);
         let dct = RowDct::<f64>::new(n);
-        let mut buf = dct.buffers_in(Vec::new());
+        let mut buf = RowBuffers::default();
         for rows in [1, 2, 3, 4] {
             let x: Vec<f64> = (0..rows * n).map(|_| rng.random_range(-1.0..1.0)).collect();
             for inverse in [false, true] {
