@@ -17,8 +17,10 @@ use gelgrip_plugins::model_file::ModelFileError;
 use gelgrip_plugins::pipeline::PipelineError;
 use gelgrip_record::format::RecordError;
 use gelgrip_record::observer::RecordingStartError;
+#[cfg(feature = "ros")]
 use gelgrip_ros_bridge::BridgeError;
 use gelgrip_sim::press_camera::SensorCameraError;
+#[cfg(feature = "dashboard")]
 use gelgrip_web::feed::ServeError;
 use thiserror::Error;
 
@@ -46,9 +48,11 @@ pub enum Error {
     #[error(transparent)]
     Runtime(#[from] RuntimeError),
     /// The dashboard cannot be served.
+    #[cfg(feature = "dashboard")]
     #[error(transparent)]
     Dashboard(#[from] ServeError),
     /// The ROS 2 bridge cannot start.
+    #[cfg(feature = "ros")]
     #[error(transparent)]
     Bridge(#[from] BridgeError),
     /// The recording cannot start.
@@ -151,7 +155,9 @@ impl Error {
         match self {
             Self::Usage(_) | Self::Config(_) => true,
             Self::Open(e) => matches!(e, OpenError::Config(_)),
+            #[cfg(feature = "dashboard")]
             Self::Dashboard(e) => matches!(e, ServeError::OpenWithoutToken { .. }),
+            #[cfg(feature = "ros")]
             Self::Bridge(e) => e.is_usage(),
             Self::RecordingStart(e) => matches!(e, RecordingStartError::Options(_)),
             Self::SensorCamera(e) => matches!(e, SensorCameraError::Config(_)),

@@ -16,6 +16,7 @@ pub mod catalog;
 pub mod embedded;
 pub mod error;
 pub mod loop_control;
+pub mod optional;
 pub mod output;
 pub mod replay;
 pub mod rig;

@@ -7,16 +7,17 @@ use std::sync::Arc;
 
 use gelgrip_controller::clock::Clock;
 use gelgrip_controller::config::AppConfig;
-use gelgrip_controller::runtime::control::{LoopRequest, Refusal, ServoFaultName, SimFaults};
+use gelgrip_controller::runtime::control::{
+    LoopRequest, Refusal, SensorFaultView, ServoFaultName, SharedSimView, SimFaults, SimView,
+};
 use gelgrip_controller::runtime::ports::{ControlHandler, PilotControl};
 use gelgrip_sim::config::SensorFaults;
 use gelgrip_sim::scene_spec::SceneSpec;
 use gelgrip_sim::world::SharedWorld;
-use gelgrip_web::live::{SensorFaultView, SimView};
 
 use crate::catalog::{self, Kind};
 use crate::scripts::load_script;
-use gelgrip_web::feed::SharedSimView;
+
 /// A finger within this of its open position counts as open, degrees.
 const OPEN_DEG: f64 = 5.0;
 

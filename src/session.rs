@@ -3,10 +3,8 @@
 //! into a [`Runtime`]; and, when it ends, the `run --json` report. `gelgrip run`, the
 //! benches and the examples all run the gripper through this, in process.
 
-use std::sync::{Arc, Mutex};
-
 use gelgrip_controller::acquire::Acquisition;
-use gelgrip_controller::clock::{Clock, ClockKind};
+use gelgrip_controller::clock::ClockKind;
 use gelgrip_controller::config::AppConfig;
 use gelgrip_controller::hub::HubDescription;
 use gelgrip_controller::runtime::commanded::CommandedGripper;
@@ -22,13 +20,11 @@ use tokio::sync::mpsc;
 
 use crate::UsageError;
 use crate::error::{Context, Error};
-use crate::loop_control::LoopControl;
 use crate::output::{RunReport, latency_ms};
 use crate::scripts::load_script;
 use crate::task_log::TaskLog;
 use gelgrip_controller::gate::ExcludedSensor;
 use gelgrip_record::observer::RunRecorder;
-use gelgrip_web::feed::{Dashboard, FeedSetup};
 
 use crate::wiring;
 use gelgrip_controller::gate::GateStats;
@@ -61,7 +57,7 @@ fn check_task(options: &RunOptions, config: &AppConfig) -> crate::Result<()> {
 fn drives_through_grasp_api(options: &RunOptions, config: &AppConfig) -> crate::Result<bool> {
     let unmodelled = crate::tactile::sensors_without_model(config)?;
     // A run that publishes to ROS 2 drives through the grasp API too (readings, servos).
-    let ros_on = gelgrip_ros_bridge::config::RosConfig::from_section(&config.ros)?.enabled;
+    let ros_on = crate::optional::ros_enabled(config)?;
     if !options.headless && options.task.is_none() && !unmodelled.is_empty() {
         tracing::warn!(
             sensors = unmodelled.join(", "),
@@ -71,37 +67,6 @@ fn drives_through_grasp_api(options: &RunOptions, config: &AppConfig) -> crate::
         );
     }
     Ok((!options.headless || options.grasp_api || ros_on) && unmodelled.is_empty())
-}
-
-/// Serve the dashboard of `runtime` (its controls through [`LoopControl`]); its URL.
-async fn serve_dashboard(
-    runtime: &mut Runtime,
-    options: &RunOptions,
-    config: &AppConfig,
-    world: Option<SharedWorld>,
-    clock: Arc<dyn Clock>,
-    description: &HubDescription,
-) -> crate::Result<String> {
-    let sim_view = Arc::new(Mutex::new(None));
-    let control = LoopControl::new(config, world, clock, sim_view.clone());
-    let requests = runtime.control(Box::new(control));
-    let bind = options.http.unwrap_or(config.http.bind);
-    let d = Dashboard::start(
-        config,
-        bind,
-        runtime.gripper(),
-        Some(requests),
-        FeedSetup {
-            transport: description.transport.clone(),
-            calibration: crate::tactile::calibration_text(config),
-            tasks: crate::catalog::names(crate::catalog::Kind::Task),
-        },
-        sim_view,
-    )
-    .await?;
-    let url = format!("http://{}/", d.addr);
-    runtime.observe(Box::new(d));
-    Ok(url)
 }
 
 /// Record the run into `dir`: the recorder taps `acq` (every hub event and gate decision).
@@ -298,7 +263,7 @@ impl Session {
         } else {
             let clock = clock.clone();
             Some(
-                serve_dashboard(
+                crate::optional::serve_dashboard(
                     &mut runtime,
                     options,
                     &config,

@@ -180,7 +180,7 @@ pub fn load_config_from_memory(
 fn check_loaded(config: AppConfig) -> crate::Result<AppConfig> {
     gelgrip_plugins::config::PipelineConfig::from_section(&config.pipeline, &config.layout)?;
     gelgrip_record::writer::RecorderOptions::from_section(&config.record)?;
-    gelgrip_ros_bridge::config::RosConfig::from_section(&config.ros)?;
+    crate::optional::ros_enabled(&config)?;
     servo_faults(&config)?;
     check_servo_count(&config)?;
     Ok(config)

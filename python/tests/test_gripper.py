@@ -4,7 +4,9 @@ set queue, and the errors of bad scenes and closed grippers."""
 
 from __future__ import annotations
 
+import shutil
 import time
+from pathlib import Path
 
 import pytest
 
@@ -78,3 +80,14 @@ def test_ctrl_c_during_a_grasp_raises_and_stops_it() -> None:
         # The fingers were stopped, the run goes on and takes the next grasp.
         assert g.next_set(timeout=30.0).t_s > 0
         assert g.grasp(target_force_n=1.5)["grasped"] is True
+
+
+def test_a_config_that_enables_ros_2_is_refused(tmp_path: Path) -> None:
+    # The package builds gelgrip without ROS 2 and the dashboard (docs/python.md): a config
+    # that publishes to ROS 2 is refused, saying so, rather than run without it.
+    configs = Path(__file__).resolve().parents[2] / "configs"
+    shutil.copytree(configs, tmp_path / "configs")
+    config = tmp_path / "configs" / "gelgripper-sim.toml"
+    config.write_text(config.read_text() + "\n[ros]\nenabled = true\n")
+    with pytest.raises(gelgrip.ConfigError, match="built without ROS 2"):
+        gelgrip.Gripper(config=str(config), clock="virtual")

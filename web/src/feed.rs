@@ -4,7 +4,7 @@
 //! task catalog's names, how the pipelines were calibrated) is handed in ([`FeedSetup`]).
 
 use std::net::SocketAddr;
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 use thiserror::Error;
 
@@ -18,7 +18,7 @@ use gelgrip_controller::runtime::report::{GripperReport, SetReport};
 use tokio::sync::mpsc;
 
 use crate::live::{
-    DepthImage, ExcludedView, FingerView, SensorView, ServoView, SimView, SyncView, TaskView,
+    DepthImage, ExcludedView, FingerView, SensorView, ServoView, SyncView, TaskView,
 };
 use crate::{AppState, Live, Snapshot};
 
@@ -42,9 +42,7 @@ pub struct Dashboard {
     sim: SharedSimView,
 }
 
-/// The simulator's controls as the page shows them, shared between the control handler
-/// that changes them and the dashboard that shows them.
-pub type SharedSimView = Arc<Mutex<Option<SimView>>>;
+pub use gelgrip_controller::runtime::control::SharedSimView;
 
 /// Why the dashboard cannot be served.
 #[derive(Debug, Error)]

@@ -12,6 +12,7 @@ use serde::Serialize;
 use tokio::sync::watch;
 
 use gelgrip_controller::gate::ReasonCounts;
+pub use gelgrip_controller::runtime::control::{SensorFaultView, SimView};
 
 use crate::history::{HistoryView, SignalHistory};
 
@@ -115,26 +116,6 @@ pub struct TaskView {
     pub running: bool,
     /// Once it ended: `completed`, or why not (an abort, a timeout, an interruption).
     pub outcome: Option<String>,
-}
-
-/// One sensor's injected simulator faults.
-#[derive(Debug, Clone, Default, Serialize)]
-pub struct SensorFaultView {
-    /// Sensor id.
-    pub sensor: String,
-    /// The faults.
-    pub faults: crate::control::SimFaults,
-}
-
-/// The simulator's controls, on a simulated run.
-#[derive(Debug, Clone, Default, Serialize)]
-pub struct SimView {
-    /// The scene now (`none`: empty space or the built-in presses).
-    pub scene: String,
-    /// Scenes it can switch to.
-    pub scenes: Vec<String>,
-    /// Sensors with injected faults.
-    pub faults: Vec<SensorFaultView>,
 }
 
 /// The state of the run after one set.

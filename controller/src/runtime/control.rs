@@ -7,6 +7,31 @@
 use serde::Serialize;
 use tokio::sync::oneshot;
 
+/// One sensor's injected simulator faults, as the dashboard shows them.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct SensorFaultView {
+    /// Sensor id.
+    pub sensor: String,
+    /// The faults.
+    pub faults: SimFaults,
+}
+
+/// The simulator's controls, on a simulated run: what the run loop's request handler
+/// publishes and the dashboard shows.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct SimView {
+    /// The scene now (`none`: empty space or the built-in presses).
+    pub scene: String,
+    /// Scenes it can switch to.
+    pub scenes: Vec<String>,
+    /// Sensors with injected faults.
+    pub faults: Vec<SensorFaultView>,
+}
+
+/// The simulator's controls as the page shows them, shared between the control handler
+/// that changes them and the dashboard that shows them.
+pub type SharedSimView = std::sync::Arc<std::sync::Mutex<Option<SimView>>>;
+
 /// Faults the simulated hub injects into one sensor (all zero: none).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
 pub struct SimFaults {
