@@ -24,6 +24,7 @@ pub mod dashboard;
 pub mod dashboard_child;
 pub mod grasp;
 pub mod label;
+pub mod label_sphere;
 pub mod pipeline;
 pub mod plot;
 pub mod progress;
