@@ -56,14 +56,8 @@ fn label_accuracy(plan: &PressPlan<'_>) -> (usize, usize, f64, f64, f64) {
             let m = a_px + 4.0;
             let cx = rng.random_range(m..cam.width as f64 - m);
             let cy = rng.random_range(m..cam.height as f64 - m);
-            let map = HeightMap::ball_press(
-                cam.width,
-                cam.height,
-                cam.mm_per_px,
-                (cx, cy),
-                ball_mm,
-                depth,
-            );
+            // The camera's gel: realistic optics bring their skirt around the contact.
+            let map = cam.ball_press_map((cx, cy), ball_mm, depth);
             let jpeg = cam.jpeg(&map, 2_000_000 + i).expect("render");
             let img = decode_frame(&cam, &jpeg).expect("decode");
             total += 1;
@@ -535,7 +529,8 @@ fn the_press_emulator_answers_bad_lines_with_errors() {
     assert_eq!(hub.ask("palm lift")["lifted"], true);
 }
 
-/// `bench label` runs end to end and reports every press it made.
+/// `bench label` runs end to end and reports every press it made, and its sphere check
+/// holds every labelled press out once (a LUT trained on the others).
 #[test]
 fn bench_label_reports_every_press() {
     let report = json(&gelgrip(&[
@@ -557,6 +552,21 @@ fn bench_label_reports_every_press() {
             .map(|n| n.as_u64().unwrap_or(0))
             .sum();
         assert_eq!(row["labelled"].as_u64().unwrap_or(0) + refused, 3, "{row}");
+        let sphere = &row["sphere"];
+        assert_eq!(sphere["held_out"], row["labelled"], "{row}");
+        let radii = sphere["radii_mm"].as_array().expect("radii");
+        assert_eq!(radii.len() as u64, sphere["held_out"].as_u64().unwrap_or(0));
+        assert!(
+            radii
+                .iter()
+                .all(|r| r.is_null() || r.as_f64().is_some_and(f64::is_finite))
+        );
+        assert!(
+            sphere["within_10pct"].as_u64() <= sphere["held_out"].as_u64(),
+            "{row}"
+        );
     }
     assert_eq!(report["presses"], 6, "{report}");
+    let share = report["sphere_within_share"].as_f64().expect("share");
+    assert!((0.0..=1.0).contains(&share), "{report}");
 }

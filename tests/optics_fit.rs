@@ -6,16 +6,17 @@
 //!   real data and closer than the nominal ones (fails without the data);
 //! - `fit` (ignored; `cargo test --release --test optics_fit -- --ignored --nocapture fit`):
 //!   the fit itself, printing the parameters for `optics::realistic::MINI` and
-//!   `optics::fit::MINI_BALL_RADIUS_PX`.
+//!   `optics::fit::MINI_PRESSES`.
 
 use std::path::PathBuf;
 
 use gelgrip_plugins::image::RgbImage;
+use gelgrip_sim::gel::BallOnGel;
 use gelgrip_sim::optics::fit::{
-    BackgroundStats, Contact, Image, MINI_BALL_RADIUS_PX, PressStats, background_stats,
-    fit_background, fit_presses, press_stats,
+    BackgroundStats, CONTACT_RINGS, Contact, Image, MINI_GEL_PRESSES, MINI_MM_PER_PX, MINI_PRESSES,
+    PressGeometry, PressStats, SECTORS, background_stats, fit_background, fit_presses, press_stats,
 };
-use gelgrip_sim::optics::realistic::{MINI, RealisticParams};
+use gelgrip_sim::optics::realistic::{MINI, MINI_GEL, RealisticParams};
 use gelgrip_sim::optics::{Optics, Shader, render_shaded};
 use gelgrip_sim::scene::HeightMap;
 use gelgrip_sim::unit::{UnitVariation, rng_for};
@@ -75,7 +76,7 @@ fn image(img: &RgbImage) -> Image<'_> {
 /// Pixel size the simulated presses are rendered at (the shading depends on slopes only).
 const MM_PER_PX: f64 = 0.03;
 
-/// Renders of the real contacts (a ball of `ball_radius_px`) under `optics`: the
+/// Renders of the real contacts (pressed as `geometry` says) under `optics`: the
 /// noise-free background and the noisy presses.
 fn simulate(
     optics: &Optics,
@@ -83,7 +84,7 @@ fn simulate(
     noise_rgb: [f64; 3],
     size: (usize, usize),
     contacts: &[Contact],
-    ball_radius_px: f64,
+    geometry: &PressGeometry,
 ) -> (RgbImage, Vec<(Contact, RgbImage)>) {
     let (w, h) = size;
     let shader = Shader::with_optics(w, h, MM_PER_PX, unit, optics);
@@ -102,16 +103,13 @@ fn simulate(
         .iter()
         .enumerate()
         .map(|(i, c)| {
-            let r = ball_radius_px;
-            let depth_px = r - (r * r - c.radius_px * c.radius_px).max(0.0).sqrt();
-            let map = HeightMap::ball_press(
-                w,
-                h,
-                MM_PER_PX,
-                (c.center_x_px, c.center_y_px),
-                2.0 * r * MM_PER_PX,
-                depth_px * MM_PER_PX,
+            let px = geometry.press(c.radius_px);
+            let mm = BallOnGel::new(
+                px.ball_radius * MM_PER_PX,
+                px.contact_radius * MM_PER_PX,
+                px.skirt_length * MM_PER_PX,
             );
+            let map = mm.height_map((w, h), MM_PER_PX, (c.center_x_px, c.center_y_px));
             let rgb = render_shaded(&map, &shader, noise_rgb, &mut rng_for(7, i as u64));
             (*c, as_img(rgb))
         })
@@ -178,9 +176,20 @@ fn table(cols: &[(&str, &Column)]) -> String {
             Box::new(|c| f3(c.presses.harmonic().map(|h| h.1), 0)),
         ),
         (
-            "press: 16 sector means, RMS from real",
+            "press: 16 sector means in the contact, RMS from real",
             Box::new(|c| {
-                let d = rms(&c.presses.sectors_rgb, &real.presses.sectors_rgb);
+                let d = rms(c.presses.contact_sectors(), real.presses.contact_sectors());
+                format!("{d:.1}")
+            }),
+        ),
+        (
+            "press: 8 sector means of the halo (1–1.5 contact radii), RMS from real",
+            Box::new(|c| {
+                let halo = CONTACT_RINGS * SECTORS;
+                let d = rms(
+                    &c.presses.sectors_rgb[halo..],
+                    &real.presses.sectors_rgb[halo..],
+                );
                 format!("{d:.1}")
             }),
         ),
@@ -208,7 +217,25 @@ const NOMINAL_UNIT: UnitVariation = UnitVariation {
     vignetting: 0.25,
 };
 
-fn columns(real: &Real, params: &RealisticParams, ball_radius_px: f64) -> [Column; 3] {
+fn columns(real: &Real, params: &RealisticParams, geometry: &PressGeometry) -> [Column; 3] {
+    let size = (real.background.width, real.background.height);
+    let contacts: Vec<Contact> = real.presses.iter().map(|(c, _)| *c).collect();
+    let realistic = realistic_column(real, params, geometry);
+    let (bg, presses) = simulate(
+        &Optics::Nominal,
+        &NOMINAL_UNIT,
+        [10.0; 3],
+        size,
+        &contacts,
+        geometry,
+    );
+    let nominal = column(&bg, &presses);
+    [column(&real.background, &real.presses), realistic, nominal]
+}
+
+/// The realistic simulator's column with `params`, the real contacts pressed as `geometry`
+/// says.
+fn realistic_column(real: &Real, params: &RealisticParams, geometry: &PressGeometry) -> Column {
     let size = (real.background.width, real.background.height);
     let contacts: Vec<Contact> = real.presses.iter().map(|(c, _)| *c).collect();
     let (bg, presses) = simulate(
@@ -217,28 +244,20 @@ fn columns(real: &Real, params: &RealisticParams, ball_radius_px: f64) -> [Colum
         params.noise_rgb,
         size,
         &contacts,
-        ball_radius_px,
+        geometry,
     );
-    let realistic = column(&bg, &presses);
-    let (bg, presses) = simulate(
-        &Optics::Nominal,
-        &NOMINAL_UNIT,
-        [10.0; 3],
-        size,
-        &contacts,
-        ball_radius_px,
-    );
-    let nominal = column(&bg, &presses);
-    [column(&real.background, &real.presses), realistic, nominal]
+    column(&bg, &presses)
 }
 
 #[test]
 fn side_by_side() {
     let real = load();
-    let [real_col, realistic, nominal] = columns(&real, &MINI, MINI_BALL_RADIUS_PX);
+    let [real_col, realistic, nominal] = columns(&real, &MINI, &MINI_PRESSES);
+    let gel = realistic_column(&real, &MINI_GEL, &MINI_GEL_PRESSES);
     let cols = [
         ("real Mini", &real_col),
         ("realistic sim", &realistic),
+        ("realistic-gel sim", &gel),
         ("nominal sim", &nominal),
     ];
     println!("{}", table(&cols));
@@ -246,7 +265,12 @@ fn side_by_side() {
         figure(&real, &PathBuf::from(path));
     }
     let tiles = |c: &Column| rms(&c.background.tiles_rgb, &real_col.background.tiles_rgb);
-    let sectors = |c: &Column| rms(&c.presses.sectors_rgb, &real_col.presses.sectors_rgb);
+    let sectors = |c: &Column| {
+        rms(
+            c.presses.contact_sectors(),
+            real_col.presses.contact_sectors(),
+        )
+    };
     assert!(
         tiles(&realistic) < 6.0,
         "background tiles {}",
@@ -259,6 +283,20 @@ fn side_by_side() {
         sectors(&realistic)
     );
     assert!(sectors(&realistic) < sectors(&nominal) / 2.0);
+    // The gel's skirt: closer in the contact and in the halo around it.
+    let halo = |c: &Column| {
+        let h = CONTACT_RINGS * SECTORS;
+        rms(
+            &c.presses.sectors_rgb[h..],
+            &real_col.presses.sectors_rgb[h..],
+        )
+    };
+    assert!(sectors(&gel) < 9.0, "gel press sectors {}", sectors(&gel));
+    assert!(
+        halo(&gel) < halo(&realistic) / 2.0,
+        "gel halo {}",
+        halo(&gel)
+    );
     for c in 0..3 {
         let (a, b) = (
             realistic.presses.noise_rgb[c],
@@ -285,7 +323,7 @@ fn figure(real: &Real, path: &std::path::Path) {
     let size = (real.background.width, real.background.height);
     let (contact, real_press) = &real.presses[5];
     let sim = |optics: &Optics, unit: &UnitVariation, noise| {
-        simulate(optics, unit, noise, size, &[*contact], MINI_BALL_RADIUS_PX)
+        simulate(optics, unit, noise, size, &[*contact], &MINI_PRESSES)
             .1
             .remove(0)
             .1
@@ -339,20 +377,37 @@ fn fit() {
         .ok()
         .and_then(|v| v.parse().ok())
         .unwrap_or(40);
+    // FIT_START="ball_px,contact_share,skirt_px,shadow_slope" starts elsewhere.
+    let mut geometry = MINI_PRESSES;
+    if let Ok(v) = std::env::var("FIT_START") {
+        let v: Vec<f64> = v.split(',').filter_map(|x| x.parse().ok()).collect();
+        if let [ball, share, skirt, shadow] = v[..] {
+            geometry = PressGeometry {
+                ball_radius_px: ball,
+                contact_share: share,
+                skirt_px: skirt,
+            };
+            start.shadow_slope = shadow;
+        }
+    }
     let fit = fit_presses(
         &start,
-        MINI_BALL_RADIUS_PX,
+        &geometry,
         &real_col.presses,
         size,
         &contacts,
         rounds,
     );
     println!(
-        "rounds {}, sector RMS {:.2}, ball radius {:.1} px",
-        fit.rounds, fit.rms, fit.ball_radius_px
+        "rounds {}, sector RMS {:.2} (contact {:.2}), {:?}, skirt {:.3} mm",
+        fit.rounds,
+        fit.rms,
+        fit.contact_rms,
+        fit.geometry,
+        fit.geometry.skirt_px * MINI_MM_PER_PX
     );
     println!("{:#?}", fit.params);
-    let [real_col, realistic, nominal] = columns(&real, &fit.params, fit.ball_radius_px);
+    let [real_col, realistic, nominal] = columns(&real, &fit.params, &fit.geometry);
     for (i, (a, b)) in real_col
         .presses
         .sectors_rgb

@@ -7,8 +7,11 @@
 //! against a background of ten untouched frames with the dataset's own camera noise, as
 //! `calibrate label` does. Per ball: how many were labelled, how many within 1 px and 5% of
 //! the true centre and contact radius (the acceptance), the median and worst errors, and the
-//! refusals by code. The default config is the realistic optics (the simulated Mini); the
-//! test command runs a few of these presses (`tests/calibrate_label.rs`).
+//! refusals by code. Then the sphere check ([`crate::label_sphere`]): a LUT trained on the
+//! labelled presses as `calibrate train` does, and per ball how many held-out presses give
+//! a fitted sphere radius within 10% of the ball's (every press held out once). The
+//! default config is the realistic optics (the simulated Mini); the test command runs a few
+//! of these presses (`tests/calibrate_label.rs`).
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -20,11 +23,12 @@ use serde::Serialize;
 
 use gelgrip_plugins::calibrate::collect::{decode_frame, mean_background};
 use gelgrip_plugins::calibrate::label::{ContactCircle, Labeller, Rejection};
+use gelgrip_plugins::dataset::DatasetInfo;
 use gelgrip_plugins::image::RgbImage;
 use gelgrip_sim::pool::SensorCamera;
 use gelgrip_sim::press_camera::sensor_camera;
-use gelgrip_sim::scene::HeightMap;
 
+use crate::label_sphere::{self, Labelled, SphereCheck};
 use crate::progress;
 use crate::rig::Rig;
 
@@ -67,6 +71,7 @@ struct BallRow {
     radius_err_pct_median: Option<f64>,
     radius_err_pct_max: Option<f64>,
     refused: BTreeMap<&'static str, usize>,
+    sphere: SphereCheck,
 }
 
 #[derive(Debug, Serialize)]
@@ -78,6 +83,9 @@ struct Report {
     presses: usize,
     within_1px_5pct: usize,
     within_share: f64,
+    sphere_held_out: usize,
+    sphere_within_10pct: usize,
+    sphere_within_share: f64,
 }
 
 /// A press's true centre and contact radius, px.
@@ -110,11 +118,19 @@ pub fn run(rig: &dyn Rig, args: BenchLabelArgs) -> anyhow::Result<u8> {
                 found: labeller.detect(img),
             })
             .collect();
-        rows.push(ball_row(ball_mm, &pressed));
+        let labelled = labelled(&images, &pressed);
+        let info = DatasetInfo {
+            ball_diameter_mm: ball_mm,
+            mm_per_px: cam.mm_per_px,
+        };
+        let sphere = label_sphere::check(&std::env::temp_dir(), &background, &info, &labelled)?;
+        rows.push(ball_row(ball_mm, &pressed, sphere));
     }
     bar.finish_and_clear();
     let presses: usize = rows.iter().map(|r| r.presses).sum();
     let within: usize = rows.iter().map(|r| r.within_1px_5pct).sum();
+    let held_out: usize = rows.iter().map(|r| r.sphere.held_out).sum();
+    let metric: usize = rows.iter().map(|r| r.sphere.within_10pct).sum();
     let report = Report {
         config: args.config.display().to_string(),
         sensor: SENSOR,
@@ -123,6 +139,9 @@ pub fn run(rig: &dyn Rig, args: BenchLabelArgs) -> anyhow::Result<u8> {
         presses,
         within_1px_5pct: within,
         within_share: within as f64 / presses.max(1) as f64,
+        sphere_held_out: held_out,
+        sphere_within_10pct: metric,
+        sphere_within_share: metric as f64 / held_out.max(1) as f64,
     };
     if args.json {
         println!("{}", serde_json::to_string(&report)?);
@@ -130,6 +149,21 @@ pub fn run(rig: &dyn Rig, args: BenchLabelArgs) -> anyhow::Result<u8> {
         print_table(&report);
     }
     Ok(0)
+}
+
+/// The presses the labeller labelled, with its circles.
+fn labelled<'a>(images: &'a [RgbImage], pressed: &[Pressed]) -> Vec<Labelled<'a>> {
+    images
+        .iter()
+        .zip(pressed)
+        .filter_map(|(image, p)| {
+            let c = p.found.as_ref().ok()?;
+            Some(Labelled {
+                image,
+                circle: (c.center_x_px, c.center_y_px, c.contact_radius_px),
+            })
+        })
+        .collect()
 }
 
 /// `n` presses of a ball of `ball_mm`: the decoded frames and each one's true centre and
@@ -150,14 +184,7 @@ fn press_ball(
         let margin = a_px + 4.0;
         let cx = rng.random_range(margin..cam.width as f64 - margin);
         let cy = rng.random_range(margin..cam.height as f64 - margin);
-        let map = HeightMap::ball_press(
-            cam.width,
-            cam.height,
-            cam.mm_per_px,
-            (cx, cy),
-            ball_mm,
-            depth,
-        );
+        let map = cam.ball_press_map((cx, cy), ball_mm, depth);
         let jpeg = cam.jpeg(&map, 2_000_000 + i as u64)?;
         images.push(decode_frame(cam, &jpeg)?);
         truths.push((cx, cy, a_px));
@@ -166,7 +193,7 @@ fn press_ball(
     Ok((images, truths))
 }
 
-fn ball_row(ball_mm: f64, pressed: &[Pressed]) -> BallRow {
+fn ball_row(ball_mm: f64, pressed: &[Pressed], sphere: SphereCheck) -> BallRow {
     let (mut centre, mut radius) = (Vec::new(), Vec::new());
     let mut refused = BTreeMap::new();
     let mut within = 0;
@@ -193,6 +220,7 @@ fn ball_row(ball_mm: f64, pressed: &[Pressed]) -> BallRow {
         radius_err_pct_median: median(&mut radius),
         radius_err_pct_max: radius.iter().copied().reduce(f64::max),
         refused,
+        sphere,
     }
 }
 
@@ -236,5 +264,27 @@ fn print_table(r: &Report) {
         r.within_1px_5pct,
         r.presses,
         r.within_share * 100.0
+    );
+    println!();
+    println!("sphere check: a LUT trained on the labels, every labelled press held out once");
+    println!("| ball mm | held out | sphere radius median mm | within 10% of the ball's |");
+    println!("|---|---|---|---|");
+    for row in &r.rows {
+        let s = &row.sphere;
+        println!(
+            "| {} | {} | {} (ball {:.2}) | {} |",
+            row.ball_mm,
+            s.held_out,
+            s.radius_mm_median
+                .map_or("-".to_string(), |v| format!("{v:.3}")),
+            s.ball_radius_mm,
+            s.within_10pct
+        );
+    }
+    println!(
+        "{} of {} held-out presses within 10% of the ball's radius ({:.1}%)",
+        r.sphere_within_10pct,
+        r.sphere_held_out,
+        r.sphere_within_share * 100.0
     );
 }

@@ -6,8 +6,9 @@
 //! directly (simulated cameras, pipelines, emulators).
 //!
 //! - the benches: [`bus`], [`pipeline`], [`grasp`], [`sync`], [`dashboard`], [`soak`]
-//!   (and [`soak_storm`], its virtual-clock storm), [`calibration`], [`label`],
-//!   [`tradeoff`]; and [`task_log_plot`] (`gelgrip plot`);
+//!   (and [`soak_storm`], its virtual-clock storm), [`calibration`], [`label`] (and
+//!   [`label_sphere`], its sphere check), [`tradeoff`]; and [`task_log_plot`] (`gelgrip
+//!   plot`);
 //! - their parts: [`plot`] (figures as SVG or PNG), [`config_files`] (configs derived from
 //!   a base file), [`sensor_models`] (a simulated hand's calibrated models),
 //!   [`dashboard_child`] (a `gelgrip run` child serving its dashboard), [`progress`];
@@ -24,6 +25,7 @@ pub mod dashboard;
 pub mod dashboard_child;
 pub mod grasp;
 pub mod label;
+pub mod label_sphere;
 pub mod pipeline;
 pub mod plot;
 pub mod progress;

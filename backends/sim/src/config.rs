@@ -7,7 +7,7 @@ use gelgrip_controller::layout::HandLayout;
 use gelgrip_controller::runtime::control::{MAX_CLOCK_DRIFT_PPM, MAX_JITTER_US};
 
 use crate::optics::Optics;
-use crate::optics::realistic::MINI;
+use crate::optics::realistic::{MINI, MINI_GEL};
 use crate::scene_spec::SceneSpec;
 
 /// Faults injected into one sensor.
@@ -159,8 +159,13 @@ impl SimConfig {
         let optics = match raw.optics.as_str() {
             "nominal" => Optics::Nominal,
             "realistic" => Optics::Realistic(Box::new(MINI)),
+            "realistic-gel" => Optics::Realistic(Box::new(MINI_GEL)),
             other => {
-                return Err(check.invalid(&p("optics"), other, "\"nominal\" or \"realistic\""));
+                return Err(check.invalid(
+                    &p("optics"),
+                    other,
+                    "\"nominal\", \"realistic\" or \"realistic-gel\"",
+                ));
             }
         };
         let (noise_sigma, noise_rgb) = match (raw.noise_sigma, &optics) {

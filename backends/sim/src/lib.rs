@@ -2,6 +2,7 @@
 //!
 //! - [`scene`]: what presses on each sensor (built-in static presses until scene physics
 //!   arrives with the actuation issue);
+//! - [`gel`]: the gel's skirt around a ball's contact (the realistic simulator's mechanics);
 //! - [`optics`]: a physically grounded image model: Lambertian shading of the indented gel
 //!   under three coloured side lights, with per-unit LED gain and offset, vignetting and
 //!   seeded noise;
@@ -29,6 +30,7 @@ pub mod contact;
 pub mod factory;
 pub mod fault_storm;
 pub mod finger;
+pub mod gel;
 pub mod hub;
 pub mod motor;
 pub mod object;

@@ -58,6 +58,8 @@ impl Optics {
     pub fn name(&self) -> &'static str {
         match self {
             Self::Nominal => "nominal",
+            // The gel's skirt renders presses otherwise (cached models are keyed apart).
+            Self::Realistic(p) if p.skirt_mm > 0.0 => "realistic-gel",
             Self::Realistic(_) => "realistic",
         }
     }

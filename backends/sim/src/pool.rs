@@ -118,6 +118,31 @@ impl SensorCamera {
         &self.optics
     }
 
+    /// The gel's surface under a ball of `diameter_mm` centred at `centre_px` whose cap
+    /// inside the contact is `depth_mm` deep (the contact radius `sqrt(2 r d − d²)`, as a
+    /// press's labels have it). Realistic optics bring their gel's skirt around the contact
+    /// ([`crate::gel`]; the whole press then sits deeper by the skirt's depth at the
+    /// contact's edge); otherwise the gel stops at the rim ([`HeightMap::ball_press`]).
+    pub fn ball_press_map(
+        &self,
+        centre_px: (f64, f64),
+        diameter_mm: f64,
+        depth_mm: f64,
+    ) -> HeightMap {
+        let skirt_mm = match &self.optics {
+            Optics::Realistic(p) => p.skirt_mm,
+            Optics::Nominal => 0.0,
+        };
+        let (w, h) = (self.width, self.height);
+        if skirt_mm.is_nan() || skirt_mm <= 0.0 {
+            return HeightMap::ball_press(w, h, self.mm_per_px, centre_px, diameter_mm, depth_mm);
+        }
+        let r = diameter_mm / 2.0;
+        let d = depth_mm.clamp(0.0, r);
+        let a = (2.0 * r * d - d * d).max(0.0).sqrt();
+        crate::gel::BallOnGel::new(r, a, skirt_mm).height_map((w, h), self.mm_per_px, centre_px)
+    }
+
     /// Render `map` and encode it as the sensor's JPEG.
     pub fn jpeg(&self, map: &HeightMap, frame: u64) -> Result<Vec<u8>, EncodeError> {
         let rgb = self.rgb(map, frame);

@@ -96,14 +96,7 @@ impl PressCamera for SensorCamera {
         depth_mm: f64,
         nth: u64,
     ) -> Result<Vec<u8>, CaptureError> {
-        let map = HeightMap::ball_press(
-            self.width,
-            self.height,
-            self.mm_per_px,
-            centre_px,
-            diameter_mm,
-            depth_mm,
-        );
+        let map = self.ball_press_map(centre_px, diameter_mm, depth_mm);
         self.jpeg(&map, nth).map_err(capture_error(nth))
     }
 }

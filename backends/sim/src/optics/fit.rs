@@ -1,21 +1,41 @@
 //! Fitting [`RealisticParams`] to a real sensor's frames, and the statistics the fit and
 //! docs/calibration.md compare: the background's channel means and falloff across the pad
-//! (4×3 tile means), and inside the presses the colour response (mean difference from the
-//! background per channel in 8 sectors × 2 rings around each contact centre, its first
-//! harmonic: amplitude and the azimuth it peaks at), and the pixel noise away from them.
+//! (4×3 tile means), and around the presses the colour response (mean difference from the
+//! background per channel in 8 sectors × 3 rings around each contact centre: two inside
+//! the contact and the halo around it; the contact's first harmonic: amplitude and the
+//! azimuth it peaks at), and the pixel noise away from them.
 //!
 //! The fit: the background polynomial by least squares on the real background
 //! ([`fit_background`]); the reflectance, shadowing, crosstalk, gamma and the presses'
-//! curvature (a ball radius in px: the real data has no ball size) by coordinate descent on
-//! the sector means of noise-free renders at the real contacts ([`fit_presses`]); the noise
-//! is the real frames' ([`PressStats::noise_rgb`]).
+//! geometry (a ball radius in px, since the real data has no ball size; the share of each
+//! labelled contact the ball touches; the gel's skirt, [`crate::gel`]) by coordinate
+//! descent on the sector means of noise-free renders at the real contacts
+//! ([`fit_presses`]); the noise is the real frames' ([`PressStats::noise_rgb`]).
 
 use super::realistic::{BACKGROUND_TERMS, RealisticParams, RealisticShader, background_basis};
+use crate::gel::BallOnGel;
 use crate::unit::UnitVariation;
 
-/// The ball radius that gives the real Mini presses' contacts their curvature, as fitted
-/// with [`crate::optics::realistic::MINI`] (the data has no ball size), px at 640×480.
-pub const MINI_BALL_RADIUS_PX: f64 = 58.0;
+/// The real Mini presses' geometry as fitted with [`crate::optics::realistic::MINI`] (the
+/// data has no ball size), px at 640×480: a sharp rim at the labelled contact.
+pub const MINI_PRESSES: PressGeometry = PressGeometry {
+    ball_radius_px: 58.0,
+    contact_share: 1.0,
+    skirt_px: 0.0,
+};
+
+/// The same fitted with [`crate::optics::realistic::MINI_GEL`]: the ball touches 0.466 of
+/// each labelled contact's radius and the gel's skirt (54 px, 1.71 mm) makes the rest of
+/// the visible imprint and the halo around it.
+pub const MINI_GEL_PRESSES: PressGeometry = PressGeometry {
+    ball_radius_px: 60.3,
+    contact_share: 0.466,
+    skirt_px: 54.0,
+};
+
+/// The real Mini's pixel size, mm (gs_sdk's 0.0317 mm/px at 640×480): turns the fitted
+/// skirt into [`RealisticParams::skirt_mm`].
+pub const MINI_MM_PER_PX: f64 = 0.0317;
 
 /// An interleaved 8-bit RGB image.
 #[derive(Debug, Clone, Copy)]
@@ -98,15 +118,21 @@ pub fn background_stats(img: Image<'_>) -> BackgroundStats {
 
 /// Sectors around a contact's centre (sector k is centred on azimuth k × 45°).
 pub const SECTORS: usize = 8;
-/// Rings: inside 0.6 of the contact radius, and from there to the rim.
-pub const RINGS: usize = 2;
+/// Rings: inside 0.6 of the contact radius, from there to the rim, and the halo around the
+/// contact out to [`HALO_RING`] of its radius.
+pub const RINGS: usize = 3;
+/// Rings inside the contact (the first [`CONTACT_RINGS`] × [`SECTORS`] sector means).
+pub const CONTACT_RINGS: usize = 2;
 /// The inner ring's outer edge, share of the contact radius.
 pub const INNER_RING: f64 = 0.6;
+/// The halo ring's outer edge, share of the contact radius.
+pub const HALO_RING: f64 = 1.5;
 
 /// The presses' colour response and noise.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PressStats {
-    /// Mean (press − background) per channel, sector `k` of ring `r` at `r × SECTORS + k`.
+    /// Mean (press − background) per channel, sector `k` of ring `r` at `r × SECTORS + k`
+    /// (the halo ring last).
     pub sectors_rgb: Vec<[f64; 3]>,
     /// Mean (press − background) per channel over the contacts.
     pub mean_rgb: [f64; 3],
@@ -118,18 +144,24 @@ pub struct PressStats {
 }
 
 impl PressStats {
-    /// Per channel: the first harmonic of the sector means over the azimuth the surface
+    /// The sector means inside the contact (without the halo ring).
+    pub fn contact_sectors(&self) -> &[[f64; 3]] {
+        &self.sectors_rgb[..self.sectors_rgb.len().min(CONTACT_RINGS * SECTORS)]
+    }
+
+    /// Per channel: the first harmonic of the contact's sector means over the azimuth the surface
     /// normal tips towards (opposite the sector): (amplitude in grey levels, azimuth of the
     /// peak in degrees, 0–360). The azimuth is where that channel's light comes from.
     pub fn harmonic(&self) -> [(f64, f64); 3] {
         [0, 1, 2].map(|c| {
             let (mut a, mut b) = (0.0, 0.0);
-            for (i, s) in self.sectors_rgb.iter().enumerate() {
+            let inside = self.contact_sectors();
+            for (i, s) in inside.iter().enumerate() {
                 let tip = ((i % SECTORS) as f64 * 45.0 + 180.0).to_radians();
                 a += s[c] * tip.cos();
                 b += s[c] * tip.sin();
             }
-            let n = self.sectors_rgb.len().max(1) as f64;
+            let n = inside.len().max(1) as f64;
             (
                 2.0 * a.hypot(b) / n,
                 b.atan2(a).to_degrees().rem_euclid(360.0),
@@ -142,12 +174,18 @@ fn sector_of(dx: f64, dy: f64, r: f64, radius: f64) -> usize {
     let k = (dy.atan2(dx).to_degrees() / 45.0)
         .round()
         .rem_euclid(SECTORS as f64) as usize;
-    let ring = usize::from(r >= INNER_RING * radius);
+    let ring = if r < INNER_RING * radius {
+        0
+    } else if r < radius {
+        1
+    } else {
+        2
+    };
     ring * SECTORS + k % SECTORS
 }
 
-/// Sums per sector (rgb, count) of `diff` over the pixels inside `contact` (every
-/// `stride`-th row and column).
+/// Sums per sector (rgb, count) of `diff` over the pixels inside `contact` and its halo
+/// (every `stride`-th row and column).
 fn accumulate(
     contact: &Contact,
     (w, h): (usize, usize),
@@ -155,7 +193,8 @@ fn accumulate(
     sums: &mut [([f64; 3], usize)],
     mut diff: impl FnMut(usize, usize, f64, f64) -> [f64; 3],
 ) {
-    let a = contact.radius_px;
+    let radius = contact.radius_px;
+    let a = HALO_RING * radius;
     let (x0, x1) = (
         (contact.center_x_px - a).floor().max(0.0) as usize,
         ((contact.center_x_px + a).ceil().max(0.0) as usize).min(w),
@@ -175,7 +214,7 @@ fn accumulate(
                 continue;
             }
             let d = diff(x, y, dx, dy);
-            let s = &mut sums[sector_of(dx, dy, r, a)];
+            let s = &mut sums[sector_of(dx, dy, r, radius)];
             s.0.iter_mut().zip(d).for_each(|(s, d)| *s += d);
             s.1 += 1;
         }
@@ -189,12 +228,14 @@ pub fn press_stats(background: Image<'_>, presses: &[(Contact, Image<'_>)]) -> P
     let (mut abs, mut n_in) = ([0.0; 3], 0usize);
     let (mut sq, mut n_far) = ([0.0; 3], 0usize);
     for (contact, img) in presses {
-        accumulate(contact, (w, h), 1, &mut sums, |x, y, _, _| {
+        accumulate(contact, (w, h), 1, &mut sums, |x, y, dx, dy| {
             let d = [0, 1, 2].map(|c| img.at(x, y, c) - background.at(x, y, c));
-            for c in 0..3 {
-                abs[c] += d[c].abs();
+            if dx.hypot(dy) < contact.radius_px {
+                for c in 0..3 {
+                    abs[c] += d[c].abs();
+                }
+                n_in += 1;
             }
-            n_in += 1;
             d
         });
         let far = 2.0 * contact.radius_px + 8.0;
@@ -210,9 +251,11 @@ pub fn press_stats(background: Image<'_>, presses: &[(Contact, Image<'_>)]) -> P
             n_far += 1;
         }
     }
-    let total: ([f64; 3], usize) = sums.iter().fold(([0.0; 3], 0), |(s, n), (v, k)| {
-        ([s[0] + v[0], s[1] + v[1], s[2] + v[2]], n + k)
-    });
+    let total: ([f64; 3], usize) = sums[..CONTACT_RINGS * SECTORS]
+        .iter()
+        .fold(([0.0; 3], 0), |(s, n), (v, k)| {
+            ([s[0] + v[0], s[1] + v[1], s[2] + v[2]], n + k)
+        });
     PressStats {
         sectors_rgb: sums
             .iter()
@@ -285,23 +328,53 @@ fn solve(
     x
 }
 
+/// How the fit renders the real presses: the ball, how much of each labelled contact the
+/// ball really touches, and the gel's skirt around it ([`crate::gel`]), px.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PressGeometry {
+    /// Ball radius, px.
+    pub ball_radius_px: f64,
+    /// The ball's contact radius as a share of the labelled contact radius (the labels
+    /// circle the visible imprint, which the skirt widens).
+    pub contact_share: f64,
+    /// The skirt's length ℓ, px (0: the gel stops at the rim).
+    pub skirt_px: f64,
+}
+
+impl PressGeometry {
+    /// The press of a labelled contact of radius `labelled_px`.
+    pub fn press(&self, labelled_px: f64) -> BallOnGel {
+        BallOnGel::new(
+            self.ball_radius_px,
+            self.contact_share * labelled_px,
+            self.skirt_px,
+        )
+    }
+}
+
 /// The sector means (as [`PressStats::sectors_rgb`]) of noise-free renders with `params`
-/// of a ball of radius `ball_radius_px` pressed to make each of `contacts`, every
-/// `stride`-th pixel; the gradient is the sphere's, analytically.
+/// of each of `contacts` pressed as `geometry` says, every `stride`-th pixel; the gradient
+/// is the press's, analytically.
 pub fn model_sectors(
     params: &RealisticParams,
     size: (usize, usize),
     contacts: &[Contact],
-    ball_radius_px: f64,
+    geometry: &PressGeometry,
     stride: usize,
 ) -> Vec<[f64; 3]> {
     let shader = RealisticShader::new(params, size.0, size.1, &UnitVariation::NEUTRAL);
     let mut sums = vec![([0.0; 3], 0usize); SECTORS * RINGS];
     for contact in contacts {
-        let r2 = ball_radius_px * ball_radius_px;
+        let press = geometry.press(contact.radius_px);
         accumulate(contact, size, stride, &mut sums, |x, y, dx, dy| {
-            let s = (r2 - dx * dx - dy * dy).max(1e-6).sqrt();
-            let lit = shader.shade(x, y, -dx / s, -dy / s);
+            let rho = dx.hypot(dy);
+            let (_, slope) = press.at(rho);
+            let (gx, gy) = if rho > 0.0 {
+                (slope * dx / rho, slope * dy / rho)
+            } else {
+                (0.0, 0.0)
+            };
+            let lit = shader.shade(x, y, gx, gy);
             let flat = shader.shade(x, y, 0.0, 0.0);
             [0, 1, 2].map(|c| lit[c].clamp(0.0, 255.0) - flat[c].clamp(0.0, 255.0))
         });
@@ -314,29 +387,88 @@ pub fn model_sectors(
 /// The fitted press parameters and the geometry found with them.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PressFit {
-    /// The parameters (background and noise as given).
+    /// The parameters (background and noise as given; `skirt_mm` left as given, the skirt
+    /// is in `geometry`, px).
     pub params: RealisticParams,
-    /// Ball radius that makes the contacts' curvature, px.
-    pub ball_radius_px: f64,
-    /// RMS difference of the sector means from the target's, grey levels.
+    /// The presses' geometry.
+    pub geometry: PressGeometry,
+    /// RMS difference of all the sector means (halo included) from the target's, grey
+    /// levels.
     pub rms: f64,
+    /// The same over the contact's sectors only.
+    pub contact_rms: f64,
     /// Coordinate-descent rounds run.
     pub rounds: usize,
 }
 
-/// Fit the reflectance (and its wrap), shadowing, crosstalk, gamma and ball radius of `start` so that
-/// [`model_sectors`] matches `target`'s sector means at `contacts` (coordinate descent,
-/// halving each step when neither direction helps).
+/// The fitted values, in [`fit_presses`]'s order.
+const FITTED: usize = 16;
+
+fn fitted_values(p: &RealisticParams, g: &PressGeometry) -> [f64; FITTED] {
+    [
+        p.led_azimuth_deg[0],
+        p.led_azimuth_deg[1],
+        p.led_azimuth_deg[2],
+        p.led_elevation_deg,
+        p.ambient[0],
+        p.ambient[1],
+        p.ambient[2],
+        p.specular,
+        p.shininess,
+        p.shadow_slope,
+        p.crosstalk,
+        p.gamma,
+        g.ball_radius_px,
+        p.wrap,
+        g.contact_share,
+        g.skirt_px,
+    ]
+}
+
+fn with_values(start: &RealisticParams, v: &[f64; FITTED]) -> (RealisticParams, PressGeometry) {
+    let mut p = *start;
+    p.led_azimuth_deg = [v[0], v[1], v[2]];
+    p.led_elevation_deg = v[3];
+    p.ambient = [v[4], v[5], v[6]];
+    p.specular = v[7];
+    p.shininess = v[8];
+    p.shadow_slope = v[9];
+    p.crosstalk = v[10];
+    p.gamma = v[11];
+    p.wrap = v[13];
+    let g = PressGeometry {
+        ball_radius_px: v[12],
+        contact_share: v[14],
+        skirt_px: v[15],
+    };
+    (p, g)
+}
+
+/// RMS of the difference of two lists of sector means, grey levels.
+pub fn sector_rms(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
+    let n = a.len().min(b.len());
+    let se: f64 = a
+        .iter()
+        .zip(b)
+        .flat_map(|(a, b)| (0..3).map(move |c| (a[c] - b[c]).powi(2)))
+        .sum();
+    (se / (3 * n).max(1) as f64).sqrt()
+}
+
+/// Fit the reflectance (and its wrap), shadowing, crosstalk, gamma and the presses'
+/// geometry (ball, contact share, skirt) of `start` so that [`model_sectors`] matches
+/// `target`'s sector means, halo included, at `contacts` (coordinate descent, halving each
+/// step when neither direction helps).
 pub fn fit_presses(
     start: &RealisticParams,
-    ball_radius_px: f64,
+    geometry: &PressGeometry,
     target: &PressStats,
     size: (usize, usize),
     contacts: &[Contact],
     max_rounds: usize,
 ) -> PressFit {
-    let min_radius = contacts.iter().map(|c| c.radius_px).fold(1.0, f64::max) + 1.0;
-    // (step, lower, upper) per parameter; the order of `get`/`set`.
+    let largest = contacts.iter().map(|c| c.radius_px).fold(1.0, f64::max);
+    // (step, lower, upper) per parameter; the order of `fitted_values`.
     let mut steps = [
         (10.0, -720.0, 720.0),
         (10.0, -720.0, 720.0),
@@ -350,51 +482,20 @@ pub fn fit_presses(
         (0.2, 0.1, 10.0),
         (0.03, 0.0, 0.3),
         (0.2, 1.0, 3.0),
-        (10.0, min_radius, 400.0),
+        (10.0, 1.0, 400.0),
         (0.1, 0.0, 1.0),
+        (0.05, 0.2, 1.0),
+        (4.0, 0.0, 80.0),
     ];
-    let get = |p: &RealisticParams, r: f64| {
-        [
-            p.led_azimuth_deg[0],
-            p.led_azimuth_deg[1],
-            p.led_azimuth_deg[2],
-            p.led_elevation_deg,
-            p.ambient[0],
-            p.ambient[1],
-            p.ambient[2],
-            p.specular,
-            p.shininess,
-            p.shadow_slope,
-            p.crosstalk,
-            p.gamma,
-            r,
-            p.wrap,
-        ]
+    // The ball is larger than every contact it makes.
+    let clamp_ball = |v: &mut [f64; FITTED]| v[12] = v[12].max(v[14] * largest + 1.0);
+    let loss = |v: &[f64; FITTED]| {
+        let (p, g) = with_values(start, v);
+        let m = model_sectors(&p, size, contacts, &g, 2);
+        sector_rms(&m, &target.sectors_rgb)
     };
-    let set = |v: &[f64; 14]| {
-        let mut p = *start;
-        p.led_azimuth_deg = [v[0], v[1], v[2]];
-        p.led_elevation_deg = v[3];
-        p.ambient = [v[4], v[5], v[6]];
-        p.specular = v[7];
-        p.shininess = v[8];
-        p.shadow_slope = v[9];
-        p.crosstalk = v[10];
-        p.gamma = v[11];
-        p.wrap = v[13];
-        (p, v[12])
-    };
-    let loss = |v: &[f64; 14]| {
-        let (p, r) = set(v);
-        let m = model_sectors(&p, size, contacts, r, 2);
-        let se: f64 = m
-            .iter()
-            .zip(&target.sectors_rgb)
-            .flat_map(|(a, b)| (0..3).map(move |c| (a[c] - b[c]).powi(2)))
-            .sum();
-        (se / (3 * m.len()).max(1) as f64).sqrt()
-    };
-    let mut v = get(start, ball_radius_px.max(min_radius));
+    let mut v = fitted_values(start, geometry);
+    clamp_ball(&mut v);
     let mut best = loss(&v);
     let mut rounds = 0;
     while rounds < max_rounds && steps.iter().any(|(s, lo, hi)| *s > (hi - lo) * 1e-3) {
@@ -405,6 +506,7 @@ pub fn fit_presses(
             for dir in [1.0, -1.0] {
                 let mut t = v;
                 t[i] = (v[i] + dir * step).clamp(lo, hi);
+                clamp_ball(&mut t);
                 let l = loss(&t);
                 if l < best {
                     (v, best, moved) = (t, l, true);
@@ -416,12 +518,15 @@ pub fn fit_presses(
             }
         }
     }
-    let (mut params, r) = set(&v);
+    let (mut params, geometry) = with_values(start, &v);
     params.led_azimuth_deg = params.led_azimuth_deg.map(|a| a.rem_euclid(360.0));
+    let m = model_sectors(&params, size, contacts, &geometry, 2);
+    let inside = CONTACT_RINGS * SECTORS;
     PressFit {
         params,
-        ball_radius_px: r,
+        geometry,
         rms: best,
+        contact_rms: sector_rms(&m[..inside], &target.sectors_rgb[..inside]),
         rounds,
     }
 }

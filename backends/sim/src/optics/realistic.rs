@@ -74,23 +74,17 @@ pub struct RealisticParams {
     pub crosstalk: f64,
     /// Camera noise per channel, grey levels (Gaussian).
     pub noise_rgb: [f64; 3],
+    /// The gel's mechanics, fitted with the optics: the length of the skirt a ball's press
+    /// spreads into around its contact, mm ([`crate::gel`]; 0: the gel stops at the
+    /// contact's rim).
+    pub skirt_mm: f64,
 }
 
-/// The parameters fitted to the real GelSight Mini (`cargo run --release --example
-/// fit_optics`; the side-by-side statistics are in docs/calibration.md).
+/// The parameters fitted to the real GelSight Mini with a sharp-rimmed gel (the presses
+/// rendered as the ball's cap and nothing around it; `optics_fit`'s `fit` from
+/// `optics::fit::MINI_PRESSES`; the side-by-side statistics are in docs/calibration.md).
 pub const MINI: RealisticParams = RealisticParams {
-    background: [
-        [
-            127.355, 13.196, 79.265, -267.154, -1.523, -264.247, -35.707, -150.086, -26.893,
-            -142.459,
-        ],
-        [
-            112.333, 0.338, -12.666, -99.561, -0.698, -58.276, -58.845, 18.555, 6.366, 10.554,
-        ],
-        [
-            142.435, -1.975, -52.746, -167.648, -7.370, -183.931, 2.991, 63.439, 14.395, 97.617,
-        ],
-    ],
+    background: MINI_BACKGROUND,
     gamma: 1.916,
     led_azimuth_deg: [87.5, 186.7, 256.8],
     led_elevation_deg: 8.6,
@@ -103,7 +97,40 @@ pub const MINI: RealisticParams = RealisticParams {
     wrap: 0.0,
     crosstalk: 0.0,
     noise_rgb: [1.59, 1.07, 1.86],
+    skirt_mm: 0.0,
 };
+
+/// The parameters fitted to the real GelSight Mini together with the gel's skirt around a
+/// contact (`optics = "realistic-gel"`; `optics_fit`'s `fit` with
+/// `FIT_START=58,0.5,20,3 FIT_ROUNDS=60`, giving `optics::fit::MINI_GEL_PRESSES`).
+pub const MINI_GEL: RealisticParams = RealisticParams {
+    background: MINI_BACKGROUND,
+    gamma: 2.096,
+    led_azimuth_deg: [83.9, 189.0, 260.3],
+    led_elevation_deg: 12.44,
+    ambient: [0.0148, 0.1640, 0.2773],
+    specular: 0.547,
+    shininess: 15.3,
+    shadow_slope: 1.58,
+    wrap: 0.026,
+    crosstalk: 0.0,
+    noise_rgb: [1.59, 1.07, 1.86],
+    // 54 px of the Mini's 0.0317 mm.
+    skirt_mm: 1.712,
+};
+
+/// The real Mini background's polynomial (`optics::fit::fit_background`).
+const MINI_BACKGROUND: [[f64; BACKGROUND_TERMS]; 3] = [
+    [
+        127.355, 13.196, 79.265, -267.154, -1.523, -264.247, -35.707, -150.086, -26.893, -142.459,
+    ],
+    [
+        112.333, 0.338, -12.666, -99.561, -0.698, -58.276, -58.845, 18.555, 6.366, 10.554,
+    ],
+    [
+        142.435, -1.975, -52.746, -167.648, -7.370, -183.931, 2.991, 63.439, 14.395, 97.617,
+    ],
+];
 
 /// Shading of one camera under [`RealisticParams`]: the per-pixel linear background is
 /// computed once.
