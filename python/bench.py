@@ -33,7 +33,10 @@ from typing import Any, Callable, Dict, List
 
 import numpy as np
 
-import gelgrip
+# The installed (release) package, never the source folder beside this script, which holds
+# `maturin develop`'s debug build when there is one.
+sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
+import gelgrip  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared"
@@ -179,7 +182,11 @@ def main() -> None:
     ap.add_argument("--gil-seconds", type=float, default=3.0)
     ap.add_argument("--calls", type=int, default=100_000, help="process calls of the memory check")
     a = ap.parse_args()
-    report: Dict[str, Any] = {"gelgrip": gelgrip.__version__, "numpy": np.__version__}
+    report: Dict[str, Any] = {
+        "gelgrip": gelgrip.__version__,
+        "gelgrip_file": gelgrip.__file__,
+        "numpy": np.__version__,
+    }
     with tempfile.TemporaryDirectory() as tmp:
         sensor, jpegs = simulated_set(a.cli, Path(tmp))
     many = median_ms(lambda: sensor.process_many(jpegs), a.runs)

@@ -297,6 +297,29 @@ impl LutModel {
         })
     }
 
+    /// [`Self::predict_at`] for a run of pixels along a row, from `(x, y)` in steps of
+    /// `step` px: `keys[k]`'s gradient into `gx[k]`, `gy[k]`.
+    #[inline]
+    pub fn predict_run(
+        &self,
+        keys: &[[f32; 3]],
+        (x, y): (usize, usize),
+        step: usize,
+        gx: &mut [f32],
+        gy: &mut [f32],
+    ) {
+        let out = gx.iter_mut().zip(gy.iter_mut());
+        if self.tiles == [1, 1] {
+            for (key, (gx, gy)) in keys.iter().zip(out) {
+                [*gx, *gy] = self.table[self.shifted(*key)];
+            }
+            return;
+        }
+        for (k, (key, (gx, gy))) in keys.iter().zip(out).enumerate() {
+            [*gx, *gy] = self.predict_at(*key, x + k * step, y);
+        }
+    }
+
     /// Save as a model file.
     pub fn save(&self, path: &Path) -> Result<(), ModelFileError> {
         let mut metadata = model_file::base_metadata(

@@ -131,9 +131,9 @@ pub struct SensorPipeline {
     /// costs no division.
     reference_gain: Vec<f32>,
     blocks: Vec<f32>,
-    /// Working space of the block activity, per half (`halves`): one band of blocks' sums
-    /// of the frame per channel (exact: integers).
-    block_sums: [Vec<[u32; 3]>; 2],
+    /// Working space of the block activity, per half (`halves`): one band of blocks' rows
+    /// summed per column and channel (exact: integers).
+    block_columns: [Vec<u16>; 2],
     /// Per block and channel, the sum of the reference's values (kept with the reference).
     reference_block_sums: Vec<[f64; 3]>,
     /// Blocks within one block of an active block: gradients outside them are set to 0.
@@ -193,7 +193,7 @@ impl SensorPipeline {
             reference: None,
             reference_gain: Vec::new(),
             blocks: vec![0.0; bw * bh],
-            block_sums: [Vec::with_capacity(bw), Vec::with_capacity(bw)],
+            block_columns: [Vec::with_capacity(w * 3), Vec::with_capacity(w * 3)],
             reference_block_sums: Vec::new(),
             near_active: vec![true; bw * bh],
             gx: vec![0.0; w * h],
@@ -322,10 +322,12 @@ impl SensorPipeline {
                             let gx_run = &mut gx_row[x..x + run];
                             let gy_run = &mut gy_row[x..x + run];
                             if near(fx, fy) {
-                                for (k, (gx, gy)) in gx_run.iter_mut().zip(gy_run).enumerate() {
-                                    let p = fy * width + fx + k;
-                                    [*gx, *gy] = lut.predict_at(key(p), (fx + k) * s, fy * s);
+                                let p = fy * width + fx;
+                                let keys = &mut [[0.0f32; 3]; BLOCK_PX][..run];
+                                for (k, key_k) in keys.iter_mut().enumerate() {
+                                    *key_k = key(p + k);
                                 }
+                                lut.predict_run(keys, (fx * s, fy * s), s, gx_run, gy_run);
                             } else {
                                 gx_run.fill(0.0);
                                 gy_run.fill(0.0);

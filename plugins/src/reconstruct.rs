@@ -203,17 +203,25 @@ impl Reconstructor {
             });
         }
         let summary = self.pipe.process_rgb(&image.data, Needs::DEPTH)?;
+        let (depth, window) = self.pipe.last_depth_mm();
+        let (gx, gy, _) = self.pipe.last_gradients();
+        let (x0, y0, ww, wh) = window;
+        let inside = ww.min(w.saturating_sub(x0));
         let mut depth_mm = vec![0.0f32; w * h];
         let mut gradients = vec![0.0f32; w * h * 2];
-        let (depth, (x0, y0, ww, wh)) = self.pipe.last_depth_mm();
-        let (gx, gy, _) = self.pipe.last_gradients();
-        let finite = |v: f32| if v.is_finite() { v } else { 0.0 };
         for y in 0..wh.min(h.saturating_sub(y0)) {
-            for x in 0..ww.min(w.saturating_sub(x0)) {
-                let (i, o) = (y * ww + x, (y0 + y) * w + x0 + x);
-                depth_mm[o] = depth.get(i).copied().map_or(0.0, finite);
-                gradients[2 * o] = gx.get(i).copied().map_or(0.0, finite);
-                gradients[2 * o + 1] = gy.get(i).copied().map_or(0.0, finite);
+            let (at, o) = (y * ww, (y0 + y) * w + x0);
+            let depth_row = depth[at..].iter().take(inside);
+            for (out, d) in depth_mm[o..o + inside].iter_mut().zip(depth_row) {
+                *out = finite(*d);
+            }
+            let slopes = gx[at..].iter().zip(&gy[at..]).take(inside);
+            for (out, (x, y)) in gradients[2 * o..2 * (o + inside)]
+                .chunks_exact_mut(2)
+                .zip(slopes)
+            {
+                out[0] = finite(*x);
+                out[1] = finite(*y);
             }
         }
         let mut contact = Vec::new();
@@ -227,6 +235,11 @@ impl Reconstructor {
             summary,
         })
     }
+}
+
+/// A value, or 0 where it is not finite.
+fn finite(v: f32) -> f32 {
+    if v.is_finite() { v } else { 0.0 }
 }
 
 /// `image` with the blocks that differ from `background` beyond the image's own spread

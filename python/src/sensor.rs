@@ -17,6 +17,7 @@ use pyo3::prelude::*;
 use rayon::prelude::*;
 
 use gelgrip_plugins::gradient::{GradientModel, MlpMode};
+use gelgrip_plugins::halves::keep_a_worker_awake;
 use gelgrip_plugins::image::RgbImage;
 use gelgrip_plugins::poisson::{PoissonPlan, Solver};
 use gelgrip_plugins::reconstruct::{
@@ -250,7 +251,12 @@ impl Sensor {
     /// order) of the background's size, or JPEG bytes.
     fn process(&self, py: Python<'_>, frame: &Bound<'_, PyAny>) -> PyResult<Reconstruction> {
         let frame = arrays::frame_in(frame, self.order, "frame")?;
-        let r = py.detach(|| self.run(frame, "frame"))?;
+        let r = py.detach(|| {
+            // One frame on two cores: a pool worker polls while this thread works, and
+            // takes half of each large stage (bit for bit one thread's result).
+            let _awake = keep_a_worker_awake();
+            self.run(frame, "frame")
+        })?;
         Reconstruction::new(py, r)
     }
 

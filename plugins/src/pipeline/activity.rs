@@ -7,6 +7,9 @@ use crate::contact::BLOCK_PX;
 use crate::halves::{first_half, run_halves, worth_splitting};
 use crate::poisson::Solver;
 
+// A band's column sums hold BLOCK_PX rows of 8-bit values.
+const _: () = assert!(BLOCK_PX * 255 <= u16::MAX as usize);
+
 impl SensorPipeline {
     /// A 128 px square (129 px for DST, within the frame) at the frame's centre: the noise
     /// calibration's.
@@ -29,23 +32,28 @@ impl SensorPipeline {
         // A band of blocks at a time, row by row, the band's blocks side by side. The bands
         // in two halves (`halves`).
         let (rgb, reference) = (&self.rgb, &self.reference_block_sums);
-        let bands_from = |first: usize, blocks: &mut [f32], sums: &mut Vec<[u32; 3]>| {
-            sums.resize(bw, [0; 3]);
+        let bands_from = |first: usize, blocks: &mut [f32], columns: &mut Vec<u16>| {
+            columns.resize(w * 3, 0);
             for (by, band) in (first..).zip(blocks.chunks_exact_mut(bw)) {
-                sums.fill([0; 3]);
+                // The band's rows summed per column and channel (a plain add the compiler
+                // vectorises), then each block's columns.
+                columns.fill(0);
                 let ys = by * BLOCK_PX..((by + 1) * BLOCK_PX).min(h);
                 for y in ys.clone() {
                     let row = &rgb[y * w * 3..(y + 1) * w * 3];
-                    for (sum, run) in sums.iter_mut().zip(row.chunks(BLOCK_PX * 3)) {
-                        for px in run.chunks_exact(3) {
-                            sum[0] += u32::from(px[0]);
-                            sum[1] += u32::from(px[1]);
-                            sum[2] += u32::from(px[2]);
-                        }
+                    for (sum, v) in columns.iter_mut().zip(row) {
+                        *sum += u16::from(*v);
                     }
                 }
                 let refs = &reference[by * bw..(by + 1) * bw];
-                for (bx, ((sum, rf), block)) in sums.iter().zip(refs).zip(band).enumerate() {
+                let runs = columns.chunks(BLOCK_PX * 3);
+                for (bx, ((run, rf), block)) in runs.zip(refs).zip(band).enumerate() {
+                    let mut sum = [0u32; 3];
+                    for px in run.chunks_exact(3) {
+                        sum[0] += u32::from(px[0]);
+                        sum[1] += u32::from(px[1]);
+                        sum[2] += u32::from(px[2]);
+                    }
                     let xe = ((bx + 1) * BLOCK_PX).min(w);
                     let n = ((xe - bx * BLOCK_PX) * ys.len()).max(1) as f64;
                     let mean_abs = |c: usize| ((f64::from(sum[c]) - rf[c]) / n).abs();
@@ -57,11 +65,11 @@ impl SensorPipeline {
         let split = worth_splitting(w * h);
         let mid = first_half(bands, 1, split);
         let (blocks_a, blocks_b) = self.blocks[..bands * bw].split_at_mut(mid * bw);
-        let [sums_a, sums_b] = &mut self.block_sums;
+        let [columns_a, columns_b] = &mut self.block_columns;
         run_halves(
             split,
-            || bands_from(0, blocks_a, sums_a),
-            || bands_from(mid, blocks_b, sums_b),
+            || bands_from(0, blocks_a, columns_a),
+            || bands_from(mid, blocks_b, columns_b),
         );
     }
 
