@@ -12,6 +12,7 @@ use serde::Deserialize;
 use gelgrip_controller::config::{ConfigError, FieldCheck};
 use gelgrip_controller::layout::HandLayout;
 
+use crate::load::{LoadSpec, RawLoad};
 use crate::shapes::{Placed, Primitive, rotation_from_rpy_deg};
 
 /// The screwdriver's trigger: a part that moves along `travel_dir` when pressed.
@@ -75,6 +76,8 @@ pub struct ObjectSpec {
     pub trigger: Option<TriggerSpec>,
     /// The bolt the screwdriver drives.
     pub bolt: Option<BoltSpec>,
+    /// A pull along `slip_dir` (`[object.load]`).
+    pub load: Option<LoadSpec>,
 }
 
 /// A validated scene.
@@ -134,6 +137,7 @@ struct RawObject {
     shapes: Vec<RawShape>,
     trigger: Option<RawTrigger>,
     bolt: Option<RawBolt>,
+    load: Option<RawLoad>,
 }
 
 fn default_crushed_factor() -> f64 {
@@ -315,6 +319,7 @@ impl SceneSpec {
                 )?,
                 trigger,
                 bolt,
+                load: o.load.as_ref().map(|l| l.validate(&check)).transpose()?,
             },
             gravity_dir,
             slip_dir,

@@ -24,6 +24,7 @@ use crate::object::ObjectState;
 use crate::scene::HeightMap;
 use crate::scene_spec::SceneSpec;
 use crate::shapes::rotation_from_rpy_deg;
+use crate::traction::{ContactGrip, SlipTruth, Traction, share_load};
 use crate::world_log::{EventKind, WorldEvent, WorldLog};
 
 /// Simulation step, µs.
@@ -84,6 +85,10 @@ pub struct World {
     scene_since_us: u64,
     /// The virtual-clock soak's storm of faults, applied at every trigger.
     fault_storm: Option<FaultStorm>,
+    /// Per sensor, its contact's tangential state.
+    traction: Vec<Traction>,
+    /// When the held object began to slip under its load.
+    slip_truth: SlipTruth,
 }
 
 fn palm_frame(xyz_mm: [f64; 3], rpy_deg: [f64; 3]) -> PadFrame {
@@ -144,6 +149,7 @@ impl World {
         Self {
             finger_pads,
             contacts: vec![PadContact::default(); mounts.len()],
+            traction: vec![Traction::default(); mounts.len()],
             log: WorldLog::new(mounts.len()),
             mounts,
             grids,
@@ -166,6 +172,7 @@ impl World {
             hub_unplugged_until_us: None,
             scene_since_us: 0,
             fault_storm: None,
+            slip_truth: SlipTruth::default(),
         }
     }
 
@@ -184,6 +191,18 @@ impl World {
         for c in &mut self.contacts {
             *c = PadContact::default();
         }
+        self.traction.fill(Traction::default());
+        self.slip_truth = SlipTruth::default();
+    }
+
+    /// A contact's tangential state now (`None`: no such sensor).
+    pub fn traction(&self, sensor: usize) -> Option<&Traction> {
+        self.traction.get(sensor)
+    }
+
+    /// When the held object began to slip under its load, and how far it has moved.
+    pub fn slip_truth(&self) -> &SlipTruth {
+        &self.slip_truth
     }
 
     /// Inject `faults` into sensor `sensor` from now on (replacing the configured ones);
@@ -484,25 +503,33 @@ impl World {
         if released && !self.log.has(EventKind::Released) {
             self.log.push(WorldEvent::at(t_s, EventKind::Released));
         }
-        let d = scene.slip_dir;
+        let pull_n = o.spec().load.map_or(0.0, |l| l.force_at_n(since_scene_s));
         let gravity_n = if released {
             self.weight_factor.unwrap_or(1.0)
                 * o.spec().mass_kg
                 * G_M_PER_S2
-                * scene.gravity_dir.dot(d)
+                * scene.gravity_dir.dot(scene.slip_dir)
         } else {
             0.0
         };
-        let load_n = gravity_n + reaction_n;
+        self.hold(t_s, dt_s, gravity_n + reaction_n + pull_n, released);
+    }
+
+    /// The object held against `load_n` along `slip_dir` by the contacts' normals and
+    /// friction: each contact's traction, and the slip when friction cannot hold it.
+    fn hold(&mut self, t_s: f64, dt_s: f64, load_n: f64, released: bool) {
+        let (Some(o), Some(scene)) = (self.object.as_mut(), self.scene.as_ref()) else {
+            return;
+        };
+        let d = scene.slip_dir;
         if o.dropped || load_n == 0.0 {
             self.log.slipping = false;
+            self.traction.fill(Traction::default());
             return;
         }
-        let (mut support, mut friction) = (0.0, 0.0);
+        let mut support = 0.0;
+        let mut grips = Vec::with_capacity(self.contacts.len());
         for (s, c) in self.contacts.iter().enumerate() {
-            if c.load.force_n <= 0.0 {
-                continue;
-            }
             let n = match self.mounts[s] {
                 Mount::Palm(frame) => frame.normal,
                 Mount::Finger { finger, phalanx } => self.fingers[finger]
@@ -510,11 +537,26 @@ impl World {
                     .map_or(DVec3::ZERO, |p| p.normal),
                 Mount::Nowhere => DVec3::ZERO,
             };
+            let force_n = c.load.force_n.max(0.0);
             let along = n.dot(d);
-            support += c.load.force_n * along;
-            friction += o.spec().friction * c.load.force_n * (1.0 - along * along).max(0.0).sqrt();
+            support += force_n * along;
+            grips.push(ContactGrip {
+                capacity_n: o.spec().friction * force_n * (1.0 - along * along).max(0.0).sqrt(),
+                contact_radius_mm: (c.area_mm2.max(0.0) / std::f64::consts::PI).sqrt(),
+            });
         }
+        let friction: f64 = grips.iter().map(|g| g.capacity_n).sum();
         let net = load_n + support;
+        let (shares, _) = share_load(net, &grips);
+        for (((t, c), g), q) in self
+            .traction
+            .iter_mut()
+            .zip(&self.contacts)
+            .zip(&grips)
+            .zip(shares)
+        {
+            *t = Traction::new(c.load.force_n, q, g.capacity_n, g.contact_radius_mm);
+        }
         let touching = self.contacts.iter().any(|c| c.load.force_n > 0.0);
         if net.abs() > friction {
             let slip = if touching {
@@ -531,6 +573,7 @@ impl World {
         } else {
             self.log.slipping = false;
         }
+        self.slip_truth.observe(t_s, o.slip_mm, &self.traction);
         if released && !touching && o.slip_mm.abs() > o.radius_mm() + 20.0 {
             o.dropped = true;
             self.log
