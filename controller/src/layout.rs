@@ -9,6 +9,7 @@ use serde::Deserialize;
 
 use crate::config::{ConfigError, FieldCheck};
 use crate::fingers::{self, FingerSpec, RawFinger};
+use crate::markers::{MarkerGrid, RawMarkers};
 
 /// Most sensors one hub serves (the hub address space holds 32 boards).
 pub const MAX_SENSORS: usize = 32;
@@ -135,6 +136,8 @@ pub struct SensorSpec {
     pub resolution: Resolution,
     /// Gel-surface size of one pixel, in mm.
     pub mm_per_px: f64,
+    /// The dots printed on its gel (`None`: a plain gel).
+    pub markers: Option<MarkerGrid>,
 }
 
 /// The whole hand: sensors in hub-board order.
@@ -173,6 +176,7 @@ struct RawLayout {
 struct RawSensorDefaults {
     resolution: Option<[u32; 2]>,
     mm_per_px: Option<f64>,
+    markers: Option<RawMarkers>,
 }
 
 #[derive(Deserialize)]
@@ -185,6 +189,7 @@ struct RawSensor {
     rpy_deg: [f64; 3],
     resolution: Option<[u32; 2]>,
     mm_per_px: Option<f64>,
+    markers: Option<RawMarkers>,
 }
 
 impl HandLayout {
@@ -200,6 +205,7 @@ impl HandLayout {
                     pose: Pose::default(),
                     resolution: DEFAULT_RESOLUTION,
                     mm_per_px: DEFAULT_MM_PER_PX,
+                    markers: None,
                 })
                 .collect(),
             fingers: Vec::new(),
@@ -237,6 +243,14 @@ impl HandLayout {
                 .or(raw.sensor_defaults.mm_per_px)
                 .unwrap_or(DEFAULT_MM_PER_PX);
             check.range(&field("mm_per_px"), mm_per_px, 1e-4, 10.0)?;
+            let markers = match (s.markers, raw.sensor_defaults.markers) {
+                (Some(m), _) => Some(m.validate(&check, &field("markers"), [w, h], mm_per_px)?),
+                (None, Some(m)) => {
+                    let at = format!("sensor_defaults.markers (for sensors[{i}])");
+                    Some(m.validate(&check, &at, [w, h], mm_per_px)?)
+                }
+                (None, None) => None,
+            };
             for (k, v) in s.xyz_mm.iter().chain(&s.rpy_deg).enumerate() {
                 check.range(&field(&format!("pose[{k}]")), *v, -1e4, 1e4)?;
             }
@@ -251,6 +265,7 @@ impl HandLayout {
                     height_px: h,
                 },
                 mm_per_px,
+                markers,
             });
         }
         let fingers = fingers::validate(&check, raw.fingers)?;

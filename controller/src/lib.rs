@@ -21,6 +21,7 @@ pub mod gripper;
 pub mod hub;
 pub mod hubtime;
 pub mod layout;
+pub mod markers;
 #[cfg(test)]
 mod parser_fuzz;
 pub mod registry;

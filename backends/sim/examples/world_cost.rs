@@ -63,7 +63,7 @@ fn main() {
     let fast = gelgrip_sim::pool::SceneCamera::new(cam.clone());
     let t = Instant::now();
     for k in 0..20 {
-        let _ = fast.jpeg(&map, k);
+        let _ = fast.jpeg(&map, None, k);
     }
     println!("scene camera render + encode: {:?}", t.elapsed() / 20);
     let rgb = cam.rgb(&map, 0);

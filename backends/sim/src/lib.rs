@@ -33,6 +33,7 @@ pub mod finger;
 pub mod gel;
 pub mod hub;
 pub mod load;
+pub mod markers;
 pub mod motor;
 pub mod object;
 pub mod optics;

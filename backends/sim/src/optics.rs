@@ -17,8 +17,12 @@ pub mod facet;
 pub mod fit;
 pub mod realistic;
 
+use std::sync::Arc;
+
 use rand::Rng;
 use rand_distr::{Distribution, Normal};
+
+use crate::markers::MarkerDots;
 
 use crate::scene::HeightMap;
 use crate::unit::UnitVariation;
@@ -73,6 +77,8 @@ pub struct Shader {
     mm_per_px: f64,
     unit: UnitVariation,
     realistic: Option<Box<realistic::RealisticShader>>,
+    /// The dots printed on the gel, if any.
+    markers: Option<Arc<MarkerDots>>,
 }
 
 impl Shader {
@@ -101,12 +107,34 @@ impl Shader {
                     Some(Box::new(realistic::RealisticShader::new(p, w, h, unit)))
                 }
             },
+            markers: None,
         }
     }
 
-    /// Noise-free RGB of pixel (`x`, `y`) of `map`: the light of its footprint, the
-    /// pressed share's slope and the rest flat ([`facet`]).
+    /// This shader with `markers` printed on its gel.
+    pub fn with_markers(mut self, markers: Option<Arc<MarkerDots>>) -> Self {
+        self.markers = markers;
+        self
+    }
+
+    /// The dots printed on the gel, if any.
+    pub fn markers(&self) -> Option<&MarkerDots> {
+        self.markers.as_deref()
+    }
+
+    /// Noise-free RGB of pixel (`x`, `y`) of `map` with the markers at rest: [`Self::shade`]
+    /// darkened where a dot's ink is.
     pub fn pixel(&self, map: &HeightMap, x: usize, y: usize) -> [f64; 3] {
+        let rgb = self.shade(map, x, y);
+        match &self.markers {
+            Some(m) => rgb.map(|v| v * m.rest_factor(x, y)),
+            None => rgb,
+        }
+    }
+
+    /// Noise-free RGB of pixel (`x`, `y`) of `map` without markers: the light of its footprint, the
+    /// pressed share's slope and the rest flat ([`facet`]).
+    pub fn shade(&self, map: &HeightMap, x: usize, y: usize) -> [f64; 3] {
         let f = facet::facet(map, x, y, self.mm_per_px);
         if let Some(r) = &self.realistic {
             return r.shade_covered(x, y, (f.gx, f.gy), f.coverage);

@@ -5,12 +5,15 @@
 //! requires"). Every frame is a real baseline JPEG at the configured quality; the bus timing
 //! uses each frame's actual length.
 
+use std::sync::Arc;
+
 use bytes::Bytes;
 use jpeg_encoder::{ColorType, Encoder};
 
 use gelgrip_controller::layout::HandLayout;
 
 use crate::config::SimConfig;
+use crate::markers::{GelShear, INK_ALBEDO, MarkerDots};
 use crate::optics::{Optics, Shader, render_shaded};
 use crate::scene::HeightMap;
 use crate::unit::{UnitVariation, rng_for};
@@ -59,6 +62,7 @@ pub struct SensorCamera {
     noise_rgb: [f64; 3],
     optics: Optics,
     quality: u8,
+    markers: Option<Arc<MarkerDots>>,
 }
 
 impl SensorCamera {
@@ -75,6 +79,13 @@ impl SensorCamera {
             noise_rgb: cfg.noise_rgb,
             optics: cfg.optics.clone(),
             quality: cfg.jpeg_quality,
+            markers: s.markers.map(|g| {
+                let (w, h) = (
+                    s.resolution.width_px as usize,
+                    s.resolution.height_px as usize,
+                );
+                Arc::new(MarkerDots::new(&g, w, h, s.mm_per_px))
+            }),
         })
     }
 
@@ -111,6 +122,7 @@ impl SensorCamera {
             &self.unit,
             &self.optics,
         )
+        .with_markers(self.markers.clone())
     }
 
     /// The camera's optics.
@@ -206,11 +218,20 @@ impl SceneCamera {
         }
     }
 
-    /// Render `map` with the noise of frame `frame` and encode it.
-    pub fn jpeg(&self, map: &HeightMap, frame: u64) -> Result<Vec<u8>, EncodeError> {
+    /// Render `map`, its markers moved by `shear`, with the noise of frame `frame` and
+    /// encode it.
+    pub fn jpeg(
+        &self,
+        map: &HeightMap,
+        shear: Option<&GelShear>,
+        frame: u64,
+    ) -> Result<Vec<u8>, EncodeError> {
         let (w, h) = (self.camera.width, self.camera.height);
         RGB_SCRATCH.with_borrow_mut(|rgb| {
             self.render_into(map, frame, rgb);
+            if let (Some(shear), Some(dots)) = (shear, self.shader.markers()) {
+                self.shear_markers(map, dots, shear, frame, rgb);
+            }
             encode_jpeg(rgb, w as u16, h as u16, self.camera.quality).map_err(|source| {
                 EncodeError {
                     sensor: self.camera.index,
@@ -220,20 +241,31 @@ impl SceneCamera {
         })
     }
 
+    /// Whether its gel carries markers.
+    pub fn has_markers(&self) -> bool {
+        self.shader.markers().is_some()
+    }
+
+    /// Where frame `frame` reads the noise plane.
+    fn noise_offset(&self, frame: u64) -> usize {
+        let n = self.camera.width * self.camera.height * 3;
+        let offset = (frame.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 20) as usize % n.max(1);
+        // Per-channel noise keeps its channels aligned (uniform noise reads anywhere).
+        let [r, g, b] = self.camera.noise_rgb;
+        if r == g && g == b {
+            offset
+        } else {
+            offset - offset % 3
+        }
+    }
+
     /// Render `map` with the noise of frame `frame` into `rgb` (interleaved 8-bit): the flat
     /// gel's shading everywhere, re-shaded around the indentation, plus the noise plane read
     /// at the frame's offset.
     fn render_into(&self, map: &HeightMap, frame: u64, rgb: &mut Vec<u8>) {
         let (w, h) = (self.camera.width, self.camera.height);
         let n = w * h * 3;
-        let offset = (frame.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 20) as usize % n.max(1);
-        // Per-channel noise keeps its channels aligned (uniform noise reads anywhere).
-        let [r, g, b] = self.camera.noise_rgb;
-        let offset = if r == g && g == b {
-            offset
-        } else {
-            offset - offset % 3
-        };
+        let offset = self.noise_offset(frame);
         let noise = &self.noise[offset..offset + n];
         let quantise = |v: f32, e: f32| (v + e).round().clamp(0.0, 255.0) as u8;
         rgb.clear();
@@ -250,6 +282,43 @@ impl SceneCamera {
             }
         }
     }
+}
+
+impl SceneCamera {
+    /// Re-shade `rgb` (rendered with the markers at rest) where `shear` moved them: every
+    /// pixel a dot covers at rest or moved gets its shade darkened by the moved ink, and
+    /// the frame's noise.
+    fn shear_markers(
+        &self,
+        map: &HeightMap,
+        dots: &MarkerDots,
+        shear: &GelShear,
+        frame: u64,
+        rgb: &mut [u8],
+    ) {
+        let (w, h) = (self.camera.width, self.camera.height);
+        let noise = &self.noise[self.noise_offset(frame)..];
+        SHEAR_SCRATCH.with_borrow_mut(|(ink, touched)| {
+            ink.clear();
+            ink.resize(w * h, 0.0);
+            touched.clear();
+            dots.paint(Some(shear), ink, touched);
+            for &p in touched.iter() {
+                let dark = 1.0 - f64::from(ink[p]) * (1.0 - INK_ALBEDO);
+                let shaded = self.shader.shade(map, p % w, p / w);
+                for c in 0..3 {
+                    let v = (shaded[c] * dark) as f32 + noise[3 * p + c];
+                    rgb[3 * p + c] = v.round().clamp(0.0, 255.0) as u8;
+                }
+            }
+        });
+    }
+}
+
+thread_local! {
+    /// [`SceneCamera::shear_markers`]'s ink plane and pixel list, kept per thread.
+    static SHEAR_SCRATCH: std::cell::RefCell<(Vec<f32>, Vec<usize>)> =
+        const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
 }
 
 /// The smallest box (x0, y0, x1 exclusive, y1 exclusive) holding every indented pixel.
@@ -379,7 +448,7 @@ pub(crate) mod tests {
             dec.decode().expect("valid JPEG")
         };
         let reference = cam.jpeg(&map, 3).expect("reference");
-        let scene = fast.jpeg(&map, 3).expect("scene");
+        let scene = fast.jpeg(&map, None, 3).expect("scene");
         let size_ratio = scene.len() as f64 / reference.len() as f64;
         assert!((0.9..1.1).contains(&size_ratio), "{size_ratio}");
         let (a, b) = (decode(&reference), decode(&scene));
@@ -395,9 +464,48 @@ pub(crate) mod tests {
             assert!((mean(&a, c) - mean(&b, c)).abs() < 1.0, "channel {c}");
         }
         assert_ne!(
-            fast.jpeg(&map, 4).expect("frame 4"),
+            fast.jpeg(&map, None, 4).expect("frame 4"),
             scene,
             "noise differs per frame"
         );
+    }
+
+    #[test]
+    fn markers_darken_their_dots_and_move_with_the_gels_shear() {
+        let text = include_str!("../../../configs/layouts/three-finger-markers.toml");
+        let layout = HandLayout::from_toml("three-finger-markers.toml", text).expect("layout");
+        let cfg = default_config(&layout);
+        let cam = SceneCamera::new(SensorCamera::new(&layout, 0, &cfg).expect("camera"));
+        let flat = HeightMap::flat(320, 240);
+        let decode = |jpeg: &[u8]| {
+            let mut dec =
+                zune_jpeg::JpegDecoder::new(zune_jpeg::zune_core::bytestream::ZCursor::new(jpeg));
+            dec.decode().expect("valid JPEG")
+        };
+        // Mean green over a 3 × 3 patch centred at (x, y) (pixel centres at +0.5).
+        let green = |img: &[u8], x: f64, y: f64| {
+            let (x, y) = (x.floor() as usize, y.floor() as usize);
+            let sum: f64 = (y - 1..=y + 1)
+                .flat_map(|py| (x - 1..=x + 1).map(move |px| (py * 320 + px) * 3 + 1))
+                .map(|i| f64::from(img[i]))
+                .sum();
+            sum / 9.0
+        };
+        let rest = decode(&cam.jpeg(&flat, None, 1).expect("frame"));
+        let (dot, gel) = (green(&rest, 160.0, 120.0), green(&rest, 169.6, 120.0));
+        assert!(dot < 0.45 * gel, "dot {dot} on gel {gel}");
+        let shear = GelShear {
+            centre_px: (160.0, 120.0),
+            direction: (1.0, 0.0),
+            traction: crate::traction::Traction::new(1.0, 0.3, 0.9, 2.0),
+        };
+        let (dx, _) = shear.shift_px((160.0, 120.0), 0.0625);
+        assert!((4.0..9.0).contains(&dx), "{dx} px");
+        let moved = decode(&cam.jpeg(&flat, Some(&shear), 1).expect("frame"));
+        assert!(green(&moved, 160.0 + dx, 120.0) < 0.45 * gel);
+        assert!(green(&moved, 160.0 - 3.0, 120.0) > 0.8 * gel, "left behind");
+        // Far from the contact the dots stay where they were.
+        let far = (160.0 - 7.0 * 19.2, 120.0 - 5.0 * 19.2);
+        assert!((green(&moved, far.0, far.1) - green(&rest, far.0, far.1)).abs() < 8.0);
     }
 }

@@ -17,6 +17,7 @@ use rayon::prelude::*;
 use gelgrip_controller::layout::HandLayout;
 
 use crate::config::SimConfig;
+use crate::markers::GelShear;
 use crate::pool::{EncodeError, FramePool, SceneCamera, SensorCamera};
 use crate::scene::HeightMap;
 use crate::world::SharedWorld;
@@ -52,10 +53,37 @@ impl Variants {
 /// grey levels), so they reuse the last frame, µm.
 const KEY_STEP_UM: f32 = 5.0;
 
-fn fingerprint(map: &HeightMap) -> u64 {
+/// A touched pad: its indentation and, under tangential load, its gel's shear.
+#[derive(Debug, Clone)]
+pub struct TouchedPad {
+    /// The gel's indentation.
+    pub map: HeightMap,
+    /// How its surface moves (`None`: no tangential load).
+    pub shear: Option<GelShear>,
+}
+
+/// Shear changes smaller than this move a marker by a hundredth of a pixel at most, so
+/// they reuse the last frame, mm.
+const SHEAR_STEP_MM: f64 = 5e-4;
+
+fn fingerprint(pad: &TouchedPad) -> u64 {
     let mut h = DefaultHasher::new();
-    for d in &map.depth_mm {
+    for d in &pad.map.depth_mm {
         ((d * (1000.0 / KEY_STEP_UM)).round() as i32).hash(&mut h);
+    }
+    if let Some(s) = &pad.shear {
+        let t = &s.traction;
+        let quantum = |v: f64, step: f64| (v / step).round() as i64;
+        for v in [
+            t.shift_mm,
+            t.stick_ratio * t.contact_radius_mm,
+            t.contact_radius_mm,
+        ] {
+            quantum(v, SHEAR_STEP_MM).hash(&mut h);
+        }
+        for v in [s.centre_px.0, s.centre_px.1, s.direction.0, s.direction.1] {
+            quantum(v, 0.01).hash(&mut h);
+        }
     }
     h.finish()
 }
@@ -112,25 +140,34 @@ impl SceneFrames {
     /// served untouched). The JPEGs of the touched pads are made in parallel.
     pub fn render(
         &mut self,
-        maps: Option<Vec<Option<HeightMap>>>,
+        maps: Option<Vec<Option<TouchedPad>>>,
         nth: u64,
     ) -> Result<Vec<Bytes>, EncodeError> {
         let Some(maps) = maps else {
             return Ok(self.flat_frames(nth));
         };
-        let keyed: Vec<Option<(u64, HeightMap)>> = maps
+        // Shear shows only through markers: a plain gel's frame does not depend on it.
+        let keyed: Vec<Option<(u64, TouchedPad)>> = maps
             .into_iter()
-            .map(|m| m.map(|m| (fingerprint(&m), m)))
+            .zip(&self.cameras)
+            .map(|(m, camera)| {
+                m.map(|mut m| {
+                    m.shear = m.shear.filter(|_| camera.has_markers());
+                    (fingerprint(&m), m)
+                })
+            })
             .collect();
         let variant = (nth % self.pool as u64) as usize;
         let fresh: Vec<Option<Bytes>> = keyed
             .par_iter()
             .enumerate()
             .map(|(s, k)| match k {
-                Some((key, map)) => match self.cache[s].as_ref().and_then(|v| v.get(*key, variant))
+                Some((key, pad)) => match self.cache[s].as_ref().and_then(|v| v.get(*key, variant))
                 {
                     Some(_) => Ok(None),
-                    None => self.cameras[s].jpeg(map, nth).map(|j| Some(Bytes::from(j))),
+                    None => self.cameras[s]
+                        .jpeg(&pad.map, pad.shear.as_ref(), nth)
+                        .map(|j| Some(Bytes::from(j))),
                 },
                 None => Ok(None),
             })
@@ -177,21 +214,26 @@ impl SceneFrames {
     }
 }
 
-/// Advance `world` to `now_us` and take the height map of each of its first `sensors` pads
-/// (`None`: untouched), in parallel; `None` when the world is poisoned (it cannot be
-/// stepped).
+/// Advance `world` to `now_us` and take the height map and shear of each of its first
+/// `sensors` pads (`None`: untouched), in parallel; `None` when the world is poisoned (it
+/// cannot be stepped).
 pub fn height_maps(
     world: &SharedWorld,
     sensors: usize,
     now_us: u64,
-) -> Option<Vec<Option<HeightMap>>> {
+) -> Option<Vec<Option<TouchedPad>>> {
     let mut w = world.lock().ok()?;
     w.advance_to(now_us);
     let w = &*w;
     Some(
         (0..sensors)
             .into_par_iter()
-            .map(|s| w.height_map(s))
+            .map(|s| {
+                w.height_map(s).map(|map| TouchedPad {
+                    map,
+                    shear: w.gel_shear(s),
+                })
+            })
             .collect(),
     )
 }

@@ -19,6 +19,7 @@ use crate::config::SensorFaults;
 use crate::contact::{PadContact, PadGrid, height_map, pad_contact};
 use crate::fault_storm::{FaultStorm, FaultTally, StormEvent};
 use crate::finger::{FingerMechanics, PadFrame, PadLoad};
+use crate::markers::GelShear;
 use crate::motor::Xm430Motor;
 use crate::object::ObjectState;
 use crate::scene::HeightMap;
@@ -87,6 +88,8 @@ pub struct World {
     fault_storm: Option<FaultStorm>,
     /// Per sensor, its contact's tangential state.
     traction: Vec<Traction>,
+    /// Per sensor, how its gel's surface moves under that load (`None`: it does not).
+    shear: Vec<Option<GelShear>>,
     /// When the held object began to slip under its load.
     slip_truth: SlipTruth,
 }
@@ -150,6 +153,7 @@ impl World {
             finger_pads,
             contacts: vec![PadContact::default(); mounts.len()],
             traction: vec![Traction::default(); mounts.len()],
+            shear: vec![None; mounts.len()],
             log: WorldLog::new(mounts.len()),
             mounts,
             grids,
@@ -192,7 +196,14 @@ impl World {
             *c = PadContact::default();
         }
         self.traction.fill(Traction::default());
+        self.shear.fill(None);
         self.slip_truth = SlipTruth::default();
+    }
+
+    /// How sensor `sensor`'s gel surface moves under its contact's tangential load now
+    /// (`None`: no load, or no such sensor).
+    pub fn gel_shear(&self, sensor: usize) -> Option<GelShear> {
+        self.shear.get(sensor).copied().flatten()
     }
 
     /// A contact's tangential state now (`None`: no such sensor).
@@ -518,15 +529,18 @@ impl World {
     /// The object held against `load_n` along `slip_dir` by the contacts' normals and
     /// friction: each contact's traction, and the slip when friction cannot hold it.
     fn hold(&mut self, t_s: f64, dt_s: f64, load_n: f64, released: bool) {
+        if load_n == 0.0 || self.object.as_ref().is_none_or(|o| o.dropped) {
+            self.log.slipping = false;
+            self.traction.fill(Traction::default());
+            self.shear.fill(None);
+            return;
+        }
+        let frames: Vec<Option<PadFrame>> =
+            (0..self.mounts.len()).map(|s| self.pad_frame(s)).collect();
         let (Some(o), Some(scene)) = (self.object.as_mut(), self.scene.as_ref()) else {
             return;
         };
         let d = scene.slip_dir;
-        if o.dropped || load_n == 0.0 {
-            self.log.slipping = false;
-            self.traction.fill(Traction::default());
-            return;
-        }
         let mut support = 0.0;
         let mut grips = Vec::with_capacity(self.contacts.len());
         for (s, c) in self.contacts.iter().enumerate() {
@@ -557,6 +571,15 @@ impl World {
         {
             *t = Traction::new(c.load.force_n, q, g.capacity_n, g.contact_radius_mm);
         }
+        let shears = self
+            .traction
+            .iter()
+            .zip(&self.contacts)
+            .zip(&frames)
+            .zip(&self.grids);
+        for (shear, (((t, c), frame), grid)) in self.shear.iter_mut().zip(shears) {
+            *shear = frame.and_then(|f| gel_shear(&f, grid, c.load.point, net.signum() * d, *t));
+        }
         let touching = self.contacts.iter().any(|c| c.load.force_n > 0.0);
         if net.abs() > friction {
             let slip = if touching {
@@ -580,4 +603,30 @@ impl World {
                 .push(WorldEvent::at(t_s, EventKind::Dropped).value(o.slip_mm));
         }
     }
+}
+
+/// How a pad's gel moves under `traction` whose load on the object is along `load_dir`
+/// (gripper frame), its contact's centre of pressure at `point`: `None` when it carries no
+/// load or the load has no component along the pad.
+fn gel_shear(
+    frame: &PadFrame,
+    grid: &PadGrid,
+    point: DVec3,
+    load_dir: DVec3,
+    traction: Traction,
+) -> Option<GelShear> {
+    let (dx, dy) = (load_dir.dot(frame.ex), load_dir.dot(frame.ey));
+    let along = dx.hypot(dy);
+    if !(traction.shift_mm > 0.0 && along > 1e-6 && grid.mm_per_px > 0.0) {
+        return None;
+    }
+    let at = point - frame.center;
+    Some(GelShear {
+        centre_px: (
+            grid.width_px as f64 / 2.0 + at.dot(frame.ex) / grid.mm_per_px,
+            grid.height_px as f64 / 2.0 + at.dot(frame.ey) / grid.mm_per_px,
+        ),
+        direction: (dx / along, dy / along),
+        traction,
+    })
 }

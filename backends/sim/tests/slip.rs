@@ -54,13 +54,20 @@ fn a_growing_pull_makes_the_ball_slide_after_its_contacts_slip() {
         "kind = \"ramp\"\nrate_n_per_s = 40.0\nstart_s = 4.0",
         300.0,
     );
-    let (mut step, mut slid) = (0, false);
+    let (mut step, mut slid, mut sheared) = (0, false, false);
     while world.slip_truth().gross_s.is_none() && step < 1_000 {
         step += 1;
         world.advance_to(step * STEP_US);
         let (ratio, capacity) = least_stick(&world);
         assert!(ratio.is_finite() && capacity.is_finite());
         assert!((0.0..=1.0).contains(&ratio));
+        // The gel under a loaded contact moves along the pad, from a centre on it.
+        sheared |= (0..world.sensors())
+            .filter_map(|s| world.gel_shear(s))
+            .any(|g| {
+                let (x, y) = g.centre_px;
+                (0.0..320.0).contains(&x) && (0.0..240.0).contains(&y) && g.traction.shift_mm > 0.0
+            });
         // Sliding: the stick zones are gone, and the gel carries its full-slip shift.
         slid |= capacity > 0.0
             && (0..world.sensors())
@@ -83,4 +90,5 @@ fn a_growing_pull_makes_the_ball_slide_after_its_contacts_slip() {
     );
     assert!(truth.motion_mm > 0.1);
     assert!(slid, "the ball slid with every contact sliding");
+    assert!(sheared, "the loaded pads' gel moved");
 }

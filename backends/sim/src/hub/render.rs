@@ -14,11 +14,11 @@ use std::thread::JoinHandle;
 use bytes::Bytes;
 
 use crate::pool::EncodeError;
-use crate::scene::HeightMap;
 use crate::scene_frames::SceneFrames;
+use crate::scene_frames::TouchedPad;
 
 /// One capture to render: the pads' height maps and the capture count.
-type Job = (Option<Vec<Option<HeightMap>>>, u64);
+type Job = (Option<Vec<Option<TouchedPad>>>, u64);
 
 /// A rendered capture: every sensor's JPEG.
 pub type Rendered = Result<Vec<Bytes>, EncodeError>;
@@ -54,7 +54,7 @@ impl RenderThread {
     }
 
     /// Queue capture `nth` of `maps`; its frames come through the receiver returned.
-    pub fn render(&self, maps: Option<Vec<Option<HeightMap>>>, nth: u64) -> Receiver<Rendered> {
+    pub fn render(&self, maps: Option<Vec<Option<TouchedPad>>>, nth: u64) -> Receiver<Rendered> {
         let (reply, frames) = channel();
         if let Some(jobs) = &self.jobs {
             // A renderer that has gone drops the reply: the receiver then says so.
