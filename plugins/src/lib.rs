@@ -19,6 +19,7 @@ pub mod gradient;
 pub mod halves;
 pub mod image;
 pub mod lut;
+pub mod markers;
 pub mod mlp;
 pub mod model_file;
 pub mod npy;

@@ -19,6 +19,7 @@ use crate::decode::{DecodeError, JpegStage};
 use crate::gradient::{GradientModel, MlpMode};
 use crate::halves::{first_half, run_halves, worth_splitting};
 use crate::lut::{Input, relative_gain};
+use crate::markers::InkFill;
 use crate::mlp::INPUTS;
 use crate::poisson::{PlanCache, Solver};
 use crate::undistort::Remap;
@@ -157,6 +158,8 @@ pub struct SensorPipeline {
     feature_pixels: Vec<usize>,
     /// The last frame was solved for depth (its window holds depth in mm).
     last_has_depth: bool,
+    /// A marker gel's dots, found on the reference and filled in every frame.
+    ink: Option<InkFill>,
 }
 
 impl std::fmt::Debug for SensorPipeline {
@@ -208,6 +211,7 @@ impl SensorPipeline {
             features: Vec::new(),
             feature_pixels: Vec::new(),
             last_has_depth: false,
+            ink: None,
             choice,
         }
     }
@@ -248,6 +252,10 @@ impl SensorPipeline {
         if let Some(remap) = &self.remap {
             remap.apply(&self.rgb, &mut self.rgb_undistorted);
             std::mem::swap(&mut self.rgb, &mut self.rgb_undistorted);
+        }
+        // A marker gel's dots are not the gel's shading: filled before anything reads it.
+        if let Some(ink) = &mut self.ink {
+            ink.fill_u8(&mut self.rgb);
         }
         // The model reads frames (and so the reference) through its blur.
         crate::image::box_blur_rgb(

@@ -32,6 +32,7 @@
 //! lie on the circle (`exp(−rms / (5% of r))`).
 
 use crate::image::RgbImage;
+use crate::markers::InkFill;
 
 mod edge;
 mod field;
@@ -199,19 +200,48 @@ impl Rejection {
 /// Labels presses of one ball against one background, with the dataset's noise.
 #[derive(Debug, Clone)]
 pub struct Labeller<'a> {
-    background: &'a RgbImage,
+    /// The background, its marker dots filled when it shows a marker gel.
+    background: std::borrow::Cow<'a, RgbImage>,
     ball_radius_px: f64,
     camera_noise: Option<f64>,
+    /// A marker gel's dots, filled in every press before it is read.
+    ink: Option<InkFill>,
 }
 
 impl<'a> Labeller<'a> {
     /// A labeller for presses of a ball of `ball_radius_px` against `background`; each press
     /// is measured against its own camera noise until [`Self::with_dataset_noise`].
+    /// A marker gel's dots (found on the background) are filled in the background and in
+    /// every press before either is read.
     pub fn new(background: &'a RgbImage, ball_radius_px: f64) -> Self {
+        let (w, h) = (background.width, background.height);
+        let values: Vec<f32> = background.data.iter().map(|v| f32::from(*v)).collect();
+        let mut ink = InkFill::detect(&values, w, h);
+        let background = match &mut ink {
+            Some(fill) => {
+                let mut filled = background.clone();
+                fill.fill_u8(&mut filled.data);
+                std::borrow::Cow::Owned(filled)
+            }
+            None => std::borrow::Cow::Borrowed(background),
+        };
         Self {
             background,
             ball_radius_px,
             camera_noise: None,
+            ink,
+        }
+    }
+
+    /// `press` as the labeller reads it: its marker dots filled on a marker gel.
+    fn read<'p>(&self, press: &'p RgbImage) -> std::borrow::Cow<'p, RgbImage> {
+        match (&self.ink, same_size(press, &self.background)) {
+            (Some(ink), true) => {
+                let mut filled = press.clone();
+                ink.clone().fill_u8(&mut filled.data);
+                std::borrow::Cow::Owned(filled)
+            }
+            _ => std::borrow::Cow::Borrowed(press),
         }
     }
 
@@ -220,8 +250,8 @@ impl<'a> Labeller<'a> {
     pub fn with_dataset_noise(mut self, presses: &[&RgbImage]) -> Self {
         let mut noise: Vec<f64> = presses
             .iter()
-            .filter(|p| same_size(p, self.background))
-            .map(|p| DiffField::new(p, self.background, BLUR_PX).camera_noise())
+            .filter(|p| same_size(p, &self.background))
+            .map(|p| DiffField::new(&self.read(p), &self.background, BLUR_PX).camera_noise())
             .filter(|n| n.is_finite())
             .collect();
         noise.sort_by(f64::total_cmp);
@@ -241,7 +271,7 @@ impl<'a> Labeller<'a> {
 
     /// Find the contact circle of `press`.
     pub fn detect(&self, press: &RgbImage) -> Result<ContactCircle, Rejection> {
-        detect::contact(self, press)
+        detect::contact(self, &self.read(press))
     }
 }
 

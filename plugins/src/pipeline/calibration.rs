@@ -3,6 +3,7 @@
 
 use super::{Frame, PIXEL_NOISE_PERCENTILE, PipelineError, SensorPipeline, pixel_difference};
 use crate::contact::NoiseModel;
+use crate::markers::InkFill;
 
 impl SensorPipeline {
     /// Capture the reference from no-contact frames (their mean), then measure the noise
@@ -31,6 +32,26 @@ impl SensorPipeline {
         self.calibrate_frames(Some(Frame::Rgb(reference)), &frames)
     }
 
+    /// The mean of `frames` as loaded.
+    fn mean_of(&mut self, frames: &[Frame<'_>]) -> Result<Vec<f32>, PipelineError> {
+        let mut sum = vec![0.0f32; self.rgb.len()];
+        for frame in frames {
+            self.load(*frame)?;
+            sum.iter_mut()
+                .zip(&self.rgb)
+                .for_each(|(s, v)| *s += f32::from(*v));
+        }
+        let n = frames.len().max(1) as f32;
+        sum.iter_mut().for_each(|s| *s /= n);
+        Ok(sum)
+    }
+
+    /// Whether the reference showed a marker gel's dots (they are filled in every frame),
+    /// and how many.
+    pub fn marker_dots(&self) -> Option<usize> {
+        self.ink.as_ref().map(InkFill::dots)
+    }
+
     /// The reference (`reference`, else the mean of `no_contact`), then the noise thresholds
     /// measured on `no_contact`.
     fn calibrate_frames(
@@ -38,20 +59,19 @@ impl SensorPipeline {
         reference: Option<Frame<'_>>,
         no_contact: &[Frame<'_>],
     ) -> Result<(), PipelineError> {
-        let mut sum = vec![0.0f32; self.rgb.len()];
         let averaged = if reference.is_some() {
             reference.as_slice()
         } else {
             no_contact
         };
-        for frame in averaged {
-            self.load(*frame)?;
-            sum.iter_mut()
-                .zip(&self.rgb)
-                .for_each(|(s, v)| *s += f32::from(*v));
+        // A marker gel's dots are found on the reference as loaded, then the reference is
+        // loaded again with them filled (as every frame will be).
+        self.ink = None;
+        let mut sum = self.mean_of(averaged)?;
+        if let Some(ink) = InkFill::detect(&sum, self.width, self.height) {
+            self.ink = Some(ink);
+            sum = self.mean_of(averaged)?;
         }
-        let n = averaged.len().max(1) as f32;
-        sum.iter_mut().for_each(|s| *s /= n);
         self.reference = Some(sum);
         self.reference_changed();
         self.predict_background()?;

@@ -15,7 +15,7 @@ pub(super) fn contact(
     labeller: &Labeller<'_>,
     press: &RgbImage,
 ) -> Result<ContactCircle, Rejection> {
-    let background = labeller.background;
+    let background: &RgbImage = &labeller.background;
     if !same_size(press, background) {
         return Err(Rejection::WrongSize {
             width: press.width,

@@ -1,0 +1,418 @@
+//! Marker dots printed on a gel, found in the sensor's reference frame and filled in every
+//! frame, so that the gradient and depth stages see the gel's shading alone (docs/pipeline.md,
+//! "Marker gels").
+//!
+//! A marker gel's dots are dark prints that darken whatever light the gel returns. They are
+//! found on the reference (no contact): per pixel, the brightness (the sum of the channels)
+//! against the gel's brightness around it (the largest 3×3 mean within a window a few dots
+//! wide). Those ratios fall in two groups, the gel's near 1 and the ink's well below; the
+//! threshold between them comes from the reference itself (half way between the two groups'
+//! medians, Otsu's split of the ratios). A reference whose dark group is not a set of small
+//! dots of one size, enough of them, is a plain gel and nothing is filled.
+//!
+//! In every frame (and the reference) a pixel darker than that share of the reference's gel
+//! brightness there is ink, and so is one beside it (the dots' soft rims). Each ink pixel is
+//! filled, per channel, from the gel pixels either side of it along its row and along its
+//! column: the straight line between each pair, the two weighed by the inverse of their
+//! spans (the shorter, nearer one counts more).
+//! Contact shading changes the brightness far less than the ink does, so the test holds under
+//! a press; a dot moved by the gel's shear is found where it is.
+
+/// The gel's brightness is taken over a window of this share of the frame's shorter side.
+const LEVEL_WINDOW_SHARE: f64 = 1.0 / 12.0;
+/// The least dots that make a marker gel.
+pub const MIN_DOTS: usize = 9;
+/// A marker gel's dots cover at least this share of the frame, and at most the second.
+const INK_SHARE_RANGE: (f64, f64) = (0.005, 0.4);
+/// The dots' areas: the middle half lies within this factor of their median.
+const DOT_AREA_SPREAD: f64 = 2.0;
+/// Pixels this close to ink are filled too: the dots' soft rims, and the ringing a JPEG
+/// leaves around a dark dot.
+const RIM_PX: usize = 2;
+/// The least dot, px.
+const MIN_DOT_PX: usize = 4;
+
+/// The marker dots of one sensor's gel, and how to fill them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct InkFill {
+    width: usize,
+    height: usize,
+    /// Per pixel, the gel's brightness around it in the reference, times the ink share.
+    threshold: Vec<f32>,
+    /// The dots found on the reference.
+    dots: usize,
+    /// Working space: ink flags of the frame being filled, raw, widened along rows, and
+    /// widened both ways.
+    raw: Vec<u8>,
+    wide: Vec<u8>,
+    ink: Vec<bool>,
+    /// Working space: per pixel, the fill along its row and that fill's weight.
+    along_rows: Vec<([f32; 3], f32)>,
+    /// Working space: one column's ink flags.
+    column: Vec<bool>,
+}
+
+impl InkFill {
+    /// The dots of the reference `rgb` (interleaved, `width × height`), or `None` for a
+    /// plain gel.
+    pub fn detect(rgb: &[f32], width: usize, height: usize) -> Option<Self> {
+        if rgb.len() != width * height * 3 || width < 8 || height < 8 {
+            return None;
+        }
+        let bright: Vec<f32> = rgb.chunks_exact(3).map(|p| p[0] + p[1] + p[2]).collect();
+        let level = gel_level(&bright, width, height);
+        let ratio: Vec<f32> = bright
+            .iter()
+            .zip(&level)
+            .map(|(b, l)| if *l > 0.0 { b / l } else { 1.0 })
+            .collect();
+        let split = otsu_split(&ratio)?;
+        let ink: Vec<bool> = ratio.iter().map(|r| *r < split).collect();
+        let share = ink.iter().filter(|i| **i).count() as f64 / ink.len() as f64;
+        if !(INK_SHARE_RANGE.0..=INK_SHARE_RANGE.1).contains(&share) {
+            return None;
+        }
+        let dots = dot_count(&ink, width, height)?;
+        let threshold = level.iter().map(|l| l * split).collect();
+        Some(Self {
+            width,
+            height,
+            threshold,
+            dots,
+            raw: vec![0; width * height],
+            wide: vec![0; width * height],
+            ink: vec![false; width * height],
+            along_rows: vec![([0.0; 3], 0.0); width * height],
+            column: vec![false; height],
+        })
+    }
+
+    /// How many dots the reference showed.
+    pub fn dots(&self) -> usize {
+        self.dots
+    }
+
+    /// Fill the ink of frame `rgb` (interleaved 8-bit, the reference's size).
+    pub fn fill_u8(&mut self, rgb: &mut [u8]) {
+        if rgb.len() != self.threshold.len() * 3 {
+            return;
+        }
+        self.mark(|p| {
+            let v = &rgb[3 * p..3 * p + 3];
+            f32::from(v[0]) + f32::from(v[1]) + f32::from(v[2])
+        });
+        self.interpolate(|p| [0, 1, 2].map(|c| f32::from(rgb[3 * p + c])));
+        for (p, (fill, weight)) in self.along_rows.iter().enumerate() {
+            if self.ink[p] && *weight > 0.0 {
+                for c in 0..3 {
+                    rgb[3 * p + c] = fill[c].round().clamp(0.0, 255.0) as u8;
+                }
+            }
+        }
+    }
+
+    /// Fill the ink of the reference `rgb` (interleaved, the reference's size).
+    pub fn fill_f32(&mut self, rgb: &mut [f32]) {
+        if rgb.len() != self.threshold.len() * 3 {
+            return;
+        }
+        self.mark(|p| rgb[3 * p] + rgb[3 * p + 1] + rgb[3 * p + 2]);
+        self.interpolate(|p| [rgb[3 * p], rgb[3 * p + 1], rgb[3 * p + 2]]);
+        for (p, (fill, weight)) in self.along_rows.iter().enumerate() {
+            if self.ink[p] && *weight > 0.0 {
+                rgb[3 * p..3 * p + 3].copy_from_slice(fill);
+            }
+        }
+    }
+
+    /// Each ink pixel's fill into `along_rows` (weight 0: none), from the gel pixels of
+    /// `value` along its row and its column.
+    fn interpolate(&mut self, value: impl Fn(usize) -> [f32; 3]) {
+        let (w, h) = (self.width, self.height);
+        let (ink, fills, column) = (&self.ink, &mut self.along_rows, &mut self.column);
+        for y in 0..h {
+            line_fill(
+                &ink[y * w..(y + 1) * w],
+                |k| y * w + k,
+                &value,
+                |p, f| fills[p] = f,
+            );
+        }
+        for x in 0..w {
+            for (y, c) in column.iter_mut().enumerate() {
+                *c = ink[y * w + x];
+            }
+            line_fill(
+                column,
+                |k| k * w + x,
+                &value,
+                |p, (f, wt)| {
+                    let (g, wg) = fills[p];
+                    let sum = wt + wg;
+                    if sum > 0.0 {
+                        fills[p] = ([0, 1, 2].map(|c| (f[c] * wt + g[c] * wg) / sum), sum);
+                    }
+                },
+            );
+        }
+    }
+
+    /// Flag the ink (brightness under the threshold) and the pixels within [`RIM_PX`] of it.
+    fn mark(&mut self, brightness: impl Fn(usize) -> f32) {
+        let (w, r) = (self.width, RIM_PX);
+        for (p, (ink, t)) in self.raw.iter_mut().zip(&self.threshold).enumerate() {
+            *ink = u8::from(brightness(p) < *t);
+        }
+        // Along rows, then along columns (each a running count of ink within r).
+        for (row, out) in self.raw.chunks_exact(w).zip(self.wide.chunks_exact_mut(w)) {
+            let mut count: u32 = row[..r.min(w)].iter().map(|v| u32::from(*v)).sum();
+            for x in 0..w {
+                if x + r < w {
+                    count += u32::from(row[x + r]);
+                }
+                out[x] = u8::from(count > 0);
+                if x >= r {
+                    count -= u32::from(row[x - r]);
+                }
+            }
+        }
+        let rows: Vec<&[u8]> = self.wide.chunks_exact(w).collect();
+        for (y, out) in self.ink.chunks_exact_mut(w).enumerate() {
+            let near = &rows[y.saturating_sub(r)..(y + r + 1).min(rows.len())];
+            for (x, o) in out.iter_mut().enumerate() {
+                *o = near.iter().any(|row| row[x] != 0);
+            }
+        }
+    }
+}
+
+/// Along one line of pixels (`ink` flags; `at(k)` the `k`th's index): for each run of ink,
+/// each pixel's straight-line fill between the gel pixels either side (the nearer one alone
+/// at the line's end) and its weight (the inverse of the span; 0 when the line is all ink),
+/// handed to `put(index, (fill, weight))`.
+fn line_fill(
+    ink: &[bool],
+    at: impl Fn(usize) -> usize,
+    value: &impl Fn(usize) -> [f32; 3],
+    mut put: impl FnMut(usize, ([f32; 3], f32)),
+) {
+    let n = ink.len();
+    let mut k = 0;
+    while k < n {
+        if !ink[k] {
+            k += 1;
+            continue;
+        }
+        let start = k;
+        while k < n && ink[k] {
+            k += 1;
+        }
+        let (left, right) = (start.checked_sub(1), (k < n).then_some(k));
+        for i in start..k {
+            let fill = match (left, right) {
+                (Some(l), Some(r)) => {
+                    let t = (i - l) as f32 / (r - l) as f32;
+                    let (a, b) = (value(at(l)), value(at(r)));
+                    (
+                        [0, 1, 2].map(|c| a[c] + (b[c] - a[c]) * t),
+                        1.0 / (r - l) as f32,
+                    )
+                }
+                (Some(e), None) | (None, Some(e)) => (value(at(e)), 0.5 / i.abs_diff(e) as f32),
+                (None, None) => ([0.0; 3], 0.0),
+            };
+            put(at(i), fill);
+        }
+    }
+}
+
+/// Per pixel, the gel's brightness around it: the largest 3×3 mean of `bright` within a
+/// square window of [`LEVEL_WINDOW_SHARE`] of the shorter side.
+fn gel_level(bright: &[f32], w: usize, h: usize) -> Vec<f32> {
+    let smooth = box3(bright, w, h);
+    let r = ((w.min(h) as f64 * LEVEL_WINDOW_SHARE / 2.0).round() as usize).max(2);
+    let rows = running_max(&smooth, w, h, r, true);
+    running_max(&rows, w, h, r, false)
+}
+
+/// A 3×3 mean (the edges over what is there).
+fn box3(v: &[f32], w: usize, h: usize) -> Vec<f32> {
+    let mut out = vec![0.0; v.len()];
+    for y in 0..h {
+        for x in 0..w {
+            let (mut s, mut n) = (0.0, 0.0);
+            for ny in y.saturating_sub(1)..(y + 2).min(h) {
+                for nx in x.saturating_sub(1)..(x + 2).min(w) {
+                    s += v[ny * w + nx];
+                    n += 1.0;
+                }
+            }
+            out[y * w + x] = s / n;
+        }
+    }
+    out
+}
+
+/// The largest value within `r` along rows (`along_rows`) or columns.
+fn running_max(v: &[f32], w: usize, h: usize, r: usize, along_rows: bool) -> Vec<f32> {
+    let mut out = vec![0.0; v.len()];
+    let (lines, len) = if along_rows { (h, w) } else { (w, h) };
+    let at = |line: usize, i: usize| {
+        if along_rows {
+            line * w + i
+        } else {
+            i * w + line
+        }
+    };
+    for line in 0..lines {
+        for i in 0..len {
+            let (lo, hi) = (i.saturating_sub(r), (i + r + 1).min(len));
+            out[at(line, i)] = (lo..hi).map(|k| v[at(line, k)]).fold(f32::MIN, f32::max);
+        }
+    }
+    out
+}
+
+/// Otsu's split of `values` (ratios, 0–~1.2) into a dark and a light group: the threshold
+/// between them, `None` when they do not part (no dark group).
+fn otsu_split(values: &[f32]) -> Option<f32> {
+    const BINS: usize = 128;
+    const TOP: f32 = 1.5;
+    let mut hist = [0usize; BINS];
+    for v in values.iter().filter(|v| v.is_finite()) {
+        let b = ((v / TOP).clamp(0.0, 1.0) * (BINS - 1) as f32) as usize;
+        hist[b] += 1;
+    }
+    let total: usize = hist.iter().sum();
+    let sum_all: f64 = hist
+        .iter()
+        .enumerate()
+        .map(|(b, n)| b as f64 * *n as f64)
+        .sum();
+    let (mut below, mut sum_below, mut best) = (0usize, 0.0, (0.0, 0));
+    for (b, n) in hist.iter().enumerate() {
+        below += n;
+        sum_below += b as f64 * *n as f64;
+        let above = total - below;
+        if below == 0 || above == 0 {
+            continue;
+        }
+        let (m0, m1) = (
+            sum_below / below as f64,
+            (sum_all - sum_below) / above as f64,
+        );
+        let between = below as f64 * above as f64 * (m1 - m0).powi(2);
+        if between > best.0 {
+            best = (between, b);
+        }
+    }
+    let split = (best.1 as f32 + 0.5) / (BINS - 1) as f32 * TOP;
+    // The dark group must be dark: well below the gel's own level.
+    (best.0 > 0.0 && split < 0.8).then_some(split)
+}
+
+/// The dots of `ink` (4-connected blobs of at least [`MIN_DOT_PX`]) when they are a marker
+/// grid's: at least [`MIN_DOTS`], the middle half within [`DOT_AREA_SPREAD`] of the median
+/// area; `None` otherwise.
+fn dot_count(ink: &[bool], w: usize, h: usize) -> Option<usize> {
+    let mut seen = vec![false; ink.len()];
+    let mut areas = Vec::new();
+    let mut stack = Vec::new();
+    for start in 0..ink.len() {
+        if !ink[start] || seen[start] {
+            continue;
+        }
+        seen[start] = true;
+        stack.push(start);
+        let mut area = 0;
+        while let Some(p) = stack.pop() {
+            area += 1;
+            let (x, y) = (p % w, p / w);
+            let near = [
+                (x > 0).then(|| p - 1),
+                (x + 1 < w).then(|| p + 1),
+                (y > 0).then(|| p - w),
+                (y + 1 < h).then(|| p + w),
+            ];
+            for q in near.into_iter().flatten() {
+                if ink[q] && !seen[q] {
+                    seen[q] = true;
+                    stack.push(q);
+                }
+            }
+        }
+        if area >= MIN_DOT_PX {
+            areas.push(area);
+        }
+    }
+    if areas.len() < MIN_DOTS {
+        return None;
+    }
+    areas.sort_unstable();
+    let median = areas[areas.len() / 2] as f64;
+    let (q1, q3) = (
+        areas[areas.len() / 4] as f64,
+        areas[3 * areas.len() / 4] as f64,
+    );
+    (q1 * DOT_AREA_SPREAD >= median && q3 <= DOT_AREA_SPREAD * median).then_some(areas.len())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A gel of `level` with shading ramping across, dots of radius 3 px every 16 px
+    /// darkened to a quarter, shifted by `dx`.
+    fn gel(w: usize, h: usize, dots: bool, dx: f64) -> Vec<f32> {
+        let mut rgb = Vec::with_capacity(w * h * 3);
+        for y in 0..h {
+            for x in 0..w {
+                let shade = 1.0 + 0.2 * x as f32 / w as f32;
+                let (fx, fy) = (x as f64 + 0.5 - dx, y as f64 + 0.5);
+                let (gx, gy) = ((fx / 16.0).round() * 16.0, (fy / 16.0).round() * 16.0);
+                let ink = dots && (fx - gx).hypot(fy - gy) < 3.0;
+                let k = if ink { 0.25 } else { 1.0 };
+                rgb.extend([150.0, 140.0, 130.0].map(|c: f32| c * shade * k));
+            }
+        }
+        rgb
+    }
+
+    #[test]
+    fn a_marker_gel_is_found_and_filled_and_a_plain_gel_is_left_alone() {
+        let (w, h) = (160, 120);
+        assert_eq!(InkFill::detect(&gel(w, h, false, 0.0), w, h), None);
+        let mut fill = InkFill::detect(&gel(w, h, true, 0.0), w, h).expect("a marker gel");
+        assert!(fill.dots() >= 60, "{}", fill.dots());
+        // A frame whose dots moved 5 px: filled, it is the plain gel within a grey level.
+        let moved = gel(w, h, true, 5.0);
+        let mut frame: Vec<u8> = moved.iter().map(|v| v.round() as u8).collect();
+        fill.fill_u8(&mut frame);
+        let plain = gel(w, h, false, 0.0);
+        let worst = frame
+            .iter()
+            .zip(&plain)
+            .map(|(a, b)| (f32::from(*a) - b).abs())
+            .fold(0.0, f32::max);
+        assert!(worst <= 2.0, "{worst}");
+        let mut reference = gel(w, h, true, 0.0);
+        fill.fill_f32(&mut reference);
+        let worst = reference
+            .iter()
+            .zip(&plain)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f32::max);
+        assert!(worst <= 1.0, "{worst}");
+    }
+
+    #[test]
+    fn odd_frames_find_no_dots_and_fill_nothing() {
+        assert_eq!(InkFill::detect(&[], 0, 0), None);
+        assert_eq!(InkFill::detect(&vec![0.0; 64 * 64 * 3], 64, 64), None);
+        assert_eq!(InkFill::detect(&vec![f32::NAN; 64 * 64 * 3], 64, 64), None);
+        let mut fill = InkFill::detect(&gel(64, 64, true, 0.0), 64, 64).expect("dots");
+        let mut wrong = vec![7u8; 10];
+        fill.fill_u8(&mut wrong);
+        assert_eq!(wrong, vec![7u8; 10]);
+    }
+}
