@@ -7,6 +7,16 @@ mod common;
 use std::path::Path;
 
 use common::{gelgrip, json, ok, s, scratch};
+use gelgrip::wiring;
+use gelgrip_plugins::config::{PipelineConfig, SensorStages};
+use gelgrip_plugins::gradient::{GradientModel, MlpMode};
+use gelgrip_plugins::markers::SlipState;
+use gelgrip_plugins::pipeline::{Needs, SensorPipeline, StageChoice};
+use gelgrip_sim::markers::GelShear;
+use gelgrip_sim::pool::SceneCamera;
+use gelgrip_sim::press_camera::sensor_camera;
+use gelgrip_sim::scene::HeightMap;
+use gelgrip_sim::traction::Traction;
 
 const PRESSES: &str = "8";
 
@@ -125,5 +135,69 @@ fn a_marker_gel_is_labelled_and_reconstructed_as_the_plain_gel_is() {
         "{depth_errors:?}"
     );
     assert!(depth_errors.iter().all(|e| *e <= 0.08), "{depth_errors:?}");
+    shear_follows_the_simulated_traction(&model);
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A 6 mm ball pressed 1 mm into f1.tip's marker gel, loaded tangentially over 24 frames up
+/// to the load that leaves `stick_ratio` of the contact sticking (the simulator's shear, its
+/// dots moved through the optics, noise and JPEG): the pipeline's estimate at the end.
+fn estimate_under_load(model: &Path, stick_ratio: f64) -> gelgrip_plugins::markers::ShearEstimate {
+    let path = Path::new("configs/gelgripper-sim-markers.toml");
+    let config = wiring::load_config(Some(path), &wiring::registry()).expect("the config");
+    let (cam, _) = sensor_camera(&config, "f1.tip").expect("camera");
+    let (w, h, mm) = (cam.width, cam.height, cam.mm_per_px);
+    let scene = SceneCamera::new(cam.clone());
+    let pipeline =
+        PipelineConfig::from_section(&config.pipeline, &config.layout).expect("pipeline");
+    let stages = SensorStages {
+        ..pipeline.sensors[0].clone()
+    };
+    let model = GradientModel::load(model, MlpMode::ContactOnly).expect("the LUT");
+    let mut pipe = SensorPipeline::new(StageChoice { stages, model }, w, h, mm);
+    let flat = HeightMap::flat(w, h);
+    let quiet: Vec<Vec<u8>> = (0..4)
+        .map(|k| scene.jpeg(&flat, None, k).expect("frame"))
+        .collect();
+    pipe.calibrate(&quiet.iter().map(Vec::as_slice).collect::<Vec<_>>())
+        .expect("calibrated");
+    assert_eq!(pipe.marker_dots(), Some(221));
+    let centre = (160.0, 120.0);
+    let map = cam.ball_press_map(centre, 6.0, 1.0);
+    let contact_mm = (2.0 * 3.0 * 1.0 - 1.0f64).sqrt();
+    let mut last = None;
+    for k in 1..=24 {
+        let share = (1.0 - stick_ratio.powi(3)) * k as f64 / 24.0;
+        let shear = GelShear {
+            centre_px: centre,
+            direction: (1.0, 0.0),
+            traction: Traction::new(1.0, 0.9 * share, 0.9, contact_mm),
+        };
+        let frame = scene.jpeg(&map, Some(&shear), 10 + k).expect("frame");
+        last = pipe.process(&frame, Needs::DEPTH).expect("processed").shear;
+    }
+    last.expect("dots under the contact")
+}
+
+/// The pipeline's shear against the simulator's: none without load, then along the load
+/// and growing with it. (The stick ratio it estimates is not yet checked: on these presses
+/// the depth map's contact is about twice the true one, docs/slip.md.)
+fn shear_follows_the_simulated_traction(model: &Path) {
+    let mut last_mm = 0.0;
+    for truth in [1.0, 0.95, 0.8, 0.6] {
+        let e = estimate_under_load(model, truth);
+        eprintln!("true stick ratio {truth}: {e:?}");
+        assert!(e.dots_inside >= 5, "{e:?}");
+        if truth == 1.0 {
+            assert_eq!((e.state, e.stick_ratio), (SlipState::None, 1.0), "{e:?}");
+            assert!(e.magnitude_mm() < 0.25 * 0.0625, "{e:?}");
+        } else {
+            assert!(e.direction_deg().abs() < 10.0, "{truth}: {e:?}");
+            assert!(
+                e.magnitude_mm() > last_mm,
+                "{truth}: {e:?} after {last_mm} mm"
+            );
+        }
+        last_mm = e.magnitude_mm();
+    }
 }

@@ -57,6 +57,41 @@ impl RawMarkers {
     }
 }
 
+/// The surface of an elastic half-space under a Hertz-type load of radius 1, at `rho`
+/// radii from its centre, as a share of its value at the load's edge: 2 − ρ² inside, then
+/// (2/π)((2 − ρ²) asin(1/ρ) + sqrt(ρ² − 1)), which meets it at 1 with the same slope and
+/// falls as 8/(3πρ) far away. A marker gel's shift under a Cattaneo–Mindlin contact of
+/// radius a and stick radius c is U/2 · (H(r/a) − (c/a)² H(r/c)): the simulator draws its
+/// dots with it and the pipeline's slip estimate fits it.
+pub fn hertz_profile(rho: f64) -> f64 {
+    if !rho.is_finite() {
+        return 0.0;
+    }
+    let rho = rho.abs();
+    if rho <= 1.0 {
+        return 2.0 - rho * rho;
+    }
+    let v = std::f64::consts::FRAC_2_PI
+        * ((2.0 - rho * rho) * (1.0 / rho).asin() + (rho * rho - 1.0).sqrt());
+    v.clamp(0.0, 1.0)
+}
+
+/// The shift profile of a contact of stick ratio `stick_ratio` at `rho` contact radii from
+/// its centre, in units of U/2: H(ρ) − s² H(ρ/s) (0 at s = 1: no load).
+pub fn cattaneo_shift(rho: f64, stick_ratio: f64) -> f64 {
+    let s = if stick_ratio.is_finite() {
+        stick_ratio.clamp(0.0, 1.0)
+    } else {
+        1.0
+    };
+    let stick = if s > 0.0 {
+        s * s * hertz_profile(rho / s)
+    } else {
+        0.0
+    };
+    (hertz_profile(rho) - stick).max(0.0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

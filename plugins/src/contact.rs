@@ -70,6 +70,9 @@ pub struct ContactSummary {
     pub volume_mm3: Option<f64>,
     /// Force proxy: volume × stiffness, N.
     pub force_n: Option<f64>,
+    /// On a marker gel, the shear its dots show under the contact (`None`: a plain gel, or
+    /// no dots inside the contact).
+    pub shear: Option<crate::markers::ShearEstimate>,
 }
 
 /// Summarise the depth map `depth_mm` (`w` wide) of the window at `(x0, y0)` in an image of
@@ -119,6 +122,7 @@ pub fn summarize(
         )),
         volume_mm3: Some(volume),
         force_n: Some(volume * stiffness),
+        shear: None,
     }
 }
 

@@ -18,6 +18,10 @@
 //! Contact shading changes the brightness far less than the ink does, so the test holds under
 //! a press; a dot moved by the gel's shear is found where it is.
 
+mod shear;
+
+pub use shear::{DotTracker, ShearEstimate, SlipState};
+
 /// The gel's brightness is taken over a window of this share of the frame's shorter side.
 const LEVEL_WINDOW_SHARE: f64 = 1.0 / 12.0;
 /// The least dots that make a marker gel.
@@ -39,8 +43,13 @@ pub struct InkFill {
     height: usize,
     /// Per pixel, the gel's brightness around it in the reference, times the ink share.
     threshold: Vec<f32>,
-    /// The dots found on the reference.
-    dots: usize,
+    /// The dots found on the reference, and each one's shift in the last frame.
+    tracker: DotTracker,
+    /// The last frame's dots.
+    frame_dots: Vec<Dot>,
+    /// Working space of [`find_dots`].
+    seen: Vec<bool>,
+    stack: Vec<usize>,
     /// Working space: ink flags of the frame being filled, raw, widened along rows, and
     /// widened both ways.
     raw: Vec<u8>,
@@ -72,13 +81,21 @@ impl InkFill {
         if !(INK_SHARE_RANGE.0..=INK_SHARE_RANGE.1).contains(&share) {
             return None;
         }
-        let dots = dot_count(&ink, width, height)?;
+        let (mut seen, mut stack) = (Vec::new(), Vec::new());
+        let darkness = |p: usize| f64::from(split - ratio[p]);
+        let dots = find_dots((width, height), |p| ink[p], darkness, &mut seen, &mut stack);
+        if !is_marker_grid(&dots) {
+            return None;
+        }
         let threshold = level.iter().map(|l| l * split).collect();
         Some(Self {
             width,
             height,
             threshold,
-            dots,
+            tracker: DotTracker::new(dots.iter().map(|d| d.centre_px).collect()),
+            frame_dots: Vec::new(),
+            seen,
+            stack,
             raw: vec![0; width * height],
             wide: vec![0; width * height],
             ink: vec![false; width * height],
@@ -89,7 +106,28 @@ impl InkFill {
 
     /// How many dots the reference showed.
     pub fn dots(&self) -> usize {
-        self.dots
+        self.tracker.len()
+    }
+
+    /// The shear the last frame's dots show under `contact` (its centroid in px of the
+    /// full-resolution image, `scale` times the processed frame's), at `mm_per_px` of the
+    /// processed frame: the contact taken as a disc of its area.
+    pub fn shear_under(
+        &self,
+        contact: &crate::contact::ContactSummary,
+        mm_per_px: f64,
+        scale: f64,
+    ) -> Option<ShearEstimate> {
+        let (cx, cy) = contact.centroid_px?;
+        let radius_px = (contact.area_mm2 / std::f64::consts::PI).sqrt() / mm_per_px;
+        // The centroid's pixel centres are at integers, the dots' at +0.5.
+        let centre = ((cx + 0.5) / scale, (cy + 0.5) / scale);
+        self.tracker.estimate(centre, radius_px, mm_per_px)
+    }
+
+    /// The dots' shifts since the reference, as the last frame filled showed them.
+    pub fn tracker(&self) -> &DotTracker {
+        &self.tracker
     }
 
     /// Fill the ink of frame `rgb` (interleaved 8-bit, the reference's size).
@@ -97,10 +135,20 @@ impl InkFill {
         if rgb.len() != self.threshold.len() * 3 {
             return;
         }
-        self.mark(|p| {
+        let brightness = |p: usize| {
             let v = &rgb[3 * p..3 * p + 3];
             f32::from(v[0]) + f32::from(v[1]) + f32::from(v[2])
-        });
+        };
+        self.mark(brightness);
+        let (raw, threshold) = (&self.raw, &self.threshold);
+        self.frame_dots = find_dots(
+            (self.width, self.height),
+            |p| raw[p] != 0,
+            |p| f64::from((threshold[p] - brightness(p)) / threshold[p].max(1.0)),
+            &mut self.seen,
+            &mut self.stack,
+        );
+        self.tracker.track(&self.frame_dots);
         self.interpolate(|p| [0, 1, 2].map(|c| f32::from(rgb[3 * p + c])));
         for (p, (fill, weight)) in self.along_rows.iter().enumerate() {
             if self.ink[p] && *weight > 0.0 {
@@ -311,23 +359,41 @@ fn otsu_split(values: &[f32]) -> Option<f32> {
     (best.0 > 0.0 && split < 0.8).then_some(split)
 }
 
-/// The dots of `ink` (4-connected blobs of at least [`MIN_DOT_PX`]) when they are a marker
-/// grid's: at least [`MIN_DOTS`], the middle half within [`DOT_AREA_SPREAD`] of the median
-/// area; `None` otherwise.
-fn dot_count(ink: &[bool], w: usize, h: usize) -> Option<usize> {
-    let mut seen = vec![false; ink.len()];
-    let mut areas = Vec::new();
-    let mut stack = Vec::new();
-    for start in 0..ink.len() {
-        if !ink[start] || seen[start] {
+/// A dot of ink: its pixels, and its centre weighed by how dark each pixel is, px (pixel
+/// centres at +0.5).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Dot {
+    /// Pixels.
+    pub area_px: usize,
+    /// Centre `(x, y)`, px.
+    pub centre_px: (f64, f64),
+}
+
+/// The 4-connected blobs of `is_ink` pixels of at least [`MIN_DOT_PX`], each centre
+/// weighed by `weight`; `seen` and `stack` are working space.
+fn find_dots(
+    (w, h): (usize, usize),
+    is_ink: impl Fn(usize) -> bool,
+    weight: impl Fn(usize) -> f64,
+    seen: &mut Vec<bool>,
+    stack: &mut Vec<usize>,
+) -> Vec<Dot> {
+    seen.clear();
+    seen.resize(w * h, false);
+    let mut dots = Vec::new();
+    for start in 0..w * h {
+        if seen[start] || !is_ink(start) {
             continue;
         }
         seen[start] = true;
         stack.push(start);
-        let mut area = 0;
+        let (mut area, mut sum, mut sx, mut sy) = (0, 0.0, 0.0, 0.0);
         while let Some(p) = stack.pop() {
-            area += 1;
             let (x, y) = (p % w, p / w);
+            let wt = weight(p).max(1e-6);
+            (area, sum) = (area + 1, sum + wt);
+            sx += wt * (x as f64 + 0.5);
+            sy += wt * (y as f64 + 0.5);
             let near = [
                 (x > 0).then(|| p - 1),
                 (x + 1 < w).then(|| p + 1),
@@ -335,26 +401,36 @@ fn dot_count(ink: &[bool], w: usize, h: usize) -> Option<usize> {
                 (y + 1 < h).then(|| p + w),
             ];
             for q in near.into_iter().flatten() {
-                if ink[q] && !seen[q] {
+                if !seen[q] && is_ink(q) {
                     seen[q] = true;
                     stack.push(q);
                 }
             }
         }
-        if area >= MIN_DOT_PX {
-            areas.push(area);
+        if area >= MIN_DOT_PX && sum > 0.0 {
+            dots.push(Dot {
+                area_px: area,
+                centre_px: (sx / sum, sy / sum),
+            });
         }
     }
-    if areas.len() < MIN_DOTS {
-        return None;
+    dots
+}
+
+/// Whether `dots` are a marker grid's: at least [`MIN_DOTS`], the middle half of their
+/// areas within [`DOT_AREA_SPREAD`] of the median.
+fn is_marker_grid(dots: &[Dot]) -> bool {
+    if dots.len() < MIN_DOTS {
+        return false;
     }
+    let mut areas: Vec<usize> = dots.iter().map(|d| d.area_px).collect();
     areas.sort_unstable();
     let median = areas[areas.len() / 2] as f64;
     let (q1, q3) = (
         areas[areas.len() / 4] as f64,
         areas[3 * areas.len() / 4] as f64,
     );
-    (q1 * DOT_AREA_SPREAD >= median && q3 <= DOT_AREA_SPREAD * median).then_some(areas.len())
+    q1 * DOT_AREA_SPREAD >= median && q3 <= DOT_AREA_SPREAD * median
 }
 
 #[cfg(test)]

@@ -502,7 +502,7 @@ impl SensorPipeline {
         let depth = &mut self.depth_px[..ww * wh];
         depth.iter_mut().for_each(|d| *d *= mm);
         self.last_has_depth = true;
-        Ok(contact::summarize(
+        let mut summary = contact::summarize(
             depth,
             w,
             (x0, y0),
@@ -510,7 +510,11 @@ impl SensorPipeline {
             scale,
             &noise,
             self.choice.stages.stiffness_n_per_mm3,
-        ))
+        );
+        if let Some(ink) = &self.ink {
+            summary.shear = ink.shear_under(&summary, self.mm_per_px, scale);
+        }
+        Ok(summary)
     }
 
     fn jpeg_scale(&self) -> f64 {

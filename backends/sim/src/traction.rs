@@ -16,9 +16,12 @@
 //! compliance δ = U (1 − (c/a)²) with U = 3μP(2 − ν)/(16 G a), the shift at full slip.
 //! Cattaneo's traction is a Hertz-type traction over the contact less one over the stick
 //! zone, and so is the shift: U/2 · (H(r/a) − (c/a)² H(r/c)), with H the surface profile of
-//! an elastic half-space under a Hertz-type load of radius 1 ([`hertz_profile`]; the
+//! an elastic half-space under a Hertz-type load of radius 1 ([`hertz_profile`], shared with
+//! the pipeline's slip estimate; the
 //! shift along the load, averaged over directions). It is δ, uniform, in the stick zone,
 //! smaller where the contact slides, and falls off as 1/r outside the contact.
+
+pub use gelgrip_controller::markers::hertz_profile;
 
 /// The gel's shear modulus, N/mm² (a silicone elastomer of Young's modulus 0.3 MPa).
 pub const GEL_SHEAR_MODULUS_N_PER_MM2: f64 = 0.1;
@@ -94,15 +97,9 @@ impl Traction {
         if !(r_mm.is_finite() && a > 0.0) {
             return 0.0;
         }
-        let r = r_mm.abs();
-        let s = self.stick_ratio;
-        let stick = if s > 0.0 {
-            s * s * hertz_profile(r / (s * a))
-        } else {
-            0.0
-        };
-        let shift = 0.5 * full_slip_shift_mm(self.capacity_n, a) * (hertz_profile(r / a) - stick);
-        shift.max(0.0)
+        let shape = gelgrip_controller::markers::cattaneo_shift(r_mm.abs() / a, self.stick_ratio);
+        let shift = 0.5 * full_slip_shift_mm(self.capacity_n, a) * shape;
+        if shift.is_finite() { shift } else { 0.0 }
     }
 }
 
@@ -114,23 +111,6 @@ fn full_slip_shift_mm(capacity_n: f64, contact_radius_mm: f64) -> f64 {
     }
     3.0 * capacity_n * (2.0 - GEL_POISSON_RATIO)
         / (16.0 * GEL_SHEAR_MODULUS_N_PER_MM2 * contact_radius_mm)
-}
-
-/// The surface of an elastic half-space under a Hertz-type load of radius 1, at `rho`
-/// radii from its centre, as a share of its value at the load's edge: 2 − ρ² inside, then
-/// (2/π)((2 − ρ²) asin(1/ρ) + sqrt(ρ² − 1)), which meets it at 1 with the same slope and
-/// falls as 8/(3πρ) far away.
-pub fn hertz_profile(rho: f64) -> f64 {
-    if !rho.is_finite() {
-        return 0.0;
-    }
-    let rho = rho.abs();
-    if rho <= 1.0 {
-        return 2.0 - rho * rho;
-    }
-    let v = std::f64::consts::FRAC_2_PI
-        * ((2.0 - rho * rho) * (1.0 / rho).asin() + (rho * rho - 1.0).sqrt());
-    v.clamp(0.0, 1.0)
 }
 
 /// One contact's grip on the object, for [`share_load`].
