@@ -179,19 +179,27 @@ fn estimate_under_load(model: &Path, stick_ratio: f64) -> gelgrip_plugins::marke
     last.expect("dots under the contact")
 }
 
-/// The pipeline's shear against the simulator's: none without load, then along the load
-/// and growing with it. (The stick ratio it estimates is not yet checked: on these presses
-/// the depth map's contact is about twice the true one, docs/slip.md.)
+/// The pipeline's shear and slip state against the simulator's: none without load and at
+/// a true stick ratio of 0.95, incipient at 0.6 (the detector says slip only where the dots
+/// show it: at 0.8 it still says none, docs/slip.md); the shear along the load, growing
+/// with it.
 fn shear_follows_the_simulated_traction(model: &Path) {
     let mut last_mm = 0.0;
-    for truth in [1.0, 0.95, 0.8, 0.6] {
+    for (truth, state) in [
+        (1.0, SlipState::None),
+        (0.95, SlipState::None),
+        (0.8, SlipState::None),
+        (0.6, SlipState::Incipient),
+    ] {
         let e = estimate_under_load(model, truth);
         eprintln!("true stick ratio {truth}: {e:?}");
         assert!(e.dots_inside >= 5, "{e:?}");
+        assert_eq!(e.state, state, "{truth}: {e:?}");
         if truth == 1.0 {
-            assert_eq!((e.state, e.stick_ratio), (SlipState::None, 1.0), "{e:?}");
+            assert_eq!(e.stick_ratio, 1.0, "{e:?}");
             assert!(e.magnitude_mm() < 0.25 * 0.0625, "{e:?}");
         } else {
+            assert!(e.stick_ratio >= truth - 0.1, "{truth}: {e:?}");
             assert!(e.direction_deg().abs() < 10.0, "{truth}: {e:?}");
             assert!(
                 e.magnitude_mm() > last_mm,
