@@ -14,7 +14,9 @@
 //! values; U in closed form for each). A contact whose dots inside it moved less than
 //! [`SHEAR_FLOOR_PX`] on the mean carries no load that the dots can tell: stick ratio 1.
 
+#[cfg(test)]
 use gelgrip_controller::markers::cattaneo_shift;
+use gelgrip_controller::markers::hertz_profile;
 
 /// Mean shifts under this, px, are the dots' own noise (their centres are found to about a
 /// twentieth of a pixel): no shear.
@@ -297,7 +299,7 @@ fn fits_at(along: &[(f64, f64)], radius: f64) -> Vec<(f64, f64, f64)> {
             let s = (k as f64 / FIT_STEPS as f64).min(MAX_FIT_STICK);
             let model: Vec<f64> = along
                 .iter()
-                .map(|(r, _)| cattaneo_shift(r / radius, s))
+                .map(|(r, _)| tabled_shift(r / radius, s))
                 .collect();
             let ff: f64 = model.iter().map(|f| f * f).sum();
             if ff <= 0.0 || !ff.is_finite() {
@@ -327,6 +329,43 @@ const RADII: usize = 9;
 const FIT_TOLERANCE: f64 = 1.1;
 /// The stickiest pattern tried (at 1 nothing moves).
 const MAX_FIT_STICK: f64 = 0.98;
+
+/// [`hertz_profile`] tabulated every 1/[`TABLE_PER_UNIT`] up to [`TABLE_REACH`] (linear
+/// between entries: within 1e-3 of it, at ρ just past 1 where its curvature is infinite),
+/// its 8/(3πρ) tail beyond.
+fn tabled_profile(rho: f64) -> f64 {
+    static TABLE: std::sync::OnceLock<Vec<f64>> = std::sync::OnceLock::new();
+    let table = TABLE.get_or_init(|| {
+        (0..=TABLE_REACH * TABLE_PER_UNIT)
+            .map(|k| hertz_profile(k as f64 / TABLE_PER_UNIT as f64))
+            .collect()
+    });
+    let rho = rho.abs();
+    if !rho.is_finite() {
+        return 0.0;
+    }
+    let at = rho * TABLE_PER_UNIT as f64;
+    let k = at as usize;
+    match (table.get(k), table.get(k + 1)) {
+        (Some(a), Some(b)) => a + (b - a) * (at - k as f64),
+        _ => 8.0 / (3.0 * std::f64::consts::PI * rho),
+    }
+}
+
+/// [`cattaneo_shift`] through [`tabled_profile`].
+fn tabled_shift(rho: f64, stick_ratio: f64) -> f64 {
+    let s = stick_ratio.clamp(0.0, 1.0);
+    let stick = if s > 0.0 {
+        s * s * tabled_profile(rho / s)
+    } else {
+        0.0
+    };
+    (tabled_profile(rho) - stick).max(0.0)
+}
+
+/// The profile's table: entries per unit of ρ, and how far it reaches.
+const TABLE_PER_UNIT: usize = 64;
+const TABLE_REACH: usize = 64;
 
 /// The median over `points` of the distance to the nearest other point.
 fn median_neighbour_distance(points: &[(f64, f64)]) -> Option<f64> {
@@ -401,6 +440,24 @@ mod tests {
         );
         assert_eq!(tracker.estimate((500.0, 500.0), 10.0, 0.05), None);
         assert_eq!(tracker.estimate((80.0, 80.0), f64::NAN, 0.05), None);
+    }
+
+    #[test]
+    fn the_tabled_profile_is_the_profile() {
+        for k in 0..20_000 {
+            let rho = k as f64 * 0.01;
+            assert!(
+                (tabled_profile(rho) - hertz_profile(rho)).abs() < 1e-3,
+                "{rho}"
+            );
+            for s in [0.0, 0.3, 0.9] {
+                assert!(
+                    (tabled_shift(rho, s) - cattaneo_shift(rho, s)).abs() < 2e-3,
+                    "{rho} {s}"
+                );
+            }
+        }
+        assert_eq!(tabled_profile(f64::NAN), 0.0);
     }
 
     #[test]
