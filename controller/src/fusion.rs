@@ -32,6 +32,43 @@ pub struct SensorReading {
     pub force_n: f64,
     /// Contact centroid on the pad, mm from the image centre (x right, y down).
     pub centroid_mm: Option<(f64, f64)>,
+    /// The contact's slip as a marker gel shows it (`None`: unknown: a plain gel, or no
+    /// marker dots under the contact; docs/slip.md).
+    pub slip: Option<SensorSlip>,
+}
+
+/// What a contact's slip looks like.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, PartialOrd, Ord)]
+pub enum SlipState {
+    /// Sticking.
+    #[default]
+    None,
+    /// Its rim slides, its centre sticks.
+    Incipient,
+    /// It slides.
+    Gross,
+}
+
+impl SlipState {
+    /// The report's name: `none`, `incipient` or `gross`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            SlipState::None => "none",
+            SlipState::Incipient => "incipient",
+            SlipState::Gross => "gross",
+        }
+    }
+}
+
+/// One contact's slip, from the shear of its gel's marker dots.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct SensorSlip {
+    /// Mean shift of the dots inside the contact, `[x, y]` mm (image axes: x right, y down).
+    pub shear_mm: [f64; 2],
+    /// Estimated stick ratio c/a (1: all sticks).
+    pub stick_ratio: f64,
+    /// What that makes of the contact.
+    pub state: SlipState,
 }
 
 /// The fused contact of one finger or of the palm.
@@ -49,6 +86,9 @@ pub struct FusedContact {
     pub centroid: Option<(usize, f64, f64)>,
     /// One of its sensors had no reading in this set.
     pub stale: bool,
+    /// The slip of its sensor slipping most (the most advanced state, then the least stick
+    /// ratio); `None` when none of its sensors can tell.
+    pub slip: Option<SensorSlip>,
 }
 
 /// One set, fused.
@@ -85,6 +125,14 @@ fn add(acc: &mut FusedContact, best_n: &mut f64, sensor: usize, reading: Option<
     acc.area_mm2 += finite(r.area_mm2);
     acc.max_depth_mm = acc.max_depth_mm.max(finite(r.max_depth_mm));
     acc.force_n += force;
+    if let Some(slip) = r.slip.filter(|_| r.in_contact) {
+        let worse = acc
+            .slip
+            .is_none_or(|a| (slip.state, -slip.stick_ratio) > (a.state, -a.stick_ratio));
+        if worse {
+            acc.slip = Some(slip);
+        }
+    }
     if r.in_contact
         && (acc.centroid.is_none() || force > *best_n)
         && let Some((x, y)) = r
@@ -197,6 +245,7 @@ mod tests {
             volume_mm3: force_n * 12.5,
             force_n,
             centroid_mm: (force_n > 0.0).then_some((x, 0.0)),
+            slip: None,
         })
     }
 
@@ -248,5 +297,42 @@ mod tests {
                 .iter()
                 .all(|c| c.force_n.is_finite() && c.area_mm2.is_finite())
         );
+    }
+
+    #[test]
+    fn a_finger_takes_the_slip_of_its_sensor_slipping_most_and_unknown_stays_unknown() {
+        let layout = layout();
+        let slip = |state, stick_ratio| SensorSlip {
+            shear_mm: [0.1, 0.0],
+            stick_ratio,
+            state,
+        };
+        let mut r = vec![touch(1.0, 0.0); 7];
+        let fused = fuse(&layout, &r);
+        assert!(
+            fused.fingers.iter().all(|f| f.slip.is_none()),
+            "plain gels: unknown"
+        );
+        let f1 = layout
+            .sensors
+            .iter()
+            .position(|s| s.id.to_string() == "f1.tip")
+            .expect("f1.tip");
+        let f1m = layout
+            .sensors
+            .iter()
+            .position(|s| s.id.to_string() == "f1.middle")
+            .expect("f1.middle");
+        r[f1] = r[f1].map(|x| SensorReading {
+            slip: Some(slip(SlipState::None, 0.95)),
+            ..x
+        });
+        r[f1m] = r[f1m].map(|x| SensorReading {
+            slip: Some(slip(SlipState::Incipient, 0.7)),
+            ..x
+        });
+        let fused = fuse(&layout, &r);
+        assert_eq!(fused.fingers[0].slip, Some(slip(SlipState::Incipient, 0.7)));
+        assert!(fused.fingers[1..].iter().all(|f| f.slip.is_none()));
     }
 }

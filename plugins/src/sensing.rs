@@ -189,6 +189,7 @@ impl Tactile {
                     centroid_mm: s
                         .centroid_px
                         .map(|(x, y)| ((x - w / 2.0) * mm, (y - h / 2.0) * mm)),
+                    slip: s.shear.map(|e| e.slip()),
                 })
             })
             .collect()

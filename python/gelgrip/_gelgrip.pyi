@@ -117,6 +117,11 @@ class GraspResult(TypedDict):
     final_force_n: float
     reason: str
 
+class SensorSlip(TypedDict):
+    state: str  # "none", "incipient" or "gross"
+    stick_ratio: float
+    shear_mm: List[float]
+
 class SensorReading(TypedDict):
     id: str
     in_contact: bool
@@ -124,6 +129,7 @@ class SensorReading(TypedDict):
     max_depth_mm: float
     volume_mm3: float
     force_n: float
+    slip: Optional[SensorSlip]  # None: unknown (a plain gel, or no marker dots under the contact)
 
 class FingerState(TypedDict):
     phase: str

@@ -107,6 +107,20 @@ pub struct SensorSnapshot {
     pub volume_mm3: f64,
     /// Force proxy, N.
     pub force_n: f64,
+    /// Its slip on a marker gel (absent: unknown).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub slip: Option<SlipSnapshot>,
+}
+
+/// One sensor's slip in a snapshot.
+#[derive(Debug, Serialize)]
+pub struct SlipSnapshot {
+    /// `none`, `incipient` or `gross`.
+    pub state: &'static str,
+    /// Estimated stick ratio.
+    pub stick_ratio: f64,
+    /// Mean shift of the marker dots inside the contact, `[x, y]` mm.
+    pub shear_mm: [f64; 2],
 }
 
 impl From<&gelgrip_controller::fusion::SensorReading> for SensorSnapshot {
@@ -117,6 +131,11 @@ impl From<&gelgrip_controller::fusion::SensorReading> for SensorSnapshot {
             max_depth_mm: r.max_depth_mm,
             volume_mm3: r.volume_mm3,
             force_n: r.force_n,
+            slip: r.slip.map(|s| SlipSnapshot {
+                state: s.state.as_str(),
+                stick_ratio: s.stick_ratio,
+                shear_mm: s.shear_mm,
+            }),
         }
     }
 }

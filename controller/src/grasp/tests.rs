@@ -52,6 +52,7 @@ impl ToyFinger {
             force_n: self.force_n,
             centroid: (self.force_n > 0.01).then_some((0, 0.0, 0.0)),
             stale: false,
+            slip: None,
         }
     }
 }

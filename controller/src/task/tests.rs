@@ -282,6 +282,7 @@ fn readings(tip_mm3: Option<f64>) -> Vec<Option<SensorReading>> {
         volume_mm3: v,
         force_n: v * 0.08,
         centroid_mm: Some((0.0, 0.0)),
+        slip: None,
     });
     r
 }

@@ -14,6 +14,7 @@
 //! values; U in closed form for each). A contact whose dots inside it moved less than
 //! [`SHEAR_FLOOR_PX`] on the mean carries no load that the dots can tell: stick ratio 1.
 
+pub use gelgrip_controller::fusion::SlipState;
 #[cfg(test)]
 use gelgrip_controller::markers::cattaneo_shift;
 use gelgrip_controller::markers::hertz_profile;
@@ -30,29 +31,6 @@ pub const FIT_STEPS: usize = 25;
 /// Dots out to this many contact radii (the depth map's) enter the fit.
 const FIT_REACH: f64 = 2.0;
 
-/// What a contact's slip looks like.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum SlipState {
-    /// Sticking.
-    #[default]
-    None,
-    /// Its rim slides, its centre sticks.
-    Incipient,
-    /// It slides.
-    Gross,
-}
-
-impl SlipState {
-    /// The report's name.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            SlipState::None => "none",
-            SlipState::Incipient => "incipient",
-            SlipState::Gross => "gross",
-        }
-    }
-}
-
 /// One contact's shear, as its marker dots show it.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct ShearEstimate {
@@ -67,6 +45,15 @@ pub struct ShearEstimate {
 }
 
 impl ShearEstimate {
+    /// As the controller reads it.
+    pub fn slip(&self) -> gelgrip_controller::fusion::SensorSlip {
+        gelgrip_controller::fusion::SensorSlip {
+            shear_mm: self.shear_mm,
+            stick_ratio: self.stick_ratio,
+            state: self.state,
+        }
+    }
+
     /// The mean shift's size, mm.
     pub fn magnitude_mm(&self) -> f64 {
         self.shear_mm[0].hypot(self.shear_mm[1])
@@ -205,6 +192,10 @@ impl DotTracker {
     }
 }
 
+/// The shift field's peak is its this-many-th largest shift (0-based), so that a few dots
+/// mis-found do not make a shear.
+const PEAK_RANK: usize = 4;
+
 /// A dot's place at rest and its shift, px.
 type MovedDot = ((f64, f64), (f64, f64));
 
@@ -222,8 +213,14 @@ impl ShiftField {
     /// The field of `dots` (place at rest, shift); `None` without any.
     fn of(dots: &[MovedDot]) -> Option<Self> {
         let size = |s: &(f64, f64)| s.0.hypot(s.1);
-        let peak_px = dots.iter().map(|(_, s)| size(s)).fold(0.0, f64::max);
-        if dots.is_empty() || !peak_px.is_finite() {
+        // The peak: the [`PEAK_RANK`]th largest shift (a dot or two mis-found, at a
+        // contact's steep rim, must not make a shear).
+        let mut sizes: Vec<f64> = dots.iter().map(|(_, s)| size(s)).collect();
+        sizes.sort_by(|a, b| b.total_cmp(a));
+        let peak_px = sizes
+            .get(PEAK_RANK.min(sizes.len().saturating_sub(1)))
+            .copied()?;
+        if !peak_px.is_finite() {
             return None;
         }
         let top: Vec<&MovedDot> = dots

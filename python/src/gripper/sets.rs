@@ -26,6 +26,16 @@ struct SensorSnapshot {
     max_depth_mm: f64,
     volume_mm3: f64,
     force_n: f64,
+    /// On a marker gel, its slip; None: unknown (docs/slip.md).
+    slip: Option<SlipSnapshot>,
+}
+
+/// One sensor's slip in a set report.
+#[derive(Debug, Clone, Serialize)]
+struct SlipSnapshot {
+    state: &'static str,
+    stick_ratio: f64,
+    shear_mm: [f64; 2],
 }
 
 /// One finger in a set report.
@@ -74,6 +84,11 @@ impl SetSnapshot {
                         max_depth_mm: r.max_depth_mm,
                         volume_mm3: r.volume_mm3,
                         force_n: r.force_n,
+                        slip: r.slip.map(|s| SlipSnapshot {
+                            state: s.state.as_str(),
+                            stick_ratio: s.stick_ratio,
+                            shear_mm: s.shear_mm,
+                        }),
                     })
                 })
                 .collect()
@@ -208,7 +223,8 @@ pub struct GripperSet {
     #[pyo3(get)]
     dropped: u64,
     /// Per sensor (None when its reading is missing): id, in_contact, area_mm2,
-    /// max_depth_mm, volume_mm3, force_n.
+    /// max_depth_mm, volume_mm3, force_n, slip (on a marker gel: state, stick_ratio,
+    /// shear_mm; None: unknown).
     #[pyo3(get)]
     sensors: Py<PyAny>,
     /// Per finger: phase, force_n, target_force_n.

@@ -531,6 +531,7 @@ mod tests {
             volume_mm3: 4.0,
             force_n: 1.5,
             centroid_mm: Some((1.0, -2.0)),
+            slip: None,
         };
         let c = contact("f1_tip", Some(r));
         assert!((c.area_m2 - 2e-5).abs() < 1e-12);
