@@ -306,12 +306,12 @@ pub async fn run(rig: &dyn Rig, args: BenchGraspArgs) -> anyhow::Result<u8> {
     Ok(0)
 }
 
-/// The configurations to grasp with: the default, or one per resolution of the sweep
-/// (written into `dir`).
+/// The configurations to grasp with: `--config` (else the default), or one per resolution
+/// of the sweep on it (written into `dir`).
 fn variants(args: &BenchGraspArgs, dir: &BenchDir) -> anyhow::Result<Vec<Variant>> {
-    let mut configs: Vec<Variant> = vec![(None, None)];
+    let mut configs: Vec<Variant> = vec![(None, args.config.clone())];
     if args.sweep == Some(GraspSweep::Resolution) {
-        let base = load_config(Path::new(BASE_CONFIG))?;
+        let base = load_config(args.config.as_deref().unwrap_or(Path::new(BASE_CONFIG)))?;
         configs.clear();
         for (w, h) in RESOLUTIONS {
             let layout = dir.write(&format!("layout-{w}x{h}.toml"), &layout_at(&base, w, h)?)?;
@@ -423,6 +423,10 @@ fn sweep_figure(rows: &[Value], target_n: f64) -> crate::plot::Figure {
 /// `gelgrip bench grasp`.
 #[derive(Debug, Args)]
 pub struct BenchGraspArgs {
+    /// The simulated gripper's config (default: the embedded `configs/gelgripper-sim.toml`;
+    /// `configs/gelgripper-sim-markers.toml` grasps with marker gels).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
     /// Scene files (default: every `configs/scenes/*.toml`).
     #[arg(long = "scene")]
     pub scenes: Vec<PathBuf>,

@@ -449,7 +449,7 @@ pub async fn run(rig: &dyn Rig, args: BenchSyncArgs) -> anyhow::Result<u8> {
     let cases = cases(&args, &scenes);
     check_plot(&args, &cases)?;
     let dir = BenchDir::new("bench-sync")?;
-    let base = load_config(Path::new(BASE_CONFIG))?;
+    let base = load_config(args.config.as_deref().unwrap_or(Path::new(BASE_CONFIG)))?;
     let total = cases.len();
     let mut rows = Vec::with_capacity(total);
     for (i, case) in cases.iter().enumerate() {
@@ -479,6 +479,10 @@ const DEFAULT_DRIFT_PPM: [f64; 2] = [100.0, 1000.0];
 /// `gelgrip bench sync`.
 #[derive(Debug, Args)]
 pub struct BenchSyncArgs {
+    /// The simulated gripper's config every case starts from (default:
+    /// `configs/gelgripper-sim.toml`; `configs/gelgripper-sim-markers.toml` for marker gels).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
     /// The deformable object to grasp (a scene file; `--objects` for several).
     #[arg(long, default_value = "configs/scenes/paper-cup.toml")]
     pub scene: PathBuf,
