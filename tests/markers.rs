@@ -8,7 +8,7 @@ use std::path::Path;
 
 use common::{gelgrip, json, ok, s, scratch};
 use gelgrip::wiring;
-use gelgrip_plugins::config::{PipelineConfig, SensorStages};
+use gelgrip_plugins::config::PipelineConfig;
 use gelgrip_plugins::gradient::{GradientModel, MlpMode};
 use gelgrip_plugins::markers::SlipState;
 use gelgrip_plugins::pipeline::{Needs, SensorPipeline, StageChoice};
@@ -150,9 +150,7 @@ fn estimate_under_load(model: &Path, stick_ratio: f64) -> gelgrip_plugins::marke
     let scene = SceneCamera::new(cam.clone());
     let pipeline =
         PipelineConfig::from_section(&config.pipeline, &config.layout).expect("pipeline");
-    let stages = SensorStages {
-        ..pipeline.sensors[0].clone()
-    };
+    let stages = pipeline.sensors[0].clone();
     let model = GradientModel::load(model, MlpMode::ContactOnly).expect("the LUT");
     let mut pipe = SensorPipeline::new(StageChoice { stages, model }, w, h, mm);
     let flat = HeightMap::flat(w, h);

@@ -79,17 +79,23 @@ pub fn hertz_profile(rho: f64) -> f64 {
 /// The shift profile of a contact of stick ratio `stick_ratio` at `rho` contact radii from
 /// its centre, in units of U/2: H(ρ) − s² H(ρ/s) (0 at s = 1: no load).
 pub fn cattaneo_shift(rho: f64, stick_ratio: f64) -> f64 {
+    cattaneo_shift_of(hertz_profile, rho, stick_ratio)
+}
+
+/// [`cattaneo_shift`] with `profile` standing for H (a faster copy of [`hertz_profile`],
+/// such as a table of it).
+pub fn cattaneo_shift_of(profile: impl Fn(f64) -> f64, rho: f64, stick_ratio: f64) -> f64 {
     let s = if stick_ratio.is_finite() {
         stick_ratio.clamp(0.0, 1.0)
     } else {
         1.0
     };
     let stick = if s > 0.0 {
-        s * s * hertz_profile(rho / s)
+        s * s * profile(rho / s)
     } else {
         0.0
     };
-    (hertz_profile(rho) - stick).max(0.0)
+    (profile(rho) - stick).max(0.0)
 }
 
 #[cfg(test)]

@@ -6,12 +6,14 @@
 //! found on the reference (no contact): per pixel, the brightness (the sum of the channels)
 //! against the gel's brightness around it (the largest 3×3 mean within a window a few dots
 //! wide). Those ratios fall in two groups, the gel's near 1 and the ink's well below; the
-//! threshold between them comes from the reference itself (half way between the two groups'
-//! medians, Otsu's split of the ratios). A reference whose dark group is not a set of small
-//! dots of one size, enough of them, is a plain gel and nothing is filled.
+//! threshold between them comes from the reference itself (Otsu's split of the ratios'
+//! histogram). A reference whose dark group is not a set of small dots of one size, enough
+//! of them, is a plain gel and nothing is filled.
 //!
-//! In every frame (and the reference) a pixel darker than that share of the reference's gel
-//! brightness there is ink, and so is one beside it (the dots' soft rims). Each ink pixel is
+//! In every frame (and the reference, loaded as a frame) a pixel darker than that share of
+//! the reference's gel brightness there is ink, and so is every pixel within [`RIM_PX`] of
+//! it (the dots' soft rims, a JPEG's ringing). The frame's dots are followed from the
+//! reference's ([`DotTracker`]) before they are filled. Each ink pixel is
 //! filled, per channel, from the gel pixels either side of it along its row and along its
 //! column: the straight line between each pair, the two weighed by the inverse of their
 //! spans (the shorter, nearer one counts more).
@@ -45,8 +47,6 @@ pub struct InkFill {
     threshold: Vec<f32>,
     /// The dots found on the reference, and each one's shift in the last frame.
     tracker: DotTracker,
-    /// The last frame's dots.
-    frame_dots: Vec<Dot>,
     /// Working space of [`find_dots`].
     seen: Vec<bool>,
     stack: Vec<usize>,
@@ -93,7 +93,6 @@ impl InkFill {
             height,
             threshold,
             tracker: DotTracker::new(dots.iter().map(|d| d.centre_px).collect()),
-            frame_dots: Vec::new(),
             seen,
             stack,
             raw: vec![0; width * height],
@@ -125,12 +124,8 @@ impl InkFill {
         self.tracker.estimate(centre, radius_px, mm_per_px)
     }
 
-    /// The dots' shifts since the reference, as the last frame filled showed them.
-    pub fn tracker(&self) -> &DotTracker {
-        &self.tracker
-    }
-
-    /// Fill the ink of frame `rgb` (interleaved 8-bit, the reference's size).
+    /// Follow the dots of frame `rgb` (interleaved 8-bit, the reference's size), then fill
+    /// its ink.
     pub fn fill_u8(&mut self, rgb: &mut [u8]) {
         if rgb.len() != self.threshold.len() * 3 {
             return;
@@ -141,34 +136,20 @@ impl InkFill {
         };
         self.mark(brightness);
         let (raw, threshold) = (&self.raw, &self.threshold);
-        self.frame_dots = find_dots(
+        let frame_dots = find_dots(
             (self.width, self.height),
             |p| raw[p] != 0,
             |p| f64::from((threshold[p] - brightness(p)) / threshold[p].max(1.0)),
             &mut self.seen,
             &mut self.stack,
         );
-        self.tracker.track(&self.frame_dots);
+        self.tracker.track(&frame_dots);
         self.interpolate(|p| [0, 1, 2].map(|c| f32::from(rgb[3 * p + c])));
         for (p, (fill, weight)) in self.along_rows.iter().enumerate() {
             if self.ink[p] && *weight > 0.0 {
                 for c in 0..3 {
                     rgb[3 * p + c] = fill[c].round().clamp(0.0, 255.0) as u8;
                 }
-            }
-        }
-    }
-
-    /// Fill the ink of the reference `rgb` (interleaved, the reference's size).
-    pub fn fill_f32(&mut self, rgb: &mut [f32]) {
-        if rgb.len() != self.threshold.len() * 3 {
-            return;
-        }
-        self.mark(|p| rgb[3 * p] + rgb[3 * p + 1] + rgb[3 * p + 2]);
-        self.interpolate(|p| [rgb[3 * p], rgb[3 * p + 1], rgb[3 * p + 2]]);
-        for (p, (fill, weight)) in self.along_rows.iter().enumerate() {
-            if self.ink[p] && *weight > 0.0 {
-                rgb[3 * p..3 * p + 3].copy_from_slice(fill);
             }
         }
     }
@@ -471,12 +452,16 @@ mod tests {
             .map(|(a, b)| (f32::from(*a) - b).abs())
             .fold(0.0, f32::max);
         assert!(worst <= 2.0, "{worst}");
-        let mut reference = gel(w, h, true, 0.0);
-        fill.fill_f32(&mut reference);
+        // The reference, loaded as a frame, fills to the plain gel too.
+        let mut reference: Vec<u8> = gel(w, h, true, 0.0)
+            .iter()
+            .map(|v| v.round() as u8)
+            .collect();
+        fill.fill_u8(&mut reference);
         let worst = reference
             .iter()
             .zip(&plain)
-            .map(|(a, b)| (a - b).abs())
+            .map(|(a, b)| (f32::from(*a) - b).abs())
             .fold(0.0, f32::max);
         assert!(worst <= 1.0, "{worst}");
     }

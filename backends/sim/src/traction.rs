@@ -65,8 +65,8 @@ impl Traction {
         let stick_ratio = if cap > 0.0 && a > 0.0 {
             (1.0 - load_share).max(0.0).cbrt()
         } else {
-            // No contact, or no friction: nothing sticks, nothing carries.
-            f64::from(u8::from(q == 0.0))
+            // No contact, or no friction: it sticks while unloaded, and slides once loaded.
+            if q == 0.0 { 1.0 } else { 0.0 }
         };
         let shift_mm = full_slip_shift_mm(cap, a) * (1.0 - stick_ratio * stick_ratio);
         let stick_ratio = if shift_mm.is_finite() {

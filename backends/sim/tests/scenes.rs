@@ -3,7 +3,9 @@
 //! force and indentation are zero before its first contact, then non-decreasing with the
 //! goal current until a crush or a joint limit.
 
-use gelgrip_controller::actuator::MotorCommand;
+mod common;
+
+use common::{close_all, layout};
 use gelgrip_controller::layout::HandLayout;
 use gelgrip_sim::scene_spec::SceneSpec;
 use gelgrip_sim::world::World;
@@ -12,26 +14,6 @@ use gelgrip_sim::world_log::EventKind;
 const RAMP_STEPS: u64 = 40;
 const STEP_US: u64 = 100_000;
 const MAX_CURRENT_MA: f64 = 800.0;
-
-fn layout() -> HandLayout {
-    let text = include_str!("../../../configs/layouts/three-finger.toml");
-    HandLayout::from_toml("three-finger.toml", text).expect("layout")
-}
-
-/// Command every finger to close fully with `current_ma` as the cap.
-fn close_all(world: &mut World, current_ma: f64) {
-    for f in 0..world.fingers() {
-        world.set_command(
-            f,
-            MotorCommand {
-                torque_on: true,
-                goal_position_deg: 180.0,
-                goal_current_ma: current_ma,
-                profile_velocity_rpm: 0.0,
-            },
-        );
-    }
-}
 
 fn scenes() -> Vec<(String, String)> {
     let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../../configs/scenes");

@@ -1,17 +1,14 @@
 //! The simulator under tangential load: a ball held by the fingers and pulled along its
 //! `slip_dir` (`[object.load]`) sticks, slips incipiently as the pull grows, then slides.
 
-use gelgrip_controller::actuator::MotorCommand;
+mod common;
+
+use common::{close_all, layout};
 use gelgrip_controller::layout::HandLayout;
 use gelgrip_sim::scene_spec::SceneSpec;
 use gelgrip_sim::world::World;
 
 const STEP_US: u64 = 20_000;
-
-fn layout() -> HandLayout {
-    let text = include_str!("../../../configs/layouts/three-finger.toml");
-    HandLayout::from_toml("three-finger.toml", text).expect("layout")
-}
 
 /// The tennis ball, let go by its fixture at 3 s, with `load` as its `[object.load]`, the
 /// fingers closing with `current_ma`.
@@ -22,17 +19,7 @@ fn held_ball(layout: &HandLayout, load: &str, current_ma: f64) -> World {
     let scene = SceneSpec::from_toml("tennis-ball.toml", &text, layout).expect("scene");
     let mut world = World::new(layout, Some(scene));
     world.advance_to(0);
-    for f in 0..world.fingers() {
-        world.set_command(
-            f,
-            MotorCommand {
-                torque_on: true,
-                goal_position_deg: 180.0,
-                goal_current_ma: current_ma,
-                profile_velocity_rpm: 0.0,
-            },
-        );
-    }
+    close_all(&mut world, current_ma);
     world
 }
 

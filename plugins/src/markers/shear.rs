@@ -17,7 +17,7 @@
 pub use gelgrip_controller::fusion::SlipState;
 #[cfg(test)]
 use gelgrip_controller::markers::cattaneo_shift;
-use gelgrip_controller::markers::hertz_profile;
+use gelgrip_controller::markers::{cattaneo_shift_of, hertz_profile};
 
 /// Mean shifts under this, px, are the dots' own noise (their centres are found to about a
 /// twentieth of a pixel): no shear.
@@ -351,13 +351,7 @@ fn tabled_profile(rho: f64) -> f64 {
 
 /// [`cattaneo_shift`] through [`tabled_profile`].
 fn tabled_shift(rho: f64, stick_ratio: f64) -> f64 {
-    let s = stick_ratio.clamp(0.0, 1.0);
-    let stick = if s > 0.0 {
-        s * s * tabled_profile(rho / s)
-    } else {
-        0.0
-    };
-    (tabled_profile(rho) - stick).max(0.0)
+    cattaneo_shift_of(tabled_profile, rho, stick_ratio)
 }
 
 /// The profile's table: entries per unit of ρ, and how far it reaches.
