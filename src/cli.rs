@@ -123,6 +123,9 @@ pub enum BenchCommand {
     /// The speed/accuracy trade: resolution × gradient model × depth solver, time per set
     /// of 7 sensors against the errors, with the Pareto front.
     Tradeoff(BenchTradeoffArgs),
+    /// Slip sensing on marker gels: objects held, then pulled until they slide; when the
+    /// sensors felt it against the simulator's truth, per trial.
+    Slip(BenchSlipArgs),
 }
 
 // Each command's arguments live beside the command; re-exported here for the parser.
@@ -153,6 +156,7 @@ pub use gelgrip_bench::dashboard::BenchDashboardArgs;
 pub use gelgrip_bench::grasp::BenchGraspArgs;
 pub use gelgrip_bench::label::BenchLabelArgs;
 pub use gelgrip_bench::pipeline::BenchPipelineArgs;
+pub use gelgrip_bench::slip::BenchSlipArgs;
 pub use gelgrip_bench::soak::BenchSoakArgs;
 pub use gelgrip_bench::sync::BenchSyncArgs;
 pub use gelgrip_bench::task_log_plot::PlotArgs;

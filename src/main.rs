@@ -47,6 +47,7 @@ async fn run_bench(command: BenchCommand) -> anyhow::Result<u8> {
         BenchCommand::Soak(args) => bench::soak::run(rig, args).await,
         BenchCommand::Label(args) => bench::label::run(rig, args),
         BenchCommand::Dashboard(args) => bench::dashboard::run(args).await,
+        BenchCommand::Slip(args) => bench::slip::run(rig, args),
     }
 }
 

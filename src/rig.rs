@@ -13,11 +13,13 @@ use gelgrip_controller::acquire::Acquisition;
 use gelgrip_controller::clock::Clock;
 use gelgrip_controller::config::AppConfig;
 use gelgrip_controller::runtime::options::RunOptions;
+use gelgrip_plugins::config::PipelineConfig;
+use gelgrip_plugins::pipeline::SensorPipeline;
 use tokio::sync::mpsc;
 
 use crate::output::RunReport;
 use crate::session::{Session, run_to_end};
-use crate::wiring;
+use crate::{tactile, wiring};
 
 /// The program's adapters, as the benches run them.
 #[derive(Debug, Clone, Copy, Default)]
@@ -61,5 +63,12 @@ impl Rig for ProgramRig {
             events,
             end,
         })
+    }
+
+    fn sensor_pipelines(&self, config: &AppConfig) -> anyhow::Result<Vec<SensorPipeline>> {
+        let pipeline = PipelineConfig::from_section(&config.pipeline, &config.layout)?;
+        Ok((0..config.layout.sensors.len())
+            .map(|i| tactile::sensor_pipeline(config, &pipeline, i).map(|(p, _)| p))
+            .collect::<crate::Result<_>>()?)
     }
 }

@@ -1,6 +1,7 @@
 //! Marker gels end to end: `calibrate collect` on `configs/gelgripper-sim-markers.toml`
 //! (the same presses as on the default config, with dots on the gel), `calibrate label` on
-//! them, and `reconstruct` with a LUT trained on the plain gel's presses.
+//! them, and `reconstruct` with a LUT trained on the plain gel's presses; and `bench slip`
+//! on one short trial.
 
 mod common;
 
@@ -206,4 +207,65 @@ fn shear_follows_the_simulated_traction(model: &Path) {
         }
         last_mm = e.magnitude_mm();
     }
+}
+
+/// `bench slip` on one short trial: the tennis ball held, then pulled until it slides,
+/// through every slip state (sticking, incipient, gross), with the truth, the detection
+/// and the plot.
+#[test]
+fn bench_slip_feels_the_ball_slide_before_it_slides() {
+    let dir = scratch("bench-slip");
+    let plot = dir.join("trial.svg");
+    let out = common::gelgrip_cached(&[
+        "bench",
+        "slip",
+        "--scene",
+        "configs/scenes/tennis-ball.toml",
+        "--friction",
+        "1.0",
+        "--load-time-s",
+        "0.5",
+        "--trials",
+        "1",
+        "--plot",
+        s(&plot),
+        "--json",
+    ]);
+    let report = json(&out);
+    let rows = report["rows"].as_array().expect("rows");
+    assert_eq!(rows.len(), 1, "{report}");
+    let r = &rows[0];
+    assert_eq!(
+        (r["object"].as_str(), r["trial"].as_u64()),
+        (Some("tennis ball"), Some(0))
+    );
+    let time = |k: &str| r[k].as_f64().unwrap_or_else(|| panic!("{k}: {r}"));
+    let (incipient, gross, detect) = (time("t_incipient_s"), time("t_gross_s"), time("t_detect_s"));
+    // The truth: sticking when the load begins, incipient slip, then the ball slides after
+    // the ramp has reached the holding limit (at 0.5 s).
+    assert!(0.0 < incipient && incipient < 0.5 && gross > 0.5, "{r}");
+    assert!(detect < gross && r["lead_sets"].as_i64() >= Some(2), "{r}");
+    let grip = time("grip_n");
+    let limit = time("holding_limit_n");
+    assert!(grip > limit && limit > 0.0, "{r}");
+    assert_eq!(report["summary"]["trials"], 1, "{report}");
+    assert_eq!(report["summary"]["slid"], 1, "{report}");
+    let svg = std::fs::read_to_string(&plot).expect("the plot");
+    assert!(
+        svg.contains("true stick ratio"),
+        "{}",
+        &svg[..200.min(svg.len())]
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn bench_slip_refuses_a_load_time_of_zero_naming_it() {
+    let out = gelgrip(&["bench", "slip", "--load-time-s", "0.5,0", "--trials", "1"]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("--load-time-s") && err.contains("(0, 600]"),
+        "{err}"
+    );
 }

@@ -68,3 +68,24 @@ pub fn section<'a>(table: &'a mut toml::Table, key: &str) -> anyhow::Result<&'a 
         .as_table_mut()
         .with_context(|| format!("`{key}` is not a table"))
 }
+
+/// The scene files: those given, else every `.toml` of `configs/scenes`.
+pub fn scene_files(given: &[PathBuf]) -> anyhow::Result<Vec<PathBuf>> {
+    if !given.is_empty() {
+        return Ok(given.to_vec());
+    }
+    let dir = Path::new("configs/scenes");
+    let mut out: Vec<PathBuf> = std::fs::read_dir(dir)
+        .with_context(|| {
+            format!(
+                "listing {} (run from the repository, or pass --scene)",
+                dir.display()
+            )
+        })?
+        .filter_map(Result::ok)
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+        .collect();
+    out.sort();
+    Ok(out)
+}

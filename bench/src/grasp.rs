@@ -25,7 +25,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use serde_json::Value;
 
-use crate::config_files::{BenchDir, load, load_config, section};
+use crate::config_files::{BenchDir, load, load_config, scene_files, section};
 use gelgrip_controller::runtime::options::RunOptions;
 
 use crate::rig::Rig;
@@ -66,26 +66,6 @@ const FIELDS: [&str; 23] = [
     "end_reason",
     "sets",
 ];
-
-fn scenes(args: &BenchGraspArgs) -> anyhow::Result<Vec<PathBuf>> {
-    if !args.scenes.is_empty() {
-        return Ok(args.scenes.clone());
-    }
-    let dir = PathBuf::from("configs/scenes");
-    let mut out: Vec<PathBuf> = std::fs::read_dir(&dir)
-        .with_context(|| {
-            format!(
-                "listing {} (run from the repository, or pass --scene)",
-                dir.display()
-            )
-        })?
-        .filter_map(Result::ok)
-        .map(|e| e.path())
-        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
-        .collect();
-    out.sort();
-    Ok(out)
-}
 
 /// The press `bench pipeline` is timed on for the latency budget: ball diameter and depth, mm.
 const BUDGET_PRESS_MM: (f64, f64) = (30.0, 1.0);
@@ -255,7 +235,7 @@ pub async fn run(rig: &dyn Rig, args: BenchGraspArgs) -> anyhow::Result<u8> {
         }
         crate::plot::Format::of(plot)?;
     }
-    let scenes = scenes(&args)?;
+    let scenes = scene_files(&args.scenes)?;
     let dir = BenchDir::new("bench-grasp")?;
     let configs = variants(&args, &dir)?;
     let total = scenes.len() * configs.len();

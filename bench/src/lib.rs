@@ -7,7 +7,7 @@
 //!
 //! - the benches: [`bus`], [`pipeline`], [`grasp`], [`sync`], [`dashboard`], [`soak`]
 //!   (and [`soak_storm`], its virtual-clock storm), [`calibration`], [`label`] (and
-//!   [`label_sphere`], its sphere check), [`tradeoff`]; and [`task_log_plot`] (`gelgrip
+//!   [`label_sphere`], its sphere check), [`tradeoff`], [`slip`]; and [`task_log_plot`] (`gelgrip
 //!   plot`);
 //! - their parts: [`plot`] (figures as SVG or PNG), [`config_files`] (configs derived from
 //!   a base file), [`sensor_models`] (a simulated hand's calibrated models),
@@ -31,6 +31,7 @@ pub mod plot;
 pub mod progress;
 pub mod rig;
 pub mod sensor_models;
+pub mod slip;
 pub mod soak;
 pub mod soak_storm;
 pub mod sync;

@@ -13,6 +13,7 @@ use gelgrip_controller::clock::Clock;
 use gelgrip_controller::config::AppConfig;
 use gelgrip_controller::runtime::RuntimeEvent;
 use gelgrip_controller::runtime::options::RunOptions;
+use gelgrip_plugins::pipeline::SensorPipeline;
 use tokio::sync::mpsc;
 
 /// A run's end: its `run --json` report and the exit code `gelgrip run` gives for it.
@@ -57,4 +58,9 @@ pub trait Rig: Send + Sync {
 
     /// Wire a run from `options` and start it on this runtime.
     async fn start(&self, options: &RunOptions) -> anyhow::Result<StartedRun>;
+
+    /// The tactile pipelines a run of the simulated `config` senses with, one per sensor in
+    /// layout order: each with its model (configured, else self-calibrated and cached) and
+    /// referenced on untouched frames.
+    fn sensor_pipelines(&self, config: &AppConfig) -> anyhow::Result<Vec<SensorPipeline>>;
 }

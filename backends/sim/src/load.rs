@@ -30,6 +30,10 @@ pub struct LoadSpec {
     pub profile: LoadProfile,
     /// When it begins, s after the scene starts.
     pub start_s: f64,
+    /// Added to the load from its start, N (0 from a scene file; `bench slip` sets it so
+    /// that the contacts carry the ramp alone, the grip's own push along `slip_dir`
+    /// balanced).
+    pub offset_n: f64,
 }
 
 impl LoadSpec {
@@ -39,16 +43,17 @@ impl LoadSpec {
         if !(since.is_finite() && since >= 0.0) {
             return 0.0;
         }
-        match self.profile {
-            LoadProfile::Ramp {
-                rate_n_per_s,
-                max_n,
-            } => {
-                let f = rate_n_per_s * since;
-                max_n.map_or(f, |m| f.min(m))
+        self.offset_n
+            + match self.profile {
+                LoadProfile::Ramp {
+                    rate_n_per_s,
+                    max_n,
+                } => {
+                    let f = rate_n_per_s * since;
+                    max_n.map_or(f, |m| f.min(m))
+                }
+                LoadProfile::Step { force_n } => force_n,
             }
-            LoadProfile::Step { force_n } => force_n,
-        }
     }
 }
 
@@ -112,7 +117,11 @@ impl RawLoad {
                 return Err(check.invalid("object.load.kind", other, "\"ramp\" or \"step\""));
             }
         };
-        Ok(LoadSpec { profile, start_s })
+        Ok(LoadSpec {
+            profile,
+            start_s,
+            offset_n: 0.0,
+        })
     }
 }
 

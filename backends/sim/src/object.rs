@@ -78,6 +78,11 @@ impl ObjectState {
         }
     }
 
+    /// Replace its tangential load.
+    pub fn set_load(&mut self, load: Option<crate::load::LoadSpec>) {
+        self.spec.load = load;
+    }
+
     /// Its description.
     pub fn spec(&self) -> &ObjectSpec {
         &self.spec

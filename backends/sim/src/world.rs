@@ -19,6 +19,7 @@ use crate::config::SensorFaults;
 use crate::contact::{PadContact, PadGrid, height_map, pad_contact};
 use crate::fault_storm::{FaultStorm, FaultTally, StormEvent};
 use crate::finger::{FingerMechanics, PadFrame, PadLoad};
+use crate::load::LoadSpec;
 use crate::markers::GelShear;
 use crate::motor::Xm430Motor;
 use crate::object::ObjectState;
@@ -54,7 +55,7 @@ enum Mount {
 pub type SharedWorld = Arc<Mutex<World>>;
 
 /// The simulated world.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub struct World {
     mounts: Vec<Mount>,
     /// Per finger, per phalanx: the sensor on it.
@@ -332,6 +333,21 @@ impl World {
         });
     }
 
+    /// Command every finger to close fully, its current capped at `current_ma`.
+    pub fn close_fingers(&mut self, current_ma: f64) {
+        for f in 0..self.fingers.len() {
+            self.set_command(
+                f,
+                MotorCommand {
+                    torque_on: true,
+                    goal_position_deg: 180.0,
+                    goal_current_ma: current_ma,
+                    profile_velocity_rpm: 0.0,
+                },
+            );
+        }
+    }
+
     /// Command finger `finger`'s motor.
     pub fn set_command(&mut self, finger: usize, command: MotorCommand) {
         if let Some(c) = self.commands.get_mut(finger) {
@@ -526,20 +542,10 @@ impl World {
         self.hold(t_s, dt_s, gravity_n + reaction_n + pull_n, released);
     }
 
-    /// The object held against `load_n` along `slip_dir` by the contacts' normals and
-    /// friction: each contact's traction, and the slip when friction cannot hold it.
-    fn hold(&mut self, t_s: f64, dt_s: f64, load_n: f64, released: bool) {
-        if load_n == 0.0 || self.object.as_ref().is_none_or(|o| o.dropped) {
-            self.log.slipping = false;
-            self.traction.fill(Traction::default());
-            self.shear.fill(None);
-            return;
-        }
-        let frames: Vec<Option<PadFrame>> =
-            (0..self.mounts.len()).map(|s| self.pad_frame(s)).collect();
-        let (Some(o), Some(scene)) = (self.object.as_mut(), self.scene.as_ref()) else {
-            return;
-        };
+    /// Each contact's grip on the object now, and the load its normals carry along
+    /// `slip_dir` (N); `None` without an object.
+    fn grips(&self) -> Option<(Vec<ContactGrip>, f64)> {
+        let (o, scene) = (self.object.as_ref()?, self.scene.as_ref()?);
         let d = scene.slip_dir;
         let mut support = 0.0;
         let mut grips = Vec::with_capacity(self.contacts.len());
@@ -559,6 +565,52 @@ impl World {
                 contact_radius_mm: (c.area_mm2.max(0.0) / std::f64::consts::PI).sqrt(),
             });
         }
+        Some((grips, support))
+    }
+
+    /// The grip on the object now: what its contacts' friction can carry along `slip_dir`
+    /// (μP, N), and what their normals push along it (N; positive along `slip_dir`). The
+    /// pull it holds before the object slides is the first less the second. Zeros without
+    /// an object.
+    pub fn grip_loads_n(&self) -> (f64, f64) {
+        self.grips().map_or((0.0, 0.0), |(grips, push)| {
+            let friction: f64 = grips.iter().map(|g| g.capacity_n).sum();
+            let finite = |v: f64| if v.is_finite() { v } else { 0.0 };
+            (finite(friction).max(0.0), finite(push))
+        })
+    }
+
+    /// The total normal force of the contacts on the object now, N.
+    pub fn grip_n(&self) -> f64 {
+        self.contacts.iter().map(|c| c.load.force_n.max(0.0)).sum()
+    }
+
+    /// Replace the held object's tangential load (`[object.load]`; its `start_s` counts
+    /// from the scene's start). Nothing without an object.
+    pub fn set_object_load(&mut self, load: Option<LoadSpec>) {
+        if let Some(o) = self.object.as_mut() {
+            o.set_load(load);
+        }
+    }
+
+    /// The object held against `load_n` along `slip_dir` by the contacts' normals and
+    /// friction: each contact's traction, and the slip when friction cannot hold it.
+    fn hold(&mut self, t_s: f64, dt_s: f64, load_n: f64, released: bool) {
+        if load_n == 0.0 || self.object.as_ref().is_none_or(|o| o.dropped) {
+            self.log.slipping = false;
+            self.traction.fill(Traction::default());
+            self.shear.fill(None);
+            return;
+        }
+        let frames: Vec<Option<PadFrame>> =
+            (0..self.mounts.len()).map(|s| self.pad_frame(s)).collect();
+        let Some((grips, support)) = self.grips() else {
+            return;
+        };
+        let (Some(o), Some(scene)) = (self.object.as_mut(), self.scene.as_ref()) else {
+            return;
+        };
+        let d = scene.slip_dir;
         let friction: f64 = grips.iter().map(|g| g.capacity_n).sum();
         let net = load_n + support;
         let (shares, _) = share_load(net, &grips);

@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{close_all, layout};
+use common::layout;
 use gelgrip_controller::layout::HandLayout;
 use gelgrip_sim::scene_spec::SceneSpec;
 use gelgrip_sim::world::World;
@@ -45,7 +45,7 @@ fn closing_on_each_scene_touches_exactly_the_expected_sensors_with_monotonic_for
         let mut limited = false;
         for step in 1..=RAMP_STEPS + 10 {
             let current = MAX_CURRENT_MA * (step.min(RAMP_STEPS) as f64 / RAMP_STEPS as f64);
-            close_all(&mut world, current);
+            world.close_fingers(current);
             world.advance_to(step * STEP_US);
             limited |= (0..world.fingers()).any(|f| {
                 let spec = &layout.fingers[f];
@@ -95,7 +95,7 @@ fn the_egg_cracks_and_the_cup_crushes_under_a_hard_squeeze_but_the_ball_does_not
         let crushable = scene.object.crush_force_n.is_some();
         let mut world = World::new(&layout, Some(scene));
         world.advance_to(0);
-        close_all(&mut world, 1400.0);
+        world.close_fingers(1400.0);
         world.advance_to(4_000_000);
         assert_eq!(world.log().has(EventKind::Crushed), crushable, "{file}");
     }
@@ -109,7 +109,7 @@ fn a_weak_grip_drops_the_ball_when_released_and_a_firm_one_holds_it() {
         let scene = SceneSpec::from_toml("tennis-ball.toml", text, &layout).expect("scene");
         let mut world = World::new(&layout, Some(scene));
         world.advance_to(0);
-        close_all(&mut world, current);
+        world.close_fingers(current);
         world.advance_to(8_000_000);
         let log = world.log();
         assert!(log.has(EventKind::Released));
@@ -134,7 +134,7 @@ fn the_screwdriver_trigger_starts_the_tool_and_the_bolt_tightens() {
     let scene = SceneSpec::from_toml("screwdriver.toml", text, &layout).expect("scene");
     let mut world = World::new(&layout, Some(scene));
     world.advance_to(0);
-    close_all(&mut world, 800.0);
+    world.close_fingers(800.0);
     world.advance_to(10_000_000);
     let log = world.log();
     assert!(log.has(EventKind::TriggerOn), "{:?}", log.events());
@@ -155,7 +155,7 @@ fn a_five_finger_layout_closes_on_the_ball_with_no_code_change() {
     let scene = SceneSpec::from_toml("tennis-ball.toml", &text, &layout).expect("scene");
     let mut world = World::new(&layout, Some(scene));
     world.advance_to(0);
-    close_all(&mut world, 800.0);
+    world.close_fingers(800.0);
     world.advance_to(4_000_000);
     let touched = world
         .log()

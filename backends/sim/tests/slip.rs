@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{close_all, layout};
+use common::layout;
 use gelgrip_controller::layout::HandLayout;
 use gelgrip_sim::scene_spec::SceneSpec;
 use gelgrip_sim::world::World;
@@ -19,7 +19,7 @@ fn held_ball(layout: &HandLayout, load: &str, current_ma: f64) -> World {
     let scene = SceneSpec::from_toml("tennis-ball.toml", &text, layout).expect("scene");
     let mut world = World::new(layout, Some(scene));
     world.advance_to(0);
-    close_all(&mut world, current_ma);
+    world.close_fingers(current_ma);
     world
 }
 
