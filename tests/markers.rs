@@ -8,15 +8,12 @@ mod common;
 use std::path::Path;
 
 use common::{gelgrip, json, ok, s, scratch};
-use gelgrip::wiring;
+use gelgrip::{tactile, wiring};
 use gelgrip_plugins::config::PipelineConfig;
-use gelgrip_plugins::gradient::{GradientModel, MlpMode};
 use gelgrip_plugins::markers::SlipState;
-use gelgrip_plugins::pipeline::{Needs, SensorPipeline, StageChoice};
+use gelgrip_plugins::pipeline::Needs;
 use gelgrip_sim::markers::GelShear;
 use gelgrip_sim::pool::SceneCamera;
-use gelgrip_sim::press_camera::sensor_camera;
-use gelgrip_sim::scene::HeightMap;
 use gelgrip_sim::traction::Traction;
 
 const PRESSES: &str = "8";
@@ -136,30 +133,20 @@ fn a_marker_gel_is_labelled_and_reconstructed_as_the_plain_gel_is() {
         "{depth_errors:?}"
     );
     assert!(depth_errors.iter().all(|e| *e <= 0.08), "{depth_errors:?}");
-    shear_follows_the_simulated_traction(&model);
     let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// A 6 mm ball pressed 1 mm into f1.tip's marker gel, loaded tangentially over 24 frames up
 /// to the load that leaves `stick_ratio` of the contact sticking (the simulator's shear, its
 /// dots moved through the optics, noise and JPEG): the pipeline's estimate at the end.
-fn estimate_under_load(model: &Path, stick_ratio: f64) -> gelgrip_plugins::markers::ShearEstimate {
+fn estimate_under_load(stick_ratio: f64) -> gelgrip_plugins::markers::ShearEstimate {
     let path = Path::new("configs/gelgripper-sim-markers.toml");
     let config = wiring::load_config(Some(path), &wiring::registry()).expect("the config");
-    let (cam, _) = sensor_camera(&config, "f1.tip").expect("camera");
-    let (w, h, mm) = (cam.width, cam.height, cam.mm_per_px);
-    let scene = SceneCamera::new(cam.clone());
     let pipeline =
         PipelineConfig::from_section(&config.pipeline, &config.layout).expect("pipeline");
-    let stages = pipeline.sensors[0].clone();
-    let model = GradientModel::load(model, MlpMode::ContactOnly).expect("the LUT");
-    let mut pipe = SensorPipeline::new(StageChoice { stages, model }, w, h, mm);
-    let flat = HeightMap::flat(w, h);
-    let quiet: Vec<Vec<u8>> = (0..4)
-        .map(|k| scene.jpeg(&flat, None, k).expect("frame"))
-        .collect();
-    pipe.calibrate(&quiet.iter().map(Vec::as_slice).collect::<Vec<_>>())
-        .expect("calibrated");
+    // The run's pipeline (its self-calibrated LUT, referenced on no-contact frames).
+    let (mut pipe, cam) = tactile::sensor_pipeline(&config, &pipeline, 0).expect("f1.tip");
+    let scene = SceneCamera::new(cam.clone());
     assert_eq!(pipe.marker_dots(), Some(221));
     let centre = (160.0, 120.0);
     let map = cam.ball_press_map(centre, 6.0, 1.0);
@@ -182,7 +169,7 @@ fn estimate_under_load(model: &Path, stick_ratio: f64) -> gelgrip_plugins::marke
 /// a true stick ratio of 0.95, incipient at 0.6 (the detector says slip only where the dots
 /// show it: at 0.8 it still says none, docs/slip.md); the shear along the load, growing
 /// with it.
-fn shear_follows_the_simulated_traction(model: &Path) {
+fn shear_follows_the_simulated_traction() {
     let mut last_mm = 0.0;
     for (truth, state) in [
         (1.0, SlipState::None),
@@ -190,7 +177,7 @@ fn shear_follows_the_simulated_traction(model: &Path) {
         (0.8, SlipState::None),
         (0.6, SlipState::Incipient),
     ] {
-        let e = estimate_under_load(model, truth);
+        let e = estimate_under_load(truth);
         eprintln!("true stick ratio {truth}: {e:?}");
         assert!(e.dots_inside >= 5, "{e:?}");
         assert_eq!(e.state, state, "{truth}: {e:?}");
@@ -212,6 +199,11 @@ fn shear_follows_the_simulated_traction(model: &Path) {
 /// `bench slip` on one short trial: the tennis ball held, then pulled until it slides,
 /// through every slip state (sticking, incipient, gross), with the truth, the detection
 /// and the plot.
+#[test]
+fn the_dots_shear_follows_the_simulated_traction() {
+    shear_follows_the_simulated_traction();
+}
+
 #[test]
 fn bench_slip_feels_the_ball_slide_before_it_slides() {
     let dir = scratch("bench-slip");

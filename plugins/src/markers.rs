@@ -108,6 +108,12 @@ impl InkFill {
         self.tracker.len()
     }
 
+    /// Count the last frame, one with nothing touching, towards the dots' noise: how far
+    /// they were found from their reference places ([`DotTracker::learn_noise`]).
+    pub fn learn_noise(&mut self) {
+        self.tracker.learn_noise();
+    }
+
     /// The shear the last frame's dots show under `contact` (its centroid in px of the
     /// full-resolution image, `scale` times the processed frame's), at `mm_per_px` of the
     /// processed frame: the contact taken as a disc of its area.

@@ -8,20 +8,31 @@
 //! the calibration's and is never refreshed by drift tracking, so shear is not absorbed.
 //!
 //! Under a contact of radius a (a disc of the contact's area) centred on the contact's
-//! centroid, the dots within 2a give the shift's pattern. Cattaneo–Mindlin's shift along
-//! the load, U/2 · (H(r/a) − s² H(r/(sa))) ([`cattaneo_shift`]), is fitted to their shifts
-//! along the mean shift's direction over the stick ratio s (a grid of [`FIT_STEPS`]
-//! values; U in closed form for each). A contact whose dots inside it moved less than
-//! [`SHEAR_FLOOR_PX`] on the mean carries no load that the dots can tell: stick ratio 1.
+//! centroid (the depth map's: the stick zone is concentric with the contact), the dots
+//! within 2a give the shift's pattern. Cattaneo–Mindlin's shift along the load,
+//! U/2 · (H(r/a) − s² H(r/(sa))) ([`cattaneo_shift`]), is fitted to their shifts along the
+//! moved dots' direction over the stick ratio s (a grid of [`FIT_STEPS`] values; U in
+//! closed form for each) and the contact's radius (around the depth map's, which reads a
+//! small indenter's contact wide). The estimate is the stickiest fit that the dots cannot
+//! tell from the best, given their own noise (measured on the no-contact frames of the
+//! calibration). A contact whose field peaks under [`SHEAR_FLOOR_SIGMAS`] of that noise
+//! carries no load that the dots can tell: stick ratio 1.
 
 pub use gelgrip_controller::fusion::SlipState;
 #[cfg(test)]
 use gelgrip_controller::markers::cattaneo_shift;
 use gelgrip_controller::markers::{cattaneo_shift_of, hertz_profile};
 
-/// Mean shifts under this, px, are the dots' own noise (their centres are found to about a
-/// twentieth of a pixel): no shear.
+/// Without a measured noise ([`DotTracker::learn_noise`]), a field whose peak shift is
+/// under this, px, is the dots' own noise (their centres are found to about a twentieth of
+/// a pixel): no shear.
 pub const SHEAR_FLOOR_PX: f64 = 0.25;
+/// With a measured noise σ (px, per axis), a field whose peak shift is under this many σ
+/// is noise: no shear.
+pub const SHEAR_FLOOR_SIGMAS: f64 = 8.0;
+/// A stick ratio is as good as the best fit's while its residual is within this many σ²
+/// of the best's (3σ: the dots cannot tell them apart); the estimate is the stickiest such.
+pub const FIT_CONFIDENCE_SIGMAS2: f64 = 9.0;
 /// A contact slips incipiently below this estimated stick ratio.
 pub const INCIPIENT_STICK_RATIO: f64 = 0.9;
 /// A contact slides (gross slip) below this estimated stick ratio.
@@ -71,6 +82,9 @@ pub struct DotTracker {
     reference: Vec<(f64, f64)>,
     shift: Vec<Option<(f64, f64)>>,
     pitch_px: f64,
+    /// The dots' noise as learnt on frames with nothing touching: the sum of their squared
+    /// shifts per axis, and how many axes were summed.
+    noise: (f64, usize),
     /// Working space: the frame's dots by grid cell.
     cells: std::collections::HashMap<(i64, i64), Vec<(f64, f64)>>,
 }
@@ -83,6 +97,7 @@ impl DotTracker {
             shift: vec![None; reference.len()],
             reference,
             pitch_px,
+            noise: (0.0, 0),
             cells: std::collections::HashMap::new(),
         }
     }
@@ -108,6 +123,23 @@ impl DotTracker {
             .iter()
             .copied()
             .zip(self.shift.iter().copied())
+    }
+
+    /// Count the last frame, one with nothing touching, towards the dots' noise: every
+    /// found dot's shift from its reference place (the reference is those frames' mean).
+    pub fn learn_noise(&mut self) {
+        for (dx, dy) in self.shift.iter().flatten() {
+            self.noise.0 += dx * dx + dy * dy;
+            self.noise.1 += 2;
+        }
+    }
+
+    /// The dots' noise per axis, px (`None` until frames were learnt).
+    pub fn noise_px(&self) -> Option<f64> {
+        let (sum, n) = self.noise;
+        (n > 1)
+            .then(|| (sum / n as f64).sqrt())
+            .filter(|v| v.is_finite())
     }
 
     /// Match the frame's dots (centres, px) to the reference's.
@@ -157,9 +189,10 @@ impl DotTracker {
             })
             .collect();
         let field = ShiftField::of(&near)?;
+        let distance = |r: (f64, f64)| (r.0 - centre_px.0).hypot(r.1 - centre_px.1);
         let inside: Vec<(f64, f64)> = near
             .iter()
-            .filter(|(r, _)| field.distance(*r) <= radius_px)
+            .filter(|(r, _)| distance(*r) <= radius_px)
             .map(|n| n.1)
             .collect();
         let n = inside.len().max(1) as f64;
@@ -167,14 +200,16 @@ impl DotTracker {
             inside.iter().map(|s| s.0).sum::<f64>() / n,
             inside.iter().map(|s| s.1).sum::<f64>() / n,
         );
-        let stick_ratio = if field.peak_px < SHEAR_FLOOR_PX {
+        let noise = self.noise_px();
+        let floor = noise.map_or(SHEAR_FLOOR_PX, |s| SHEAR_FLOOR_SIGMAS * s);
+        let stick_ratio = if field.peak_px < floor {
             1.0
         } else {
             let along: Vec<(f64, f64)> = near
                 .iter()
-                .map(|(r, s)| (field.distance(*r), field.along(*s)))
+                .map(|(r, s)| (distance(*r), field.along(*s)))
                 .collect();
-            fit_stick_ratio(&along, field.stick_radius_px)
+            fit_stick_ratio(&along, radius_px, noise)
         };
         let state = if stick_ratio < GROSS_STICK_RATIO {
             SlipState::Gross
@@ -199,14 +234,12 @@ const PEAK_RANK: usize = 4;
 /// A dot's place at rest and its shift, px.
 type MovedDot = ((f64, f64), (f64, f64));
 
-/// Where the dots moved most: the shift's centre and direction, and how far out the
-/// dots moved at least half as far as the most.
+/// Where the dots moved: the shift's direction (of the dots that moved at least half as
+/// far as the most) and its peak.
 #[derive(Debug, Clone, Copy)]
 struct ShiftField {
-    centre_px: (f64, f64),
     direction: (f64, f64),
     peak_px: f64,
-    stick_radius_px: f64,
 }
 
 impl ShiftField {
@@ -223,37 +256,17 @@ impl ShiftField {
         if !peak_px.is_finite() {
             return None;
         }
-        let top: Vec<&MovedDot> = dots
+        let (dx, dy) = dots
             .iter()
             .filter(|(_, s)| size(s) >= 0.5 * peak_px)
-            .collect();
-        let weight: f64 = top.iter().map(|(_, s)| size(s).powi(2)).sum();
-        let (cx, cy, dx, dy) = top.iter().fold((0.0, 0.0, 0.0, 0.0), |acc, (r, s)| {
-            let w = size(s).powi(2) / weight.max(f64::MIN_POSITIVE);
-            (acc.0 + w * r.0, acc.1 + w * r.1, acc.2 + s.0, acc.3 + s.1)
-        });
+            .fold((0.0, 0.0), |acc, (_, s)| (acc.0 + s.0, acc.1 + s.1));
         let norm = dx.hypot(dy);
         let direction = if norm > 0.0 {
             (dx / norm, dy / norm)
         } else {
             (1.0, 0.0)
         };
-        let centre_px = if weight > 0.0 { (cx, cy) } else { dots[0].0 };
-        let stick_radius_px = top
-            .iter()
-            .map(|(r, _)| (r.0 - centre_px.0).hypot(r.1 - centre_px.1))
-            .fold(0.0, f64::max);
-        Some(Self {
-            centre_px,
-            direction,
-            peak_px,
-            stick_radius_px,
-        })
-    }
-
-    /// A dot's distance from the centre, px.
-    fn distance(&self, r: (f64, f64)) -> f64 {
-        (r.0 - self.centre_px.0).hypot(r.1 - self.centre_px.1)
+        Some(Self { direction, peak_px })
     }
 
     /// A shift's part along the direction, px.
@@ -264,12 +277,14 @@ impl ShiftField {
 
 /// The stick ratio of a Cattaneo–Mindlin shift pattern that fits `along` (distance from the
 /// centre px, shift along the load px) in least squares, its scale free and the contact's
-/// radius free (from [`RADIUS_SPAN`] of `extent_px`, how far out the dots moved half as far
-/// as the most, plus a pitch): of the fits within [`FIT_TOLERANCE`] of the best, the one
+/// radius free (over [`RADIUS_SPAN`] of `radius_px`, the depth map's): of the fits within
+/// [`FIT_TOLERANCE`] of the best, the one
 /// that sticks most (the dots cannot tell them apart; a detector says slip only where
-/// they can).
-fn fit_stick_ratio(along: &[(f64, f64)], extent_px: f64) -> f64 {
-    let extent = extent_px.max(1.0);
+/// they can). With the dots' measured noise σ, px, "within" is within
+/// [`FIT_CONFIDENCE_SIGMAS2`] σ² of the best or [`FIT_TOLERANCE`] of it, whichever is
+/// wider.
+fn fit_stick_ratio(along: &[(f64, f64)], radius_px: f64, noise_px: Option<f64>) -> f64 {
+    let extent = radius_px.max(1.0);
     let step = extent * (RADIUS_SPAN.1 - RADIUS_SPAN.0) / (RADII - 1) as f64;
     let coarse = (0..RADII).map(|j| extent * RADIUS_SPAN.0 + step * j as f64);
     let mut fits: Vec<(f64, f64, f64)> = coarse.flat_map(|r| fits_at(along, r)).collect();
@@ -281,9 +296,12 @@ fn fit_stick_ratio(along: &[(f64, f64)], extent_px: f64) -> f64 {
     let fine = (0..RADII).map(|j| best_radius - step + 2.0 * step * j as f64 / (RADII - 1) as f64);
     fits.extend(fine.filter(|r| *r > 0.0).flat_map(|r| fits_at(along, r)));
     let best = fits.iter().map(|f| f.0).fold(f64::INFINITY, f64::min);
+    let within = noise_px.map_or(FIT_TOLERANCE * best, |s| {
+        (best + FIT_CONFIDENCE_SIGMAS2 * s * s).max(FIT_TOLERANCE * best)
+    });
     let stick = fits
         .iter()
-        .filter(|f| f.0 <= FIT_TOLERANCE * best)
+        .filter(|f| f.0 <= within)
         .map(|f| f.1)
         .fold(f64::NAN, f64::max);
     if stick.is_finite() { stick } else { 1.0 }
@@ -318,9 +336,10 @@ fn fits_at(along: &[(f64, f64)], radius: f64) -> Vec<(f64, f64, f64)> {
         .collect()
 }
 
-/// The contact radii tried by the fit, as shares of how far out the dots moved half as far
-/// as the most, and how many.
-const RADIUS_SPAN: (f64, f64) = (0.8, 2.0);
+/// The contact radii tried by the fit, as shares of the depth map's, and how many (a small
+/// ball's depth map reaches past its contact, into the gel sagging around it: 1.3× for a
+/// 6 mm ball 1 mm deep).
+const RADIUS_SPAN: (f64, f64) = (0.6, 1.25);
 const RADII: usize = 9;
 /// Fits whose residual is within this factor of the best are as good.
 const FIT_TOLERANCE: f64 = 1.1;
@@ -431,6 +450,40 @@ mod tests {
         );
         assert_eq!(tracker.estimate((500.0, 500.0), 10.0, 0.05), None);
         assert_eq!(tracker.estimate((80.0, 80.0), f64::NAN, 0.05), None);
+    }
+
+    #[test]
+    fn the_dots_noise_is_learnt_and_a_shift_within_it_is_no_shear() {
+        let (mut tracker, frame) = sheared(0.5, 0.0);
+        assert_eq!(tracker.noise_px(), None);
+        // Quiet frames: every dot found 0.05 px off its place, along x then along y.
+        for k in 0..4 {
+            let jitter: Vec<Dot> = frame
+                .iter()
+                .map(|d| {
+                    let (x, y) = d.centre_px;
+                    let off = if k % 2 == 0 { (0.05, 0.0) } else { (0.0, -0.05) };
+                    Dot {
+                        area_px: 20,
+                        centre_px: (x + off.0, y + off.1),
+                    }
+                })
+                .collect();
+            tracker.track(&jitter);
+            tracker.learn_noise();
+        }
+        let sigma = tracker.noise_px().expect("learnt");
+        assert!((sigma - 0.05 / 2f64.sqrt()).abs() < 1e-9, "{sigma}");
+        // A slipping pattern whose peak is under the floor (SHEAR_FLOOR_SIGMAS σ) is noise.
+        let (_, weak) = sheared(0.3, 0.9 * SHEAR_FLOOR_SIGMAS * sigma);
+        tracker.track(&weak);
+        let e = tracker.estimate((80.0, 80.0), 40.0, 0.05).expect("dots");
+        assert_eq!((e.stick_ratio, e.state), (1.0, SlipState::None), "{e:?}");
+        // Well above it, the slip shows.
+        let (_, strong) = sheared(0.3, 40.0 * sigma);
+        tracker.track(&strong);
+        let e = tracker.estimate((80.0, 80.0), 40.0, 0.05).expect("dots");
+        assert_eq!(e.state, SlipState::Incipient, "{e:?}");
     }
 
     #[test]

@@ -81,6 +81,9 @@ impl SensorPipeline {
         let mm = self.mm_per_px as f32;
         for frame in no_contact {
             self.load(*frame)?;
+            if let Some(ink) = &mut self.ink {
+                ink.learn_noise();
+            }
             if let Some(reference) = &self.reference {
                 pixel_activity.extend(
                     self.rgb
