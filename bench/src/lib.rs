@@ -5,7 +5,7 @@
 //! configs, open hubs and run the gripper; the rest they build from the adapters
 //! directly (simulated cameras, pipelines, emulators).
 //!
-//! - the benches: [`bus`], [`pipeline`], [`grasp`], [`sync`], [`dashboard`], [`soak`]
+//! - the benches: [`bus`], [`pipeline`] (and [`pipeline_markers`], its slip detection), [`grasp`], [`sync`], [`dashboard`], [`soak`]
 //!   (and [`soak_storm`], its virtual-clock storm), [`calibration`], [`label`] (and
 //!   [`label_sphere`], its sphere check), [`tradeoff`], [`slip`]; and [`task_log_plot`] (`gelgrip
 //!   plot`);
@@ -27,6 +27,7 @@ pub mod grasp;
 pub mod label;
 pub mod label_sphere;
 pub mod pipeline;
+pub mod pipeline_markers;
 pub mod plot;
 pub mod progress;
 pub mod rig;

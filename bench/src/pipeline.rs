@@ -71,6 +71,9 @@ struct Report {
     full_frame_dst_ms: f64,
     full_frame_dct_ms: f64,
     per_sensor: Vec<SensorRow>,
+    /// `--markers`: what slip detection costs per frame.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    markers: Option<crate::pipeline_markers::MarkerCost>,
 }
 
 fn quantile(sorted: &[f64], q: f64) -> f64 {
@@ -144,6 +147,7 @@ fn measure(rig: &dyn Rig, args: &BenchPipelineArgs) -> anyhow::Result<Report> {
     let tmp = std::env::temp_dir().join(format!("gelgrip-bench-pipeline-{}", std::process::id()));
     let sensors = hand_models(&config, args, &tmp)?;
     let mut model_name = "lut";
+    let mut markers = None;
     let mut pipes = Vec::new();
     let mut frames = Vec::new();
     let mut truths = Vec::new();
@@ -154,6 +158,19 @@ fn measure(rig: &dyn Rig, args: &BenchPipelineArgs) -> anyhow::Result<Report> {
             solver: Some(solver),
             ..pipeline_config.sensors[0].clone()
         };
+        if args.markers && markers.is_none() {
+            let press = crate::pipeline_markers::Press {
+                ball_mm: args.ball_mm,
+                depth_mm: args.press_depth_mm,
+            };
+            markers = Some(crate::pipeline_markers::measure(
+                &config.layout,
+                &sim,
+                press,
+                &stages,
+                &model,
+            )?);
+        }
         let choice = StageChoice { stages, model };
         let mut pipe = SensorPipeline::new(choice, cam.width, cam.height, cam.mm_per_px);
         let quiet = cam.untouched_frames(3_000_000, NOISE_FRAMES)?;
@@ -211,6 +228,7 @@ fn measure(rig: &dyn Rig, args: &BenchPipelineArgs) -> anyhow::Result<Report> {
         full_frame_dst_ms: full_frame_ms(Solver::Dst),
         full_frame_dct_ms: full_frame_ms(Solver::Dct),
         per_sensor,
+        markers,
     };
     Ok(report)
 }
@@ -297,6 +315,16 @@ fn print_table(r: &Report) {
             f(s.force_n)
         );
     }
+    if let Some(m) = &r.markers {
+        println!(
+            "  slip detection (markers, one thread, sensor 0): frame {:.3} ms plain, {:.3} ms with {} dots ({} under the contact): {:.3} ms per frame",
+            m.frame_ms_plain,
+            m.frame_ms_markers,
+            m.marker_dots,
+            m.dots_inside,
+            m.slip_detection_ms_per_frame
+        );
+    }
 }
 
 /// `gelgrip bench pipeline`.
@@ -335,6 +363,10 @@ pub struct BenchPipelineArgs {
     /// Depth of the press, mm.
     #[arg(long, default_value_t = 0.5, value_parser = parse_press_depth_mm)]
     pub press_depth_mm: f64,
+    /// Also time slip detection: the first sensor's press on a marker gel under a
+    /// tangential load, frame by frame, against the plain gel (the `markers` object).
+    #[arg(long)]
+    pub markers: bool,
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,

@@ -462,7 +462,11 @@ mod tests {
                 .iter()
                 .map(|d| {
                     let (x, y) = d.centre_px;
-                    let off = if k % 2 == 0 { (0.05, 0.0) } else { (0.0, -0.05) };
+                    let off = if k % 2 == 0 {
+                        (0.05, 0.0)
+                    } else {
+                        (0.0, -0.05)
+                    };
                     Dot {
                         area_px: 20,
                         centre_px: (x + off.0, y + off.1),
