@@ -85,6 +85,9 @@ pub struct RunReport {
     pub excluded_sensors: Vec<ExcludedSensor>,
     /// Capture spread histogram: `[upper bound µs, sets]` in power-of-two buckets.
     pub spread_histogram_us: Vec<(u64, u64)>,
+    /// What the sensors said of slip (none without a pilot), docs/slip.md.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub slip: Option<gelgrip_controller::runtime::slip_tally::SlipTally>,
 }
 
 impl RunReport {

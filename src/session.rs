@@ -397,6 +397,7 @@ impl Session {
             servos: summary.servos.map(|s| s.to_vec()),
             dashboard_url: self.dashboard_url.clone(),
             task: summary.task,
+            slip: summary.slip,
         }
     }
 }

@@ -261,3 +261,38 @@ fn bench_slip_refuses_a_load_time_of_zero_naming_it() {
         "{err}"
     );
 }
+
+/// `run --json`'s `slip` on the marker config: the tennis ball grasped and held through
+/// the hold test; its sensors read the contacts (none, then incipient under the hold
+/// test's pull), never slip on a contact that truly sticks.
+#[test]
+fn a_marker_gel_grasp_reports_its_slip_readings_without_false_alarms() {
+    let out = common::gelgrip_cached(&[
+        "run",
+        "--config",
+        "configs/gelgripper-sim-markers.toml",
+        "--clock",
+        "virtual",
+        "--task",
+        "gentle-grasp",
+        "--scene",
+        "configs/scenes/tennis-ball.toml",
+        "--headless",
+        "--json",
+    ]);
+    let report = json(&out);
+    assert_eq!(report["grasped"], true, "{report}");
+    let slip = &report["slip"];
+    assert_eq!(slip["false_alarms"], 0, "{slip}");
+    let count = |k: &str| slip[k].as_u64().unwrap_or_else(|| panic!("{k}: {slip}"));
+    assert!(count("readings_none") > 0, "{slip}");
+    let sensors = report["sensors"].as_u64().expect("sensors");
+    let readings = [
+        "readings_unknown",
+        "readings_none",
+        "readings_incipient",
+        "readings_gross",
+    ];
+    let total: u64 = readings.iter().map(|k| count(k)).sum();
+    assert_eq!(total % sensors, 0, "{slip}");
+}

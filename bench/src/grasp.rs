@@ -162,7 +162,27 @@ fn row(scene: &Path, report: &Value, resolution: Option<(u32, u32)>) -> Value {
     if let Some((w, h)) = resolution {
         row.insert("resolution".into(), Value::String(format!("{w}x{h}")));
     }
+    add_slip(&mut row, &report["slip"]);
     Value::Object(row)
+}
+
+/// On a marker gel (a sensor read slip as known), the run's slip readings: the false
+/// alarms against the simulator's truth (`slip_false_alarms`) and the readings of
+/// incipient and gross slip. Plain gels add nothing, so their rows stay as they were.
+fn add_slip(row: &mut serde_json::Map<String, Value>, slip: &Value) {
+    let known = ["readings_none", "readings_incipient", "readings_gross"]
+        .iter()
+        .filter_map(|k| slip[k].as_u64())
+        .sum::<u64>();
+    if known == 0 {
+        return;
+    }
+    row.insert("slip_false_alarms".into(), slip["false_alarms"].clone());
+    row.insert(
+        "slip_readings_incipient".into(),
+        slip["readings_incipient"].clone(),
+    );
+    row.insert("slip_readings_gross".into(), slip["readings_gross"].clone());
 }
 
 /// The layout of `config` at `w`×`h`: `mm_per_px` scaled so the pad keeps its size.

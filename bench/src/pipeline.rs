@@ -159,17 +159,7 @@ fn measure(rig: &dyn Rig, args: &BenchPipelineArgs) -> anyhow::Result<Report> {
             ..pipeline_config.sensors[0].clone()
         };
         if args.markers && markers.is_none() {
-            let press = crate::pipeline_markers::Press {
-                ball_mm: args.ball_mm,
-                depth_mm: args.press_depth_mm,
-            };
-            markers = Some(crate::pipeline_markers::measure(
-                &config.layout,
-                &sim,
-                press,
-                &stages,
-                &model,
-            )?);
+            markers = Some(marker_cost(args, &config.layout, &sim, (&stages, &model))?);
         }
         let choice = StageChoice { stages, model };
         let mut pipe = SensorPipeline::new(choice, cam.width, cam.height, cam.mm_per_px);
@@ -231,6 +221,20 @@ fn measure(rig: &dyn Rig, args: &BenchPipelineArgs) -> anyhow::Result<Report> {
         markers,
     };
     Ok(report)
+}
+
+/// `--markers`: slip detection's cost on the first sensor of `layout`, the bench's press.
+fn marker_cost(
+    args: &BenchPipelineArgs,
+    layout: &HandLayout,
+    sim: &SimConfig,
+    (stages, model): (&SensorStages, &GradientModel),
+) -> anyhow::Result<crate::pipeline_markers::MarkerCost> {
+    let press = crate::pipeline_markers::Press {
+        ball_mm: args.ball_mm,
+        depth_mm: args.press_depth_mm,
+    };
+    crate::pipeline_markers::measure(layout, sim, press, stages, model)
 }
 
 /// Each sensor of `config`, with its simulated camera and settings and the gradient model

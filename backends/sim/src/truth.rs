@@ -48,4 +48,20 @@ impl GroundTruth for SimTruth {
             w.load_test(factor);
         }
     }
+
+    fn stick_ratios(&self) -> Vec<f64> {
+        if !self.pads_are_sensed {
+            return Vec::new();
+        }
+        let Ok(w) = self.world.lock() else {
+            return Vec::new();
+        };
+        (0..self.sensors)
+            .map(|s| {
+                w.traction(s)
+                    .filter(|t| t.contact_radius_mm > 0.0 && t.tangential_n > 0.0)
+                    .map_or(1.0, |t| t.stick_ratio)
+            })
+            .collect()
+    }
 }

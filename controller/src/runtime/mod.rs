@@ -29,6 +29,7 @@ pub mod plant;
 pub mod ports;
 pub mod report;
 pub mod script_run;
+pub mod slip_tally;
 pub mod task_report;
 pub mod wake;
 
@@ -659,6 +660,7 @@ impl Runtime {
                 .map(|s| s.last.clone())
                 .or_else(|| self.pilot.as_ref().map(|d| d.states().to_vec())),
             elapsed_s: now.saturating_sub(self.run_start_us.unwrap_or(self.start_us)) as f64 / 1e6,
+            slip: self.pilot.as_ref().map(|d| d.plant().slip_tally().clone()),
         }
     }
 }

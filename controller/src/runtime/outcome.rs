@@ -267,4 +267,6 @@ pub struct RunSummary {
     pub servos: Option<Vec<ServoState>>,
     /// Run time on the runtime's clock, from [`Runtime::run`]'s start (or the first step).
     pub elapsed_s: f64,
+    /// What the sensors said of slip (none without a pilot: nothing was sensed).
+    pub slip: Option<crate::runtime::slip_tally::SlipTally>,
 }

@@ -20,6 +20,7 @@ use crate::runtime::RuntimeError;
 use crate::runtime::outcome::{Fault, FaultLog};
 use crate::runtime::ports::{GroundTruth, Sensing};
 use crate::runtime::report::Sensed;
+use crate::runtime::slip_tally::SlipTally;
 
 /// No gated set for this long stops all motion, ms.
 pub const WATCHDOG_MS: u64 = 500;
@@ -64,6 +65,8 @@ pub struct Plant {
     servo_reads: u64,
     /// Recovered servo faults.
     pub recovered: FaultLog,
+    /// What the sensors said of slip so far.
+    slip: SlipTally,
 }
 
 impl std::fmt::Debug for Plant {
@@ -97,6 +100,7 @@ impl Plant {
             written_at_once: (0, None),
             servo_reads: 0,
             recovered: FaultLog::default(),
+            slip: SlipTally::default(),
         })
     }
 
@@ -122,6 +126,12 @@ impl Plant {
         self.last_set_us = Some(now_us);
         let readings = off_executor(|| sensing.process(set));
         let sensing_ms = handed_over.elapsed().as_secs_f64() * 1e3;
+        let sticks = self
+            .truth
+            .as_ref()
+            .map(|t| t.stick_ratios())
+            .unwrap_or_default();
+        self.slip.observe(&readings, &sticks, now_us);
         if self.states.is_empty() {
             self.states = self.read()?;
         }
@@ -144,6 +154,11 @@ impl Plant {
     /// writes so far, and the last one's goals.
     pub fn goals_written_at_once(&self) -> (u64, Option<&[FingerGoal]>) {
         (self.written_at_once.0, self.written_at_once.1.as_deref())
+    }
+
+    /// What the sensors said of slip so far.
+    pub fn slip_tally(&self) -> &SlipTally {
+        &self.slip
     }
 
     /// The servos' last states.

@@ -38,6 +38,11 @@ pub trait GroundTruth: Send {
     fn slip_mm(&self) -> Option<f64>;
     /// Let the object go and pull it with `factor` times its weight (the hold test).
     fn pull_object(&mut self, factor: f64);
+    /// Each pad's true stick ratio, in layout order (1: no contact or no tangential load;
+    /// empty when the frames do not come from this simulator).
+    fn stick_ratios(&self) -> Vec<f64> {
+        Vec::new()
+    }
 }
 
 /// Why an observer failed (a lossless observer's failure is a fault of the run).
