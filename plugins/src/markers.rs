@@ -59,6 +59,10 @@ pub struct InkFill {
     along_rows: Vec<([f32; 3], f32)>,
     /// Working space: one column's ink flags.
     column: Vec<bool>,
+    /// Frames filled so far.
+    frames: u64,
+    /// The last contact's estimated stick ratio, and the frame it was read in.
+    last_stick: Option<(u64, f64)>,
 }
 
 impl InkFill {
@@ -100,6 +104,8 @@ impl InkFill {
             ink: vec![false; width * height],
             along_rows: vec![([0.0; 3], 0.0); width * height],
             column: vec![false; height],
+            frames: 0,
+            last_stick: None,
         })
     }
 
@@ -116,9 +122,12 @@ impl InkFill {
 
     /// The shear the last frame's dots show under `contact` (its centroid in px of the
     /// full-resolution image, `scale` times the processed frame's), at `mm_per_px` of the
-    /// processed frame: the contact taken as a disc of its area.
+    /// processed frame: the contact taken as a disc of its area. Its state is confirmed
+    /// over two frames: it is the stickier of this frame's and the frame before's (a
+    /// contact is said to slip once two frames in a row show it; one frame's fit on noisy
+    /// dots does not); the stick ratio is this frame's.
     pub fn shear_under(
-        &self,
+        &mut self,
         contact: &crate::contact::ContactSummary,
         mm_per_px: f64,
         scale: f64,
@@ -127,7 +136,16 @@ impl InkFill {
         let radius_px = (contact.area_mm2 / std::f64::consts::PI).sqrt() / mm_per_px;
         // The centroid's pixel centres are at integers, the dots' at +0.5.
         let centre = ((cx + 0.5) / scale, (cy + 0.5) / scale);
-        self.tracker.estimate(centre, radius_px, mm_per_px)
+        let mut estimate = self.tracker.estimate(centre, radius_px, mm_per_px);
+        let before = self
+            .last_stick
+            .filter(|(frame, _)| *frame + 1 == self.frames)
+            .map_or(1.0, |(_, s)| s);
+        self.last_stick = estimate.map(|e| (self.frames, e.stick_ratio));
+        if let Some(e) = estimate.as_mut() {
+            e.state = shear::state_of(e.stick_ratio.max(before));
+        }
+        estimate
     }
 
     /// Follow the dots of frame `rgb` (interleaved 8-bit, the reference's size), then fill
@@ -150,6 +168,7 @@ impl InkFill {
             &mut self.stack,
         );
         self.tracker.track(&frame_dots);
+        self.frames += 1;
         self.interpolate(|p| [0, 1, 2].map(|c| f32::from(rgb[3 * p + c])));
         for (p, (fill, weight)) in self.along_rows.iter().enumerate() {
             if self.ink[p] && *weight > 0.0 {

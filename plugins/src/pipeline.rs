@@ -511,7 +511,7 @@ impl SensorPipeline {
             &noise,
             self.choice.stages.stiffness_n_per_mm3,
         );
-        if let Some(ink) = &self.ink {
+        if let Some(ink) = &mut self.ink {
             summary.shear = ink.shear_under(&summary, self.mm_per_px, scale);
         }
         Ok(summary)

@@ -211,19 +211,23 @@ impl DotTracker {
                 .collect();
             fit_stick_ratio(&along, radius_px, noise)
         };
-        let state = if stick_ratio < GROSS_STICK_RATIO {
-            SlipState::Gross
-        } else if stick_ratio < INCIPIENT_STICK_RATIO {
-            SlipState::Incipient
-        } else {
-            SlipState::None
-        };
         Some(ShearEstimate {
             shear_mm: [mean.0 * mm_per_px, mean.1 * mm_per_px],
             stick_ratio,
-            state,
+            state: state_of(stick_ratio),
             dots_inside: inside.len(),
         })
+    }
+}
+
+/// What a stick ratio makes of a contact.
+pub fn state_of(stick_ratio: f64) -> SlipState {
+    if stick_ratio < GROSS_STICK_RATIO {
+        SlipState::Gross
+    } else if stick_ratio < INCIPIENT_STICK_RATIO {
+        SlipState::Incipient
+    } else {
+        SlipState::None
     }
 }
 
