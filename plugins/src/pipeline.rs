@@ -237,6 +237,20 @@ impl SensorPipeline {
     }
 
     fn load(&mut self, frame: Frame<'_>) -> Result<(), PipelineError> {
+        self.load_unblurred(frame)?;
+        // The model reads frames (and so the reference) through its blur.
+        crate::image::box_blur_rgb(
+            &mut self.rgb,
+            self.width,
+            self.height,
+            self.choice.model.blur_px(),
+        );
+        Ok(())
+    }
+
+    /// [`Self::load`] but for the model's blur: decoded, undistorted, a marker gel's dots
+    /// filled.
+    fn load_unblurred(&mut self, frame: Frame<'_>) -> Result<(), PipelineError> {
         match frame {
             Frame::Jpeg(jpeg) => self.jpeg.decode(jpeg, &mut self.rgb)?,
             Frame::Rgb(rgb) => {
@@ -257,13 +271,6 @@ impl SensorPipeline {
         if let Some(ink) = &mut self.ink {
             ink.fill_u8(&mut self.rgb);
         }
-        // The model reads frames (and so the reference) through its blur.
-        crate::image::box_blur_rgb(
-            &mut self.rgb,
-            self.width,
-            self.height,
-            self.choice.model.blur_px(),
-        );
         Ok(())
     }
 

@@ -32,11 +32,16 @@ impl SensorPipeline {
         self.calibrate_frames(Some(Frame::Rgb(reference)), &frames)
     }
 
-    /// The mean of `frames` as loaded.
-    fn mean_of(&mut self, frames: &[Frame<'_>]) -> Result<Vec<f32>, PipelineError> {
+    /// The mean of `frames` as loaded (`blurred`: through the model's blur, as every
+    /// frame is read; else sharp, as the dots are found).
+    fn mean_of(&mut self, frames: &[Frame<'_>], blurred: bool) -> Result<Vec<f32>, PipelineError> {
         let mut sum = vec![0.0f32; self.rgb.len()];
         for frame in frames {
-            self.load(*frame)?;
+            if blurred {
+                self.load(*frame)?;
+            } else {
+                self.load_unblurred(*frame)?;
+            }
             sum.iter_mut()
                 .zip(&self.rgb)
                 .for_each(|(s, v)| *s += f32::from(*v));
@@ -64,14 +69,14 @@ impl SensorPipeline {
         } else {
             no_contact
         };
-        // A marker gel's dots are found on the reference as loaded, then the reference is
-        // loaded again with them filled (as every frame will be).
+        // A marker gel's dots are found on the reference as decoded (sharp: the model's
+        // blur, chosen for noisy frames, would smear them into the gel), then the
+        // reference is loaded again with them filled, through the blur (as every frame
+        // will be).
         self.ink = None;
-        let mut sum = self.mean_of(averaged)?;
-        if let Some(ink) = InkFill::detect(&sum, self.width, self.height) {
-            self.ink = Some(ink);
-            sum = self.mean_of(averaged)?;
-        }
+        let sharp = self.mean_of(averaged, false)?;
+        self.ink = InkFill::detect(&sharp, self.width, self.height);
+        let sum = self.mean_of(averaged, true)?;
         self.reference = Some(sum);
         self.reference_changed();
         self.predict_background()?;
