@@ -184,6 +184,10 @@ pub struct SyncRow {
     /// Sensors the gate left out of the sets at the end of the run, with why and since when
     /// (the run report's `excluded_sensors`).
     pub excluded_sensors: Vec<ExcludedSensor>,
+    /// On marker gels (a sensor read slip as known): readings of slip on a sensor whose
+    /// contacts truly stuck (`run --json`'s `slip.false_alarms`); absent on plain gels.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub slip_false_alarms: Option<u64>,
 }
 
 /// `scene`'s name: its file's stem (`paper-cup`).
@@ -305,7 +309,17 @@ fn row(case: &Case, target_n: f64, report: &Value) -> anyhow::Result<SyncRow> {
         sets_rejected: counts(report, "sets_rejected").0,
         excluded_sensors: serde_json::from_value(report["excluded_sensors"].clone())
             .context("the run report's excluded_sensors")?,
+        slip_false_alarms: marker_false_alarms(&report["slip"]),
     })
+}
+
+/// `slip.false_alarms` of a run whose sensors read slip as known (a marker gel).
+fn marker_false_alarms(slip: &Value) -> Option<u64> {
+    let known: u64 = ["readings_none", "readings_incipient", "readings_gross"]
+        .iter()
+        .filter_map(|k| slip[k].as_u64())
+        .sum();
+    (known > 0).then(|| slip["false_alarms"].as_u64()).flatten()
 }
 
 /// `--sensor`, or the first sensor `scene` expects in contact (`expect_contact`).
