@@ -252,7 +252,7 @@ fn bench_slip_feels_the_ball_slide_before_it_slides() {
 }
 
 #[test]
-fn bench_slip_refuses_a_load_time_of_zero_naming_it() {
+fn bench_slip_refuses_a_load_time_of_zero_and_a_figure_it_cannot_draw() {
     let out = gelgrip(&["bench", "slip", "--load-time-s", "0.5,0", "--trials", "1"]);
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8_lossy(&out.stderr);
@@ -260,6 +260,11 @@ fn bench_slip_refuses_a_load_time_of_zero_naming_it() {
         err.contains("--load-time-s") && err.contains("(0, 600]"),
         "{err}"
     );
+    // A figure of an unknown format is refused before the sweep runs.
+    let out = gelgrip(&["bench", "slip", "--trials", "1", "--plot", "trial.gif"]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains(".svg or .png"), "{err}");
 }
 
 /// `run --json`'s `slip` on the marker config: the tennis ball grasped and held through

@@ -216,6 +216,10 @@ const QUIET_FIRST_FRAME: u64 = 7_000_000;
 
 /// Run the command; returns the exit code.
 pub fn run(rig: &dyn Rig, args: BenchSlipArgs) -> anyhow::Result<u8> {
+    // A figure's format is checked before the sweep, not after it.
+    if let Some(path) = &args.plot {
+        crate::plot::Format::of(path)?;
+    }
     let base = rig.load_config(Some(&args.config))?;
     let base_sim = SimConfig::from_section(&base.hub.section, &base.layout).with_context(|| {
         format!(
