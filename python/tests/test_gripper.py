@@ -68,18 +68,26 @@ def test_bad_requests_and_a_closed_gripper() -> None:
 
 def test_ctrl_c_during_a_grasp_raises_and_stops_it() -> None:
     import _thread
+    import signal
     import threading
 
-    with gelgrip.Gripper(clock="virtual", scene="tennis-ball") as g:
-        g.next_set(timeout=30.0)
-        timer = threading.Timer(0.05, _thread.interrupt_main)
-        timer.start()
-        with pytest.raises(KeyboardInterrupt):
-            g.grasp(target_force_n=1.5)
-        timer.join()
-        # The fingers were stopped, the run goes on and takes the next grasp.
-        assert g.next_set(timeout=30.0).t_s > 0
-        assert g.grasp(target_force_n=1.5)["grasped"] is True
+    # Ctrl-C as Python delivers it: a process started in the background by a
+    # non-interactive shell (as a CI runner may start the tests) ignores SIGINT, and then
+    # `interrupt_main` does nothing; the test sets Python's own handler for its duration.
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with gelgrip.Gripper(clock="virtual", scene="tennis-ball") as g:
+            g.next_set(timeout=30.0)
+            timer = threading.Timer(0.05, _thread.interrupt_main)
+            timer.start()
+            with pytest.raises(KeyboardInterrupt):
+                g.grasp(target_force_n=1.5)
+            timer.join()
+            # The fingers were stopped, the run goes on and takes the next grasp.
+            assert g.next_set(timeout=30.0).t_s > 0
+            assert g.grasp(target_force_n=1.5)["grasped"] is True
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def test_a_config_that_enables_ros_2_is_refused(tmp_path: Path) -> None:
