@@ -56,12 +56,6 @@ impl GroundTruth for SimTruth {
         let Ok(w) = self.world.lock() else {
             return Vec::new();
         };
-        (0..self.sensors)
-            .map(|s| {
-                w.traction(s)
-                    .filter(|t| t.contact_radius_mm > 0.0 && t.tangential_n > 0.0)
-                    .map_or(1.0, |t| t.stick_ratio)
-            })
-            .collect()
+        (0..self.sensors).map(|s| w.stick_ratio(s)).collect()
     }
 }

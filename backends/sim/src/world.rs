@@ -212,6 +212,14 @@ impl World {
         self.traction.get(sensor)
     }
 
+    /// Sensor `sensor`'s true stick ratio now: its contact's under a tangential load, 1
+    /// without a contact or a load (and for no such sensor).
+    pub fn stick_ratio(&self, sensor: usize) -> f64 {
+        self.traction(sensor)
+            .filter(|t| t.contact_radius_mm > 0.0 && t.tangential_n > 0.0)
+            .map_or(1.0, |t| t.stick_ratio)
+    }
+
     /// When the held object began to slip under its load, and how far it has moved.
     pub fn slip_truth(&self) -> &SlipTruth {
         &self.slip_truth

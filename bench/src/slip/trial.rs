@@ -7,6 +7,7 @@
 use anyhow::Context;
 use gelgrip_controller::fusion::{SlipState, weight_force_n};
 use gelgrip_controller::layout::HandLayout;
+use gelgrip_controller::runtime::slip_tally::FALSE_ALARM_STICK_RATIO;
 use gelgrip_plugins::contact::ContactSummary;
 use gelgrip_plugins::pipeline::{Needs, PipelineError, SensorPipeline, process_set};
 use gelgrip_sim::config::SimConfig;
@@ -19,8 +20,6 @@ use serde::Serialize;
 
 /// The grip a trial settles at, as a multiple of the least that holds the object's weight.
 pub const GRIP_MARGIN: f64 = 1.5;
-/// A sensor's detection is a false alarm while every contact of it sticks above this.
-pub const FALSE_ALARM_STICK_RATIO: f64 = 0.95;
 /// Sets read before the load begins (their detections count as false alarms too), s.
 const BEFORE_LOAD_S: f64 = 0.3;
 /// Sets read after gross slip, so that a late detection is still seen.
@@ -217,14 +216,6 @@ pub fn hold(layout: &HandLayout, scene: &SceneSpec, aim_n: f64, max_current_ma: 
     best
 }
 
-/// The least true stick ratio over sensor `s`'s loaded contact (1: none, or unloaded).
-fn true_stick(world: &World, s: usize) -> f64 {
-    world
-        .traction(s)
-        .filter(|t| t.contact_radius_mm > 0.0 && t.tangential_n > 0.0)
-        .map_or(1.0, |t| t.stick_ratio)
-}
-
 /// Each sensor's reading of slip in a set.
 fn states(results: &[Result<ContactSummary, PipelineError>]) -> Vec<Option<(SlipState, f64)>> {
     results
@@ -337,7 +328,7 @@ fn observe(
         .lock()
         .map_err(|_| anyhow::anyhow!("the world was poisoned"))
         .context("reading the truth")?;
-    let sticks: Vec<f64> = (0..read.len()).map(|s| true_stick(&w, s)).collect();
+    let sticks: Vec<f64> = (0..read.len()).map(|s| w.stick_ratio(s)).collect();
     let least_true = sticks.iter().copied().fold(1.0, f64::min);
     let slipping = |r: &Option<(SlipState, f64)>| r.is_some_and(|(s, _)| s >= SlipState::Incipient);
     let detected = read.iter().any(slipping);
