@@ -45,7 +45,9 @@ pub struct InkFill {
     height: usize,
     /// Per pixel, the gel's brightness around it in the reference, times the ink share.
     threshold: Vec<f32>,
-    /// The dots found on the reference, and each one's shift in the last frame.
+    /// How many dots the reference showed.
+    found: usize,
+    /// The dots found whole on the reference, and each one's shift in the last frame.
     tracker: DotTracker,
     /// Working space of [`find_dots`].
     seen: Vec<bool>,
@@ -96,7 +98,8 @@ impl InkFill {
             width,
             height,
             threshold,
-            tracker: DotTracker::new(dots.iter().map(|d| d.centre_px).collect()),
+            found: dots.len(),
+            tracker: DotTracker::new(whole_dots(&dots, width, height)),
             seen,
             stack,
             raw: vec![0; width * height],
@@ -109,9 +112,10 @@ impl InkFill {
         })
     }
 
-    /// How many dots the reference showed.
+    /// How many dots the reference showed (those its border cuts among them; the whole
+    /// ones are followed).
     pub fn dots(&self) -> usize {
-        self.tracker.len()
+        self.found
     }
 
     /// Count the last frame, one with nothing touching, towards the dots' noise: how far
@@ -423,6 +427,22 @@ fn find_dots(
     dots
 }
 
+/// The centres of the `dots` that lie whole inside a `width × height` frame: a dot the
+/// frame's border cuts shows only part of itself, whose centre moves wrongly as the gel
+/// carries it in or out (its rim [`RIM_PX`] counts as the dot). The dots' radius is their
+/// median area's.
+fn whole_dots(dots: &[Dot], width: usize, height: usize) -> Vec<(f64, f64)> {
+    let mut areas: Vec<usize> = dots.iter().map(|d| d.area_px).collect();
+    areas.sort_unstable();
+    let area = areas.get(areas.len() / 2).copied().unwrap_or(0) as f64;
+    let margin = (area / std::f64::consts::PI).sqrt() + RIM_PX as f64;
+    let inside = |v: f64, size: usize| v >= margin && v <= size as f64 - margin;
+    dots.iter()
+        .map(|d| d.centre_px)
+        .filter(|&(x, y)| inside(x, width) && inside(y, height))
+        .collect()
+}
+
 /// Whether `dots` are a marker grid's: at least [`MIN_DOTS`], the middle half of their
 /// areas within [`DOT_AREA_SPREAD`] of the median.
 fn is_marker_grid(dots: &[Dot]) -> bool {
@@ -489,6 +509,24 @@ mod tests {
             .map(|(a, b)| (f32::from(*a) - b).abs())
             .fold(0.0, f32::max);
         assert!(worst <= 1.0, "{worst}");
+    }
+
+    #[test]
+    fn dots_the_border_cuts_are_not_followed() {
+        let dot = |x: f64, y: f64, area_px: usize| Dot {
+            area_px,
+            centre_px: (x, y),
+        };
+        // Dots of 28 px (radius 3 px, with the rim 5 px): one whole, three cut by the
+        // border (a cut dot is smaller and its centre sits near the edge).
+        let dots = [
+            dot(50.0, 40.0, 28),
+            dot(60.0, 40.0, 28),
+            dot(2.0, 40.0, 12),
+            dot(50.0, 78.5, 10),
+            dot(96.0, 4.0, 28),
+        ];
+        assert_eq!(whole_dots(&dots, 100, 80), vec![(50.0, 40.0), (60.0, 40.0)]);
     }
 
     #[test]

@@ -205,11 +205,7 @@ impl DotTracker {
         let stick_ratio = if field.peak_px < floor {
             1.0
         } else {
-            let along: Vec<(f64, f64)> = near
-                .iter()
-                .map(|(r, s)| (distance(*r), field.along(*s)))
-                .collect();
-            fit_stick_ratio(&along, radius_px, noise)
+            fit_around(&near, &field, centre_px, radius_px, noise)
         };
         Some(ShearEstimate {
             shear_mm: [mean.0 * mm_per_px, mean.1 * mm_per_px],
@@ -219,6 +215,75 @@ impl DotTracker {
         })
     }
 }
+
+/// The stick ratio of the pattern of the `near` dots' shifts along the `field`, fitted
+/// around `centre_px` (the depth map's centroid) and then again around the centre that the
+/// first fit's pattern points to: the depth map's centroid is the contact's to a few px,
+/// and at the contact's rim, where the pattern is steepest, a few px tell.
+fn fit_around(
+    near: &[MovedDot],
+    field: &ShiftField,
+    centre_px: (f64, f64),
+    radius_px: f64,
+    noise: Option<f64>,
+) -> f64 {
+    let along_from = |c: (f64, f64)| -> Vec<(f64, f64)> {
+        near.iter()
+            .map(|(r, s)| ((r.0 - c.0).hypot(r.1 - c.1), field.along(*s)))
+            .collect()
+    };
+    let first = best_of(&fit_grid(&along_from(centre_px), radius_px, false));
+    let offset = first.and_then(|best| centre_offset(near, field, centre_px, &best));
+    let (ex, ey) = offset.unwrap_or((0.0, 0.0));
+    let moved = (centre_px.0 + ex, centre_px.1 + ey);
+    fit_stick_ratio(&along_from(moved), radius_px, noise)
+}
+
+/// How far the pattern's centre lies from `centre_px`, px, to first order: the shift
+/// along the field, less the `best` fit's pattern, regressed on the pattern's change as
+/// its centre moves. `None` when the dots do not tell (too few, or all on a line), and at
+/// most [`CENTRE_REACH`] of the fit's radius.
+fn centre_offset(
+    near: &[MovedDot],
+    field: &ShiftField,
+    centre_px: (f64, f64),
+    best: &Fit,
+) -> Option<(f64, f64)> {
+    const STEP: f64 = 0.01;
+    let (mut gxx, mut gxy, mut gyy, mut bx, mut by) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for (r, s) in near {
+        let (dx, dy) = (r.0 - centre_px.0, r.1 - centre_px.1);
+        let d = dx.hypot(dy);
+        if d <= 0.0 {
+            continue;
+        }
+        let rho = d / best.radius_px;
+        let pattern = |rho: f64| best.scale * tabled_shift(rho, best.stick_ratio);
+        let slope = (pattern(rho + STEP) - pattern((rho - STEP).max(0.0))) / (2.0 * STEP);
+        // Moving the centre by e moves this dot's ρ by −(e · r̂)/radius.
+        let (gx, gy) = (
+            -slope * dx / d / best.radius_px,
+            -slope * dy / d / best.radius_px,
+        );
+        let residual = field.along(*s) - pattern(rho);
+        (gxx, gxy, gyy) = (gxx + gx * gx, gxy + gx * gy, gyy + gy * gy);
+        (bx, by) = (bx + gx * residual, by + gy * residual);
+    }
+    let det = gxx * gyy - gxy * gxy;
+    let tells = det.is_finite() && det > 1e-12 * (gxx * gyy).max(1e-300);
+    if !tells {
+        return None;
+    }
+    let (ex, ey) = ((gyy * bx - gxy * by) / det, (gxx * by - gxy * bx) / det);
+    let size = ex.hypot(ey);
+    let most = CENTRE_REACH * best.radius_px;
+    let keep = if size > most { most / size } else { 1.0 };
+    (size.is_finite() && size > 0.0).then_some((ex * keep, ey * keep))
+}
+
+/// The pattern's centre is looked for at most this share of the contact's radius from the
+/// depth map's centroid.
+const CENTRE_REACH: f64 = 0.15;
 
 /// What a stick ratio makes of a contact.
 pub fn state_of(stick_ratio: f64) -> SlipState {
@@ -288,56 +353,107 @@ impl ShiftField {
 /// [`FIT_CONFIDENCE_SIGMAS2`] σ² of the best or [`FIT_TOLERANCE`] of it, whichever is
 /// wider.
 fn fit_stick_ratio(along: &[(f64, f64)], radius_px: f64, noise_px: Option<f64>) -> f64 {
-    let extent = radius_px.max(1.0);
-    let step = extent * (RADIUS_SPAN.1 - RADIUS_SPAN.0) / (RADII - 1) as f64;
-    let coarse = (0..RADII).map(|j| extent * RADIUS_SPAN.0 + step * j as f64);
-    let mut fits: Vec<(f64, f64, f64)> = coarse.flat_map(|r| fits_at(along, r)).collect();
-    // Then finer around the best radius.
-    let best_radius = fits
-        .iter()
-        .min_by(|a, b| a.0.total_cmp(&b.0))
-        .map_or(extent, |f| f.2);
-    let fine = (0..RADII).map(|j| best_radius - step + 2.0 * step * j as f64 / (RADII - 1) as f64);
-    fits.extend(fine.filter(|r| *r > 0.0).flat_map(|r| fits_at(along, r)));
-    let best = fits.iter().map(|f| f.0).fold(f64::INFINITY, f64::min);
+    let fits = fit_grid(along, radius_px, true);
+    let best = best_of(&fits).map_or(f64::INFINITY, |f| f.residual);
+    // The dots' noise here: the learnt one, or what the best fit leaves (dots under a
+    // contact are found less surely than on the bare gel), whichever is larger.
+    let left = best / along.len().saturating_sub(FIT_PARAMETERS).max(1) as f64;
     let within = noise_px.map_or(FIT_TOLERANCE * best, |s| {
-        (best + FIT_CONFIDENCE_SIGMAS2 * s * s).max(FIT_TOLERANCE * best)
+        (best + FIT_CONFIDENCE_SIGMAS2 * (s * s).max(left)).max(FIT_TOLERANCE * best)
     });
     let stick = fits
         .iter()
-        .filter(|f| f.0 <= within)
-        .map(|f| f.1)
+        .filter(|f| f.residual <= within)
+        .map(|f| f.stick_ratio)
         .fold(f64::NAN, f64::max);
     if stick.is_finite() { stick } else { 1.0 }
 }
 
-/// Every stick ratio's fit at contact radius `radius` px: (residual, stick ratio, radius).
-fn fits_at(along: &[(f64, f64)], radius: f64) -> Vec<(f64, f64, f64)> {
-    (0..=FIT_STEPS)
-        .filter_map(|k| {
-            let s = (k as f64 / FIT_STEPS as f64).min(MAX_FIT_STICK);
-            let model: Vec<f64> = along
-                .iter()
-                .map(|(r, _)| tabled_shift(r / radius, s))
-                .collect();
-            let ff: f64 = model.iter().map(|f| f * f).sum();
-            if ff <= 0.0 || !ff.is_finite() {
-                return None;
+/// The fits tried: [`RADII`] radii over [`RADIUS_SPAN`] of `radius_px` at every
+/// [`COARSE_EVERY`]th stick ratio, then, when `fine`, [`FINE_RADII`] radii around the best
+/// of those at every stick ratio.
+fn fit_grid(along: &[(f64, f64)], radius_px: f64, fine: bool) -> Vec<Fit> {
+    let sticks: Vec<f64> = (0..=FIT_STEPS)
+        .map(|k| (k as f64 / FIT_STEPS as f64).min(MAX_FIT_STICK))
+        .collect();
+    let coarse_sticks: Vec<f64> = sticks
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| k % COARSE_EVERY == 0 || *k == FIT_STEPS)
+        .map(|(_, s)| *s)
+        .collect();
+    let extent = radius_px.max(1.0);
+    let step = extent * (RADIUS_SPAN.1 - RADIUS_SPAN.0) / (RADII - 1) as f64;
+    let mut fits = Vec::with_capacity(RADII * coarse_sticks.len() + FINE_RADII * sticks.len());
+    for j in 0..RADII {
+        fits_at(
+            along,
+            extent * RADIUS_SPAN.0 + step * j as f64,
+            &coarse_sticks,
+            &mut fits,
+        );
+    }
+    if fine {
+        let around = best_of(&fits).map_or(extent, |f| f.radius_px);
+        for j in 0..FINE_RADII {
+            let r = around - step + 2.0 * step * j as f64 / (FINE_RADII - 1) as f64;
+            if r > 0.0 {
+                fits_at(along, r, &sticks, &mut fits);
             }
-            let scale = along
-                .iter()
-                .zip(&model)
-                .map(|((_, u), f)| u * f)
-                .sum::<f64>()
-                / ff;
-            let residual: f64 = along
-                .iter()
-                .zip(&model)
-                .map(|((_, u), f)| (u - scale * f).powi(2))
-                .sum();
-            Some((residual, s, radius))
-        })
-        .collect()
+        }
+    }
+    fits
+}
+
+/// The fit of least residual.
+fn best_of(fits: &[Fit]) -> Option<Fit> {
+    fits.iter()
+        .min_by(|a, b| a.residual.total_cmp(&b.residual))
+        .copied()
+}
+
+/// One Cattaneo–Mindlin pattern fitted to the dots.
+#[derive(Debug, Clone, Copy)]
+struct Fit {
+    /// The sum of the squared differences, px².
+    residual: f64,
+    stick_ratio: f64,
+    radius_px: f64,
+    /// The pattern's scale (U/2, px).
+    scale: f64,
+}
+
+/// The fit at contact radius `radius` px of each stick ratio of `sticks`, into `fits`.
+/// One pass over the dots per stick ratio: the scale in closed form, and the residual as
+/// Σu² − (Σuf)²/Σf².
+fn fits_at(along: &[(f64, f64)], radius: f64, sticks: &[f64], fits: &mut Vec<Fit>) {
+    let uu: f64 = along.iter().map(|(_, u)| u * u).sum();
+    let whole: Vec<f64> = along
+        .iter()
+        .map(|(r, _)| tabled_profile(r / radius))
+        .collect();
+    for &s in sticks {
+        let (mut uf, mut ff) = (0.0, 0.0);
+        for ((r, u), h) in along.iter().zip(&whole) {
+            let stick = if s > 0.0 {
+                s * s * tabled_profile(r / (radius * s))
+            } else {
+                0.0
+            };
+            let f = (h - stick).max(0.0);
+            uf += u * f;
+            ff += f * f;
+        }
+        if !(ff > 0.0 && ff.is_finite() && uf.is_finite()) {
+            continue;
+        }
+        fits.push(Fit {
+            residual: (uu - uf * uf / ff).max(0.0),
+            stick_ratio: s,
+            radius_px: radius,
+            scale: uf / ff,
+        });
+    }
 }
 
 /// The contact radii tried by the fit, as shares of the depth map's, and how many (a small
@@ -345,6 +461,12 @@ fn fits_at(along: &[(f64, f64)], radius: f64) -> Vec<(f64, f64, f64)> {
 /// 6 mm ball 1 mm deep).
 const RADIUS_SPAN: (f64, f64) = (0.6, 1.25);
 const RADII: usize = 9;
+/// The first pass tries every this-many-th stick ratio.
+const COARSE_EVERY: usize = 3;
+/// The second pass's radii, around the first's best.
+const FINE_RADII: usize = 9;
+/// What a fit is free in: the pattern's scale, the stick ratio and the contact's radius.
+const FIT_PARAMETERS: usize = 3;
 /// Fits whose residual is within this factor of the best are as good.
 const FIT_TOLERANCE: f64 = 1.1;
 /// The stickiest pattern tried (at 1 nothing moves).
@@ -408,13 +530,18 @@ mod tests {
     /// A 9 × 9 grid of dots 16 px apart around (80, 80), shifted by the Cattaneo pattern of
     /// a contact of radius 40 px and stick ratio `s` (peak `u` px along x).
     fn sheared(s: f64, u: f64) -> (DotTracker, Vec<Dot>) {
+        sheared_at((80.0, 80.0), s, u)
+    }
+
+    /// [`sheared`] with the contact centred at `centre`.
+    fn sheared_at(centre: (f64, f64), s: f64, u: f64) -> (DotTracker, Vec<Dot>) {
         let reference: Vec<(f64, f64)> = (0..9)
             .flat_map(|j| (0..9).map(move |i| (16.0 + 16.0 * i as f64, 16.0 + 16.0 * j as f64)))
             .collect();
         let frame = reference
             .iter()
             .map(|(x, y)| {
-                let rho = (x - 80.0).hypot(y - 80.0) / 40.0;
+                let rho = (x - centre.0).hypot(y - centre.1) / 40.0;
                 Dot {
                     area_px: 20,
                     centre_px: (x + u * cattaneo_shift(rho, s) / cattaneo_shift(0.0, s), *y),
@@ -454,6 +581,26 @@ mod tests {
         );
         assert_eq!(tracker.estimate((500.0, 500.0), 10.0, 0.05), None);
         assert_eq!(tracker.estimate((80.0, 80.0), f64::NAN, 0.05), None);
+    }
+
+    #[test]
+    fn the_pattern_is_fitted_where_it_is_centred_not_where_the_depth_map_puts_it() {
+        // The depth map's centroid 7 px (a sixth of the radius) off the pattern's centre.
+        let (mut tracker, frame) = sheared_at((86.0, 76.0), 0.95, 4.0);
+        tracker.track(&frame);
+        let e = tracker
+            .estimate((80.0, 80.0), 40.0, 0.05)
+            .expect("dots inside");
+        assert!((e.stick_ratio - 0.95).abs() <= 0.05, "{e:?}");
+        assert_eq!(e.state, SlipState::None, "{e:?}");
+        // Fitted around the depth map's centroid alone, the same dots read slip.
+        let along: Vec<(f64, f64)> = tracker
+            .shifts()
+            .filter_map(|(r, s)| Some(((r.0 - 80.0).hypot(r.1 - 80.0), s?.0)))
+            .filter(|(d, _)| *d <= FIT_REACH * 40.0)
+            .collect();
+        let unmoved = fit_stick_ratio(&along, 40.0, None);
+        assert!(unmoved < INCIPIENT_STICK_RATIO, "{unmoved}");
     }
 
     #[test]
