@@ -109,10 +109,29 @@ fn collect_train_eval_round_trip() {
         "3",
         "--model-file",
         s(&model),
+        "--markers",
         "--json",
     ]);
     let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
     let bench = json(&out);
+    // `--markers`: what a marker gel costs, and its parts timed apart.
+    let m = &bench["markers"];
+    let ms = |k: &str| m[k].as_f64().filter(|v| v.is_finite() && *v > 0.0);
+    for key in [
+        "frame_ms_plain",
+        "frame_ms_markers",
+        "dot_tracking_ms",
+        "shear_fit_ms",
+        "dot_fill_ms",
+    ] {
+        assert!(ms(key).is_some(), "{key}: {m}");
+    }
+    let detection = ms("slip_detection_ms_per_frame").expect("slip detection");
+    let parts = ms("dot_tracking_ms").unwrap_or(0.0) + ms("shear_fit_ms").unwrap_or(0.0);
+    assert!((detection - parts).abs() < 1e-9, "{m}");
+    assert!(m["marker_gel_ms_per_frame"].as_f64().is_some(), "{m}");
+    assert!(m["marker_dots"].as_u64().is_some_and(|n| n > 100), "{m}");
+    assert!(m["dots_inside"].as_u64().is_some_and(|n| n > 0), "{m}");
     assert!(
         !stderr.contains("calibrating"),
         "presses collected: {stderr}"

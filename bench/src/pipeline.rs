@@ -321,12 +321,16 @@ fn print_table(r: &Report) {
     }
     if let Some(m) = &r.markers {
         println!(
-            "  slip detection (markers, one thread, sensor 0): frame {:.3} ms plain, {:.3} ms with {} dots ({} under the contact): {:.3} ms per frame",
+            "  marker gel (one thread, sensor 0): frame {:.3} ms plain, {:.3} ms with {} dots ({} under the contact): {:.3} ms per frame more",
             m.frame_ms_plain,
             m.frame_ms_markers,
             m.marker_dots,
             m.dots_inside,
-            m.slip_detection_ms_per_frame
+            m.marker_gel_ms_per_frame
+        );
+        println!(
+            "    slip detection {:.3} ms per frame (dots found and followed {:.3} ms, shear fitted {:.3} ms); dots filled for the depth {:.3} ms",
+            m.slip_detection_ms_per_frame, m.dot_tracking_ms, m.shear_fit_ms, m.dot_fill_ms
         );
     }
 }

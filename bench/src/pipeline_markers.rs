@@ -3,7 +3,9 @@
 //! plain gel, and on the same gel with the marker layout's dots (pitch 1.2 mm, dots
 //! 0.45 mm, as `layouts/three-finger-markers.toml`) moved by a tangential load that leaves
 //! a stick ratio of 0.6 (so the stick ratio is fitted, the detector's dearest case). The
-//! difference is the dots' fill, tracking and fit.
+//! difference is what a marker gel costs; its parts are then timed apart on the same
+//! decoded frames: the slip detection proper (the dots found and followed, the shear
+//! fitted under the contact) and the dots' fill (what the depth needs of a marker gel).
 
 use std::time::Instant;
 
@@ -12,6 +14,7 @@ use serde::Serialize;
 use gelgrip_controller::layout::HandLayout;
 use gelgrip_controller::markers::MarkerGrid;
 use gelgrip_plugins::config::SensorStages;
+use gelgrip_plugins::decode::JpegStage;
 use gelgrip_plugins::gradient::GradientModel;
 use gelgrip_plugins::pipeline::{Needs, SensorPipeline, StageChoice};
 use gelgrip_sim::config::SimConfig;
@@ -37,8 +40,17 @@ pub struct MarkerCost {
     pub frame_ms_plain: f64,
     /// The marker gel's frame, median ms.
     pub frame_ms_markers: f64,
-    /// Their difference: slip detection per frame, ms.
+    /// Their difference: what a marker gel costs per frame, ms.
+    pub marker_gel_ms_per_frame: f64,
+    /// Slip detection per frame, ms: the frame's dots found and followed from the
+    /// reference's, and the shear fitted under the contact (the next two).
     pub slip_detection_ms_per_frame: f64,
+    /// The dots found in the frame and matched to the reference's, median ms.
+    pub dot_tracking_ms: f64,
+    /// The shear's pattern fitted under the contact, median ms.
+    pub shear_fit_ms: f64,
+    /// The dots filled from the gel around them (for the gradients and depth), median ms.
+    pub dot_fill_ms: f64,
     /// Dots the pipeline found on the marker gel's reference.
     pub marker_dots: usize,
     /// Dots under the contact in the last frame.
@@ -137,11 +149,70 @@ pub fn measure(
     let (mut m, frames) = pipeline_and_frames(&dotted, press, stages, model, Some(&shear))?;
     let frame_ms_markers = frame_ms(&mut m, &frames)?;
     let last = m.process(&frames[0], Needs::DEPTH)?;
+    let parts = marker_parts(&mut m, &frames, stages.decode_scale.max(1))?;
     Ok(MarkerCost {
         frame_ms_plain,
         frame_ms_markers,
-        slip_detection_ms_per_frame: frame_ms_markers - frame_ms_plain,
+        marker_gel_ms_per_frame: frame_ms_markers - frame_ms_plain,
+        slip_detection_ms_per_frame: parts.tracking_ms + parts.fit_ms,
+        dot_tracking_ms: parts.tracking_ms,
+        shear_fit_ms: parts.fit_ms,
+        dot_fill_ms: parts.fill_ms,
         marker_dots: m.marker_dots().unwrap_or(0),
         dots_inside: last.shear.map_or(0, |e| e.dots_inside),
+    })
+}
+
+/// A marker gel's stages timed apart, median ms per frame.
+#[derive(Debug, Clone, Copy)]
+struct MarkerParts {
+    tracking_ms: f64,
+    fit_ms: f64,
+    fill_ms: f64,
+}
+
+/// Time the stages of `pipe`'s marker dots apart on `frames` decoded at `scale`, each
+/// frame's contact as the pipeline reads it.
+fn marker_parts(
+    pipe: &mut SensorPipeline,
+    frames: &[Vec<u8>],
+    scale: usize,
+) -> anyhow::Result<MarkerParts> {
+    let mut ink = pipe
+        .ink_fill()
+        .cloned()
+        .ok_or_else(|| anyhow::anyhow!("the marker gel's dots were not found"))?;
+    let (w, h) = pipe.size();
+    let mut decoder = JpegStage::new(w * scale, h * scale, scale);
+    let mut decoded = Vec::with_capacity(frames.len());
+    for f in frames {
+        let mut rgb = vec![0u8; w * h * 3];
+        decoder.decode(f, &mut rgb)?;
+        let contact = pipe.process(f, Needs::DEPTH)?;
+        decoded.push((rgb, contact));
+    }
+    let (mut tracking, mut fit, mut fill) = (Vec::new(), Vec::new(), Vec::new());
+    let mut work = vec![0u8; w * h * 3];
+    for k in 0..TIMED {
+        let (rgb, contact) = &decoded[k % decoded.len()];
+        work.copy_from_slice(rgb);
+        let t = Instant::now();
+        ink.follow(&work);
+        tracking.push(t.elapsed());
+        let t = Instant::now();
+        ink.fill(&mut work);
+        fill.push(t.elapsed());
+        let t = Instant::now();
+        std::hint::black_box(ink.shear_under(contact, pipe.mm_per_px(), scale as f64));
+        fit.push(t.elapsed());
+    }
+    let median_ms = |mut v: Vec<std::time::Duration>| {
+        v.sort();
+        v[v.len() / 2].as_secs_f64() * 1e3
+    };
+    Ok(MarkerParts {
+        tracking_ms: median_ms(tracking),
+        fit_ms: median_ms(fit),
+        fill_ms: median_ms(fill),
     })
 }

@@ -59,8 +59,10 @@ pub struct InkFill {
     ink: Vec<bool>,
     /// Working space: per pixel, the fill along its row and that fill's weight.
     along_rows: Vec<([f32; 3], f32)>,
-    /// Working space: one column's ink flags.
-    column: Vec<bool>,
+    /// Working space: per column, the row where its current run of ink began (or
+    /// [`NO_RUN`]), and a running count of ink near each column.
+    run_start: Vec<usize>,
+    near_ink: Vec<u16>,
     /// Frames filled so far.
     frames: u64,
     /// The last contact's estimated stick ratio, and the frame it was read in.
@@ -106,7 +108,8 @@ impl InkFill {
             wide: vec![0; width * height],
             ink: vec![false; width * height],
             along_rows: vec![([0.0; 3], 0.0); width * height],
-            column: vec![false; height],
+            run_start: vec![NO_RUN; width],
+            near_ink: vec![0; width],
             frames: 0,
             last_stick: None,
         })
@@ -155,14 +158,22 @@ impl InkFill {
     /// Follow the dots of frame `rgb` (interleaved 8-bit, the reference's size), then fill
     /// its ink.
     pub fn fill_u8(&mut self, rgb: &mut [u8]) {
+        if self.follow(rgb) {
+            self.fill(rgb);
+        }
+    }
+
+    /// Find the dots of frame `rgb` (interleaved 8-bit) and follow them from the
+    /// reference's; false (nothing done) for a frame of another size than the reference.
+    pub fn follow(&mut self, rgb: &[u8]) -> bool {
         if rgb.len() != self.threshold.len() * 3 {
-            return;
+            return false;
         }
         let brightness = |p: usize| {
             let v = &rgb[3 * p..3 * p + 3];
             f32::from(v[0]) + f32::from(v[1]) + f32::from(v[2])
         };
-        self.mark(brightness);
+        self.mark(rgb);
         let (raw, threshold) = (&self.raw, &self.threshold);
         let frame_dots = find_dots(
             (self.width, self.height),
@@ -173,54 +184,64 @@ impl InkFill {
         );
         self.tracker.track(&frame_dots);
         self.frames += 1;
-        self.interpolate(|p| [0, 1, 2].map(|c| f32::from(rgb[3 * p + c])));
-        for (p, (fill, weight)) in self.along_rows.iter().enumerate() {
-            if self.ink[p] && *weight > 0.0 {
-                for c in 0..3 {
-                    rgb[3 * p + c] = fill[c].round().clamp(0.0, 255.0) as u8;
+        true
+    }
+
+    /// Fill the ink that [`InkFill::follow`] found in the same frame `rgb`.
+    pub fn fill(&mut self, rgb: &mut [u8]) {
+        if rgb.len() != self.threshold.len() * 3 {
+            return;
+        }
+        self.widen();
+        self.fill_rows(rgb);
+        self.fill_columns(rgb);
+    }
+
+    /// Each ink pixel's fill along its row into `along_rows` (weight 0: none), from the gel
+    /// pixels of `rgb` either side.
+    fn fill_rows(&mut self, rgb: &[u8]) {
+        let w = self.width;
+        let value = |p: usize| [0, 1, 2].map(|c| f32::from(rgb[3 * p + c]));
+        let fills = &mut self.along_rows;
+        for (y, ink) in self.ink.chunks_exact(w).enumerate() {
+            line_fill(ink, |k| y * w + k, &value, |p, f| fills[p] = f);
+        }
+    }
+
+    /// Each ink pixel's fill along its column, blended with its fill along its row (each
+    /// weighed by the inverse of its span), written into `rgb`. The rows are walked in
+    /// order, each column's run of ink filled when the gel below it (or the frame's edge)
+    /// ends it, so the frame is read row by row and only ink is written.
+    fn fill_columns(&mut self, rgb: &mut [u8]) {
+        let (w, h) = (self.width, self.height);
+        for y in 0..=h {
+            for x in 0..w {
+                let ink = y < h && self.ink[y * w + x];
+                let start = self.run_start[x];
+                if ink {
+                    if start == NO_RUN {
+                        self.run_start[x] = y;
+                    }
+                } else if start != NO_RUN {
+                    self.run_start[x] = NO_RUN;
+                    fill_column_run(rgb, &self.along_rows, (w, h), x, start..y);
                 }
             }
         }
     }
 
-    /// Each ink pixel's fill into `along_rows` (weight 0: none), from the gel pixels of
-    /// `value` along its row and its column.
-    fn interpolate(&mut self, value: impl Fn(usize) -> [f32; 3]) {
-        let (w, h) = (self.width, self.height);
-        let (ink, fills, column) = (&self.ink, &mut self.along_rows, &mut self.column);
-        for y in 0..h {
-            line_fill(
-                &ink[y * w..(y + 1) * w],
-                |k| y * w + k,
-                &value,
-                |p, f| fills[p] = f,
-            );
-        }
-        for x in 0..w {
-            for (y, c) in column.iter_mut().enumerate() {
-                *c = ink[y * w + x];
-            }
-            line_fill(
-                column,
-                |k| k * w + x,
-                &value,
-                |p, (f, wt)| {
-                    let (g, wg) = fills[p];
-                    let sum = wt + wg;
-                    if sum > 0.0 {
-                        fills[p] = ([0, 1, 2].map(|c| (f[c] * wt + g[c] * wg) / sum), sum);
-                    }
-                },
-            );
+    /// Flag the ink of frame `rgb`: brightness (the channels' sum) under the threshold.
+    fn mark(&mut self, rgb: &[u8]) {
+        let pixels = rgb.chunks_exact(3).zip(&self.threshold);
+        for (ink, (v, t)) in self.raw.iter_mut().zip(pixels) {
+            let brightness = f32::from(v[0]) + f32::from(v[1]) + f32::from(v[2]);
+            *ink = u8::from(brightness < *t);
         }
     }
 
-    /// Flag the ink (brightness under the threshold) and the pixels within [`RIM_PX`] of it.
-    fn mark(&mut self, brightness: impl Fn(usize) -> f32) {
+    /// Flag what is filled: the ink and the pixels within [`RIM_PX`] of it.
+    fn widen(&mut self) {
         let (w, r) = (self.width, RIM_PX);
-        for (p, (ink, t)) in self.raw.iter_mut().zip(&self.threshold).enumerate() {
-            *ink = u8::from(brightness(p) < *t);
-        }
         // Along rows, then along columns (each a running count of ink within r).
         for (row, out) in self.raw.chunks_exact(w).zip(self.wide.chunks_exact_mut(w)) {
             let mut count: u32 = row[..r.min(w)].iter().map(|v| u32::from(*v)).sum();
@@ -234,11 +255,32 @@ impl InkFill {
                 }
             }
         }
-        let rows: Vec<&[u8]> = self.wide.chunks_exact(w).collect();
+        let h = self.height;
+        let count = &mut self.near_ink;
+        count.fill(0);
+        for row in self.wide.chunks_exact(w).take(r) {
+            count
+                .iter_mut()
+                .zip(row)
+                .for_each(|(c, v)| *c += u16::from(*v));
+        }
         for (y, out) in self.ink.chunks_exact_mut(w).enumerate() {
-            let near = &rows[y.saturating_sub(r)..(y + r + 1).min(rows.len())];
-            for (x, o) in out.iter_mut().enumerate() {
-                *o = near.iter().any(|row| row[x] != 0);
+            if y + r < h {
+                let row = &self.wide[(y + r) * w..(y + r + 1) * w];
+                count
+                    .iter_mut()
+                    .zip(row)
+                    .for_each(|(c, v)| *c += u16::from(*v));
+            }
+            out.iter_mut()
+                .zip(count.iter())
+                .for_each(|(o, c)| *o = *c > 0);
+            if y >= r {
+                let row = &self.wide[(y - r) * w..(y - r + 1) * w];
+                count
+                    .iter_mut()
+                    .zip(row)
+                    .for_each(|(c, v)| *c -= u16::from(*v));
             }
         }
     }
@@ -265,21 +307,68 @@ fn line_fill(
         while k < n && ink[k] {
             k += 1;
         }
-        let (left, right) = (start.checked_sub(1), (k < n).then_some(k));
+        let ends = (
+            start.checked_sub(1).map(|l| (l, value(at(l)))),
+            (k < n).then(|| (k, value(at(k)))),
+        );
         for i in start..k {
-            let fill = match (left, right) {
-                (Some(l), Some(r)) => {
-                    let t = (i - l) as f32 / (r - l) as f32;
-                    let (a, b) = (value(at(l)), value(at(r)));
-                    (
-                        [0, 1, 2].map(|c| a[c] + (b[c] - a[c]) * t),
-                        1.0 / (r - l) as f32,
-                    )
-                }
-                (Some(e), None) | (None, Some(e)) => (value(at(e)), 0.5 / i.abs_diff(e) as f32),
-                (None, None) => ([0.0; 3], 0.0),
-            };
-            put(at(i), fill);
+            put(at(i), span_fill(ends, i));
+        }
+    }
+}
+
+/// The gel pixel before a run of ink and the one after it (where the line has them): their
+/// place along the line and their value.
+type RunEnds = (Option<(usize, [f32; 3])>, Option<(usize, [f32; 3])>);
+
+/// The fill at `i` of a run of ink between `ends`: the straight line between them, weighed
+/// by the inverse of their span (the nearer one alone, at half that weight, where the line
+/// ends; nothing, weight 0, where it has neither).
+fn span_fill(ends: RunEnds, i: usize) -> ([f32; 3], f32) {
+    match ends {
+        (Some((l, a)), Some((r, b))) => {
+            let t = (i - l) as f32 / (r - l) as f32;
+            (
+                [0, 1, 2].map(|c| a[c] + (b[c] - a[c]) * t),
+                1.0 / (r - l) as f32,
+            )
+        }
+        (Some((e, v)), None) | (None, Some((e, v))) => (v, 0.5 / i.abs_diff(e) as f32),
+        (None, None) => ([0.0; 3], 0.0),
+    }
+}
+
+/// No run of ink has begun in this column.
+const NO_RUN: usize = usize::MAX;
+
+/// Fill the run of ink `rows` of column `x` of `rgb` (`w × h`): each pixel's straight-line
+/// fill between the gel pixels above and below (the nearer one alone at the frame's edge),
+/// weighed by the inverse of the span and blended with its fill along its row
+/// (`along_rows`); a pixel neither line can fill is left.
+fn fill_column_run(
+    rgb: &mut [u8],
+    along_rows: &[([f32; 3], f32)],
+    (w, h): (usize, usize),
+    x: usize,
+    rows: std::ops::Range<usize>,
+) {
+    let value = |rgb: &[u8], y: usize| [0, 1, 2].map(|c| f32::from(rgb[3 * (y * w + x) + c]));
+    let ends = (
+        rows.start.checked_sub(1).map(|a| (a, value(rgb, a))),
+        (rows.end < h).then(|| (rows.end, value(rgb, rows.end))),
+    );
+    for y in rows {
+        let (f, wt) = span_fill(ends, y);
+        let p = y * w + x;
+        let (g, wg) = along_rows[p];
+        let sum = wt + wg;
+        if sum > 0.0 {
+            let (wt, wg) = (wt / sum, wg / sum);
+            for c in 0..3 {
+                // Non-negative: adding a half and truncating rounds it.
+                let blended = f[c] * wt + g[c] * wg;
+                rgb[3 * p + c] = (blended + 0.5).clamp(0.0, 255.0) as u8;
+            }
         }
     }
 }
@@ -392,7 +481,7 @@ fn find_dots(
     seen.resize(w * h, false);
     let mut dots = Vec::new();
     for start in 0..w * h {
-        if seen[start] || !is_ink(start) {
+        if !is_ink(start) || seen[start] {
             continue;
         }
         seen[start] = true;

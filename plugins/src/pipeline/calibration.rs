@@ -57,6 +57,12 @@ impl SensorPipeline {
         self.ink.as_ref().map(InkFill::dots)
     }
 
+    /// A marker gel's dots as the pipeline finds, follows and fills them (`None`: a plain
+    /// gel), so that their stages can be timed apart (`bench pipeline --markers`).
+    pub fn ink_fill(&self) -> Option<&InkFill> {
+        self.ink.as_ref()
+    }
+
     /// The reference (`reference`, else the mean of `no_contact`), then the noise thresholds
     /// measured on `no_contact`.
     fn calibrate_frames(
