@@ -22,7 +22,7 @@
 
 mod shear;
 
-pub use shear::{DotTracker, ShearEstimate, SlipState};
+pub use shear::{CONFIRM_FRAMES, DotTracker, ShearEstimate, SlipState};
 
 /// The gel's brightness is taken over a window of this share of the frame's shorter side.
 const LEVEL_WINDOW_SHARE: f64 = 1.0 / 12.0;
@@ -65,8 +65,8 @@ pub struct InkFill {
     near_ink: Vec<u16>,
     /// Frames filled so far.
     frames: u64,
-    /// The last contact's estimated stick ratio, and the frame it was read in.
-    last_stick: Option<(u64, f64)>,
+    /// The contact's estimated stick ratios of the last frames, for its state.
+    confirmation: shear::Confirmation,
 }
 
 impl InkFill {
@@ -111,7 +111,7 @@ impl InkFill {
             run_start: vec![NO_RUN; width],
             near_ink: vec![0; width],
             frames: 0,
-            last_stick: None,
+            confirmation: shear::Confirmation::default(),
         })
     }
 
@@ -130,9 +130,10 @@ impl InkFill {
     /// The shear the last frame's dots show under `contact` (its centroid in px of the
     /// full-resolution image, `scale` times the processed frame's), at `mm_per_px` of the
     /// processed frame: the contact taken as a disc of its area. Its state is confirmed
-    /// over two frames: it is the stickier of this frame's and the frame before's (a
-    /// contact is said to slip once two frames in a row show it; one frame's fit on noisy
-    /// dots does not); the stick ratio is this frame's.
+    /// over [`shear::CONFIRM_FRAMES`] frames: it is the stickiest of this frame's and the frames
+    /// before's (a contact is said to slip once that many frames in a row show it; a frame
+    /// or two of fits on noisy dots, or on a depth map whose contact flickered, do not);
+    /// the stick ratio is this frame's.
     pub fn shear_under(
         &mut self,
         contact: &crate::contact::ContactSummary,
@@ -144,13 +145,11 @@ impl InkFill {
         // The centroid's pixel centres are at integers, the dots' at +0.5.
         let centre = ((cx + 0.5) / scale, (cy + 0.5) / scale);
         let mut estimate = self.tracker.estimate(centre, radius_px, mm_per_px);
-        let before = self
-            .last_stick
-            .filter(|(frame, _)| *frame + 1 == self.frames)
-            .map_or(1.0, |(_, s)| s);
-        self.last_stick = estimate.map(|e| (self.frames, e.stick_ratio));
+        let confirmed = self
+            .confirmation
+            .confirm(self.frames, estimate.map(|e| e.stick_ratio));
         if let Some(e) = estimate.as_mut() {
-            e.state = shear::state_of(e.stick_ratio.max(before));
+            e.state = shear::state_of(confirmed);
         }
         estimate
     }

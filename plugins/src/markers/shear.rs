@@ -285,6 +285,42 @@ fn centre_offset(
 /// depth map's centroid.
 const CENTRE_REACH: f64 = 0.15;
 
+/// A contact's slip state holds once this many frames in a row show it.
+pub const CONFIRM_FRAMES: usize = 3;
+
+/// A contact's estimated stick ratios over its last frames: its state is that of the
+/// stickiest of the last [`CONFIRM_FRAMES`] (a frame without a reading counts as sticking).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Confirmation {
+    /// The readings of the frames before, each with its frame.
+    recent: Vec<(u64, f64)>,
+}
+
+impl Confirmation {
+    /// Count frame `frame`'s reading `stick_ratio` (`None`: none) and return the stick
+    /// ratio its state is read from.
+    pub fn confirm(&mut self, frame: u64, stick_ratio: Option<f64>) -> f64 {
+        let before = (1..CONFIRM_FRAMES as u64)
+            .map(|k| {
+                self.recent
+                    .iter()
+                    .find(|(f, _)| f + k == frame)
+                    .map_or(1.0, |(_, s)| *s)
+            })
+            .fold(0.0, f64::max);
+        // Keep what the next frame needs: this one and the CONFIRM_FRAMES − 2 before.
+        self.recent
+            .retain(|(f, _)| f + CONFIRM_FRAMES as u64 > frame + 1);
+        match stick_ratio {
+            Some(s) => {
+                self.recent.push((frame, s));
+                s.max(before)
+            }
+            None => 1.0,
+        }
+    }
+}
+
 /// What a stick ratio makes of a contact.
 pub fn state_of(stick_ratio: f64) -> SlipState {
     if stick_ratio < GROSS_STICK_RATIO {
@@ -601,6 +637,27 @@ mod tests {
             .collect();
         let unmoved = fit_stick_ratio(&along, 40.0, None);
         assert!(unmoved < INCIPIENT_STICK_RATIO, "{unmoved}");
+    }
+
+    #[test]
+    fn a_state_holds_once_three_frames_in_a_row_show_it() {
+        let mut c = Confirmation::default();
+        // Two frames of slip, then sticking: never confirmed.
+        assert_eq!(c.confirm(1, Some(0.5)), 1.0);
+        assert_eq!(c.confirm(2, Some(0.6)), 1.0);
+        assert_eq!(c.confirm(3, Some(0.98)), 0.98);
+        // Three in a row: the stickiest of them.
+        assert_eq!(c.confirm(4, Some(0.7)), 0.98);
+        assert_eq!(c.confirm(5, Some(0.6)), 0.98);
+        assert_eq!(c.confirm(6, Some(0.5)), 0.7);
+        // A frame without a reading breaks the run.
+        assert_eq!(c.confirm(7, None), 1.0);
+        assert_eq!(c.confirm(8, Some(0.4)), 1.0);
+        assert_eq!(c.confirm(9, Some(0.4)), 1.0);
+        assert_eq!(c.confirm(10, Some(0.4)), 0.4);
+        // A gap between frames too.
+        assert_eq!(c.confirm(12, Some(0.4)), 1.0);
+        assert!(c.recent.len() < CONFIRM_FRAMES);
     }
 
     #[test]
