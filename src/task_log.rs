@@ -1,6 +1,7 @@
 //! The task CSV (`--log OUT.csv`): one row per set a task drove (time, stage, deformation
 //! per sensor, true force per sensor on the simulator, and per finger its state, force,
-//! goal current and position). Lossless: a write failure is a fault of the run.
+//! goal current and position; on a layout with marker gels, then the slip per finger and
+//! of the grasp, docs/slip.md). Lossless: a write failure is a fault of the run.
 
 use std::io::Write;
 use std::path::Path;
@@ -14,6 +15,8 @@ use gelgrip_controller::runtime::report::SetReport;
 #[derive(Debug)]
 pub struct TaskLog {
     out: std::io::BufWriter<std::fs::File>,
+    /// Whether the rows end with the slip columns (a layout with marker gels).
+    slip: bool,
 }
 
 impl TaskLog {
@@ -43,9 +46,17 @@ impl TaskLog {
             header.push(format!("{}_goal_current_ma", f.id));
             header.push(format!("{}_position_deg", f.id));
         }
+        let slip = layout.sensors.iter().any(|s| s.markers.is_some());
+        if slip {
+            for f in &layout.fingers {
+                header.push(format!("{}_slip", f.id));
+                header.push(format!("{}_stick_ratio", f.id));
+            }
+            header.push("grasp_slip".to_string());
+        }
         writeln!(out, "{}", header.join(","))
             .map_err(|e| crate::Error::io(format!("writing the log {}", path.display()), e))?;
-        Ok(Self { out })
+        Ok(Self { out, slip })
     }
 }
 
@@ -78,6 +89,24 @@ impl Observer for TaskLog {
                 servos
                     .get(i)
                     .map_or(String::new(), |s| format!("{:.2}", s.position_deg)),
+            );
+        }
+        if self.slip {
+            // Empty where the slip is unknown (no marker dots under a contact).
+            for f in &fused.fingers {
+                cells.push(
+                    f.slip
+                        .map_or(String::new(), |s| s.state.as_str().to_string()),
+                );
+                cells.push(
+                    f.slip
+                        .map_or(String::new(), |s| format!("{:.2}", s.stick_ratio)),
+                );
+            }
+            cells.push(
+                fused
+                    .slip()
+                    .map_or(String::new(), |s| s.state.as_str().to_string()),
             );
         }
         writeln!(self.out, "{}", cells.join(","))?;

@@ -269,11 +269,15 @@ fn bench_slip_refuses_a_load_time_of_zero_and_a_figure_it_cannot_draw() {
 
 /// `run --json`'s `slip` on the marker config: the tennis ball grasped and held through
 /// the hold test; its sensors read the contacts (none, then incipient under the hold
-/// test's pull), never slip on a contact that truly sticks.
+/// test's pull), never slip on a contact that truly sticks. The task log carries the slip
+/// per finger and of the grasp.
 #[test]
 fn a_marker_gel_grasp_reports_its_slip_readings_without_false_alarms() {
+    let log = Path::new(env!("CARGO_TARGET_TMPDIR")).join("markers-grasp-log.csv");
     let out = common::gelgrip_cached(&[
         "run",
+        "--log",
+        log.to_str().expect("a UTF-8 path"),
         "--config",
         "configs/gelgripper-sim-markers.toml",
         "--clock",
@@ -300,4 +304,38 @@ fn a_marker_gel_grasp_reports_its_slip_readings_without_false_alarms() {
     ];
     let total: u64 = readings.iter().map(|k| count(k)).sum();
     assert_eq!(total % sensors, 0, "{slip}");
+    slip_columns_in_the_task_log(&log);
+}
+
+/// The task log's slip columns: after the existing ones, per finger its state (empty
+/// while unknown) and stick ratio, then the grasp's; states read under the hold test.
+fn slip_columns_in_the_task_log(log: &Path) {
+    let csv = std::fs::read_to_string(log).expect("the task log");
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().expect("a header").split(',').collect();
+    let n = header.len();
+    assert_eq!(
+        header[n - 7..],
+        [
+            "f1_slip",
+            "f1_stick_ratio",
+            "f2_slip",
+            "f2_stick_ratio",
+            "f3_slip",
+            "f3_stick_ratio",
+            "grasp_slip"
+        ],
+        "{header:?}"
+    );
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    assert!(rows.iter().all(|r| r.len() == n), "ragged rows");
+    let grasp: Vec<&str> = rows.iter().map(|r| r[n - 1]).collect();
+    for state in ["none", "incipient"] {
+        assert!(grasp.contains(&state), "no {state} in the grasp's slip");
+    }
+    assert!(
+        grasp
+            .iter()
+            .all(|s| ["", "none", "incipient", "gross"].contains(s))
+    );
 }

@@ -110,6 +110,28 @@ impl FusedSet {
     pub fn total_force_n(&self) -> f64 {
         self.fingers.iter().map(|f| f.force_n).sum::<f64>() + self.palm.map_or(0.0, |p| p.force_n)
     }
+
+    /// The grasp's slip: that of its finger (or palm) slipping most, as a finger's is that
+    /// of its sensor slipping most (`None`: no contact's slip is known).
+    pub fn slip(&self) -> Option<SensorSlip> {
+        self.fingers
+            .iter()
+            .chain(&self.palm)
+            .fold(None, |worst, c| worse_slip(worst, c.slip))
+    }
+}
+
+/// The one of `a` and `b` slipping most: the more advanced state, then the less stick.
+fn worse_slip(a: Option<SensorSlip>, b: Option<SensorSlip>) -> Option<SensorSlip> {
+    match (a, b) {
+        (Some(x), Some(y)) => Some(if (y.state, -y.stick_ratio) > (x.state, -x.stick_ratio) {
+            y
+        } else {
+            x
+        }),
+        (x, None) => x,
+        (None, y) => y,
+    }
 }
 
 /// Add one sensor to a finger's (or the palm's) accumulator; `best_n` is the largest force
@@ -126,12 +148,7 @@ fn add(acc: &mut FusedContact, best_n: &mut f64, sensor: usize, reading: Option<
     acc.max_depth_mm = acc.max_depth_mm.max(finite(r.max_depth_mm));
     acc.force_n += force;
     if let Some(slip) = r.slip.filter(|_| r.in_contact) {
-        let worse = acc
-            .slip
-            .is_none_or(|a| (slip.state, -slip.stick_ratio) > (a.state, -a.stick_ratio));
-        if worse {
-            acc.slip = Some(slip);
-        }
+        acc.slip = worse_slip(acc.slip, Some(slip));
     }
     if r.in_contact
         && (acc.centroid.is_none() || force > *best_n)
@@ -334,5 +351,17 @@ mod tests {
         let fused = fuse(&layout, &r);
         assert_eq!(fused.fingers[0].slip, Some(slip(SlipState::Incipient, 0.7)));
         assert!(fused.fingers[1..].iter().all(|f| f.slip.is_none()));
+        // The grasp's: its finger (or palm) slipping most.
+        assert_eq!(fused.slip(), Some(slip(SlipState::Incipient, 0.7)));
+        let palm = layout
+            .sensors
+            .iter()
+            .position(|s| s.id.to_string() == "palm")
+            .expect("palm");
+        r[palm] = r[palm].map(|x| SensorReading {
+            slip: Some(slip(SlipState::Gross, 0.9)),
+            ..x
+        });
+        assert_eq!(fuse(&layout, &r).slip(), Some(slip(SlipState::Gross, 0.9)));
     }
 }
