@@ -4,7 +4,7 @@
 //!
 //! With the recorded config (the default) or another one, the replay is checked against the
 //! recording: the gate's decisions set by set, each sensor's fused reading (in contact,
-//! area, depth, volume, force) bit for bit wherever the run recorded one, and the grasp
+//! area, depth, volume, force, and on a marker gel its slip) bit for bit wherever the run recorded one, and the grasp
 //! API's control steps. With two configs it runs both pipelines on the same sets and
 //! reports how their depth, contact area and force differ.
 
@@ -101,19 +101,63 @@ struct Recorded {
     /// Records whose CRC failed (skipped).
     crc_errors: u64,
     decisions: Vec<(u32, String)>,
-    /// Per set, each sensor's (in contact, area, depth, volume, force).
-    readings: HashMap<u32, Vec<Option<[f64; 5]>>>,
+    /// Per set, each sensor's reading as compared ([`Compared`]).
+    readings: HashMap<u32, Vec<Option<Compared>>>,
     /// Per set, the grasp-API service's commands and steps since the set before.
     controller: HashMap<u32, Vec<ServiceEvent>>,
 }
 
-fn as_array(r: &SensorReading) -> [f64; 5] {
+/// A sensor's reading as the replay compares it, bit for bit: in contact, area, depth,
+/// volume, force, then its slip: state (−1 unknown, 0 none, 1 incipient, 2 gross), stick
+/// ratio and shear x, y (0 while unknown).
+type Compared = [f64; 9];
+
+fn as_array(r: &SensorReading) -> Compared {
+    let slip = r.slip.map_or([-1.0, 0.0, 0.0, 0.0], |s| {
+        [
+            f64::from(s.state as u8),
+            s.stick_ratio,
+            s.shear_mm[0],
+            s.shear_mm[1],
+        ]
+    });
     [
         f64::from(u8::from(r.in_contact)),
         r.area_mm2,
         r.max_depth_mm,
         r.volume_mm3,
         r.force_n,
+        slip[0],
+        slip[1],
+        slip[2],
+        slip[3],
+    ]
+}
+
+/// A snapshot's sensor (`recording.md`'s `state` meta) as compared: a missing number is
+/// NaN, which matches nothing.
+fn snapshot_array(s: &serde_json::Value) -> Compared {
+    let num = |v: &serde_json::Value| v.as_f64().unwrap_or(f64::NAN);
+    let slip = &s["slip"];
+    let state = match slip["state"].as_str() {
+        None if slip.is_null() => -1.0,
+        Some("none") => 0.0,
+        Some("incipient") => 1.0,
+        Some("gross") => 2.0,
+        _ => f64::NAN,
+    };
+    let known = !slip.is_null();
+    let or_zero = |v: &serde_json::Value| if known { num(v) } else { 0.0 };
+    [
+        f64::from(u8::from(s["in_contact"].as_bool().unwrap_or(false))),
+        num(&s["area_mm2"]),
+        num(&s["max_depth_mm"]),
+        num(&s["volume_mm3"]),
+        num(&s["force_n"]),
+        state,
+        or_zero(&slip["stick_ratio"]),
+        or_zero(&slip["shear_mm"][0]),
+        or_zero(&slip["shear_mm"][1]),
     ]
 }
 
@@ -137,17 +181,7 @@ fn read_recorded(recording: &Recording) -> crate::Result<Recorded> {
             if let (Some(seq), Some(sensors)) = (seq, state["sensors"].as_array()) {
                 let readings = sensors
                     .iter()
-                    .map(|s| {
-                        s.is_object().then(|| {
-                            [
-                                f64::from(u8::from(s["in_contact"].as_bool().unwrap_or(false))),
-                                s["area_mm2"].as_f64().unwrap_or(f64::NAN),
-                                s["max_depth_mm"].as_f64().unwrap_or(f64::NAN),
-                                s["volume_mm3"].as_f64().unwrap_or(f64::NAN),
-                                s["force_n"].as_f64().unwrap_or(f64::NAN),
-                            ]
-                        })
-                    })
+                    .map(|s| s.is_object().then(|| snapshot_array(s)))
                     .collect();
                 out.readings.insert(seq, readings);
             }
@@ -457,7 +491,7 @@ pub async fn replay(
             && let Some(expected) = recorded.readings.get(&set.trigger_seq)
         {
             fused_compared += 1;
-            let got: Vec<Option<[f64; 5]>> = readings[0]
+            let got: Vec<Option<Compared>> = readings[0]
                 .iter()
                 .map(|r| r.as_ref().map(as_array))
                 .collect();
@@ -496,4 +530,50 @@ pub async fn replay(
         records_skipped: recorded.crc_errors,
     };
     Ok(report)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use gelgrip_controller::fusion::{SensorSlip, SlipState};
+    use gelgrip_record::observer::SensorSnapshot;
+
+    /// A reading written to a snapshot (as the recorder does) and read back compares equal
+    /// to itself, bit for bit, its slip too; a changed slip does not.
+    #[test]
+    fn a_snapshot_reads_back_as_the_reading_with_its_slip() {
+        let reading = SensorReading {
+            in_contact: true,
+            area_mm2: 12.345_678_9,
+            max_depth_mm: 0.1 + 0.2,
+            volume_mm3: 1.0 / 3.0,
+            force_n: 0.987_654_321,
+            centroid_mm: None,
+            slip: Some(SensorSlip {
+                shear_mm: [0.012_345, -1e-17],
+                stick_ratio: 0.72,
+                state: SlipState::Incipient,
+            }),
+        };
+        let back = |r: &SensorReading| {
+            let json = serde_json::to_value(SensorSnapshot::from(r)).expect("serialises");
+            snapshot_array(&json)
+        };
+        let bits = |a: Compared| a.map(f64::to_bits);
+        assert_eq!(bits(back(&reading)), bits(as_array(&reading)));
+        let unknown = SensorReading {
+            slip: None,
+            ..reading
+        };
+        assert_eq!(bits(back(&unknown)), bits(as_array(&unknown)));
+        assert_ne!(bits(back(&unknown)), bits(as_array(&reading)));
+        let gross = SensorReading {
+            slip: reading.slip.map(|s| SensorSlip {
+                state: SlipState::Gross,
+                ..s
+            }),
+            ..reading
+        };
+        assert_ne!(bits(back(&reading)), bits(as_array(&gross)));
+    }
 }

@@ -274,10 +274,14 @@ fn bench_slip_refuses_a_load_time_of_zero_and_a_figure_it_cannot_draw() {
 #[test]
 fn a_marker_gel_grasp_reports_its_slip_readings_without_false_alarms() {
     let log = Path::new(env!("CARGO_TARGET_TMPDIR")).join("markers-grasp-log.csv");
+    let recording = Path::new(env!("CARGO_TARGET_TMPDIR")).join("markers-grasp-recording");
+    let _ = std::fs::remove_dir_all(&recording);
     let out = common::gelgrip_cached(&[
         "run",
         "--log",
         log.to_str().expect("a UTF-8 path"),
+        "--record",
+        recording.to_str().expect("a UTF-8 path"),
         "--config",
         "configs/gelgripper-sim-markers.toml",
         "--clock",
@@ -305,6 +309,15 @@ fn a_marker_gel_grasp_reports_its_slip_readings_without_false_alarms() {
     let total: u64 = readings.iter().map(|k| count(k)).sum();
     assert_eq!(total % sensors, 0, "{slip}");
     slip_columns_in_the_task_log(&log);
+    // The recording carries each sensor's slip, and the replay gives it back bit for bit.
+    let replay = json(&common::gelgrip_cached(&[
+        "replay",
+        recording.to_str().expect("a UTF-8 path"),
+        "--json",
+    ]));
+    assert_eq!(replay["fused_compared"], report["sets"], "{replay}");
+    assert_eq!(replay["fused_mismatches"], 0, "bit for bit: {replay}");
+    let _ = std::fs::remove_dir_all(&recording);
 }
 
 /// The task log's slip columns: after the existing ones, per finger its state (empty

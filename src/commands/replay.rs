@@ -4,7 +4,7 @@
 //!
 //! With the recorded config (the default) or `--config`, it checks the replay against the
 //! recording: the gate's decisions set by set, and each sensor's fused reading (in contact,
-//! area, depth, volume, force) bit for bit wherever the run recorded one. With `--compare A
+//! area, depth, volume, force, and on a marker gel its slip) bit for bit wherever the run recorded one. With `--compare A
 //! B` it runs both configs' pipelines on the same sets and reports how their depth, contact
 //! area and force differ.
 
