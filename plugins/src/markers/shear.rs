@@ -38,7 +38,7 @@ pub const INCIPIENT_STICK_RATIO: f64 = 0.9;
 /// A contact slides (gross slip) below this estimated stick ratio.
 pub const GROSS_STICK_RATIO: f64 = 0.25;
 /// Stick ratios tried by the fit (0, 1/FIT_STEPS, … below 1).
-pub const FIT_STEPS: usize = 25;
+pub const FIT_STEPS: usize = 50;
 /// Dots out to this many contact radii (the depth map's) enter the fit.
 const FIT_REACH: f64 = 2.0;
 
@@ -498,7 +498,7 @@ fn fits_at(along: &[(f64, f64)], radius: f64, sticks: &[f64], fits: &mut Vec<Fit
 const RADIUS_SPAN: (f64, f64) = (0.6, 1.25);
 const RADII: usize = 9;
 /// The first pass tries every this-many-th stick ratio.
-const COARSE_EVERY: usize = 3;
+const COARSE_EVERY: usize = 6;
 /// The second pass's radii, around the first's best.
 const FINE_RADII: usize = 9;
 /// What a fit is free in: the pattern's scale, the stick ratio and the contact's radius.
@@ -629,14 +629,18 @@ mod tests {
             .expect("dots inside");
         assert!((e.stick_ratio - 0.95).abs() <= 0.05, "{e:?}");
         assert_eq!(e.state, SlipState::None, "{e:?}");
-        // Fitted around the depth map's centroid alone, the same dots read slip.
+        // Fitted around the depth map's centroid alone, the same dots read 0.08 less stick:
+        // slip, at the threshold.
         let along: Vec<(f64, f64)> = tracker
             .shifts()
             .filter_map(|(r, s)| Some(((r.0 - 80.0).hypot(r.1 - 80.0), s?.0)))
             .filter(|(d, _)| *d <= FIT_REACH * 40.0)
             .collect();
         let unmoved = fit_stick_ratio(&along, 40.0, None);
-        assert!(unmoved < INCIPIENT_STICK_RATIO, "{unmoved}");
+        assert!(
+            unmoved <= INCIPIENT_STICK_RATIO && unmoved <= e.stick_ratio - 0.06,
+            "{unmoved}"
+        );
     }
 
     #[test]
