@@ -86,7 +86,7 @@ pub struct DotTracker {
     /// shifts per axis, and how many axes were summed.
     noise: (f64, usize),
     /// Working space: the frame's dots by grid cell.
-    cells: std::collections::HashMap<(i64, i64), Vec<(f64, f64)>>,
+    cells: DotCells,
 }
 
 impl DotTracker {
@@ -98,7 +98,7 @@ impl DotTracker {
             reference,
             pitch_px,
             noise: (0.0, 0),
-            cells: std::collections::HashMap::new(),
+            cells: DotCells::default(),
         }
     }
 
@@ -145,23 +145,14 @@ impl DotTracker {
     /// Match the frame's dots (centres, px) to the reference's.
     pub fn track(&mut self, frame: &[super::Dot]) {
         let cell = self.pitch_px.max(1.0);
-        let key = |(x, y): (f64, f64)| ((x / cell).floor() as i64, (y / cell).floor() as i64);
-        self.cells.values_mut().for_each(Vec::clear);
-        for d in frame {
-            self.cells
-                .entry(key(d.centre_px))
-                .or_default()
-                .push(d.centre_px);
-        }
+        self.cells.fill(&self.reference, cell, frame);
         let reach = 0.5 * self.pitch_px;
         for (r, shift) in self.reference.iter().zip(self.shift.iter_mut()) {
             let (dx, dy) = shift.unwrap_or((0.0, 0.0));
             let at = (r.0 + dx, r.1 + dy);
-            let (cx, cy) = key(at);
-            let nearest = (cx - 1..=cx + 1)
-                .flat_map(|x| (cy - 1..=cy + 1).map(move |y| (x, y)))
-                .filter_map(|k| self.cells.get(&k))
-                .flatten()
+            let nearest = self
+                .cells
+                .around(at)
                 .map(|p| (p, (p.0 - at.0).hypot(p.1 - at.1)))
                 .filter(|(_, d)| *d <= reach)
                 .min_by(|a, b| a.1.total_cmp(&b.1));
@@ -318,6 +309,69 @@ impl Confirmation {
             }
             None => 1.0,
         }
+    }
+}
+
+/// A frame's dots binned in square cells of the grid's pitch, over the reference's extent
+/// and a cell around it (a dot farther out is matched to no reference dot: they are looked
+/// for within half the pitch).
+#[derive(Debug, Clone, Default, PartialEq)]
+struct DotCells {
+    cell_px: f64,
+    /// Cells across and down; cell (0, 0) starts a cell left of and above the reference.
+    cols: usize,
+    rows: usize,
+    origin: (f64, f64),
+    dots: Vec<Vec<(f64, f64)>>,
+}
+
+impl DotCells {
+    /// Bin `frame`'s dots in cells of `cell_px` around `reference`.
+    fn fill(&mut self, reference: &[(f64, f64)], cell_px: f64, frame: &[super::Dot]) {
+        let (mut lo, mut hi) = (
+            (f64::INFINITY, f64::INFINITY),
+            (f64::NEG_INFINITY, f64::NEG_INFINITY),
+        );
+        for &(x, y) in reference {
+            (lo, hi) = ((lo.0.min(x), lo.1.min(y)), (hi.0.max(x), hi.1.max(y)));
+        }
+        if !(lo.0.is_finite() && hi.0.is_finite()) {
+            (lo, hi) = ((0.0, 0.0), (0.0, 0.0));
+        }
+        self.cell_px = cell_px;
+        self.origin = (lo.0 - cell_px, lo.1 - cell_px);
+        self.cols = ((hi.0 - lo.0) / cell_px) as usize + 3;
+        self.rows = ((hi.1 - lo.1) / cell_px) as usize + 3;
+        self.dots.iter_mut().for_each(Vec::clear);
+        self.dots.resize(self.cols * self.rows, Vec::new());
+        for d in frame {
+            if let Some(k) = self.index(self.cell_of(d.centre_px)) {
+                self.dots[k].push(d.centre_px);
+            }
+        }
+    }
+
+    /// The cell of point `(x, y)`, as (column, row) (negative or beyond: outside).
+    fn cell_of(&self, (x, y): (f64, f64)) -> (i64, i64) {
+        (
+            ((x - self.origin.0) / self.cell_px).floor() as i64,
+            ((y - self.origin.1) / self.cell_px).floor() as i64,
+        )
+    }
+
+    /// The index of cell `(c, r)`, when it is one.
+    fn index(&self, (c, r): (i64, i64)) -> Option<usize> {
+        let (c, r) = (usize::try_from(c).ok()?, usize::try_from(r).ok()?);
+        (c < self.cols && r < self.rows).then(|| r * self.cols + c)
+    }
+
+    /// The dots in the 3 × 3 cells around `at`.
+    fn around(&self, at: (f64, f64)) -> impl Iterator<Item = &(f64, f64)> {
+        let (c, r) = self.cell_of(at);
+        (r - 1..=r + 1)
+            .flat_map(move |y| (c - 1..=c + 1).map(move |x| (x, y)))
+            .filter_map(|k| self.index(k))
+            .flat_map(|k| self.dots[k].iter())
     }
 }
 
