@@ -39,9 +39,11 @@ impl Drop for Watchdog {
     }
 }
 
-/// A fresh scratch directory for test `name` (removed first if left over).
+/// A fresh scratch directory for test `name` (removed first if left over), in the build's
+/// own temporary directory (`target/tmp`): one per test however often the tests run, and
+/// gone with the build, never piling up in the system's temporary directory.
 pub fn scratch(name: &str) -> std::path::PathBuf {
-    let dir = std::env::temp_dir().join(format!("gelgrip-e2e-{}-{name}", std::process::id()));
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("gelgrip-e2e-{name}"));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).expect("scratch dir");
     dir
