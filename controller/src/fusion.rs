@@ -330,38 +330,26 @@ mod tests {
             fused.fingers.iter().all(|f| f.slip.is_none()),
             "plain gels: unknown"
         );
-        let f1 = layout
-            .sensors
-            .iter()
-            .position(|s| s.id.to_string() == "f1.tip")
-            .expect("f1.tip");
-        let f1m = layout
-            .sensors
-            .iter()
-            .position(|s| s.id.to_string() == "f1.middle")
-            .expect("f1.middle");
-        r[f1] = r[f1].map(|x| SensorReading {
-            slip: Some(slip(SlipState::None, 0.95)),
-            ..x
-        });
-        r[f1m] = r[f1m].map(|x| SensorReading {
-            slip: Some(slip(SlipState::Incipient, 0.7)),
-            ..x
-        });
+        // Sensor `id`'s reading with `slip`.
+        let set_slip = |r: &mut Vec<Option<SensorReading>>, id: &str, slip: SensorSlip| {
+            let k = layout
+                .sensors
+                .iter()
+                .position(|s| s.id.to_string() == id)
+                .expect("a sensor of the layout");
+            r[k] = r[k].map(|x| SensorReading {
+                slip: Some(slip),
+                ..x
+            });
+        };
+        set_slip(&mut r, "f1.tip", slip(SlipState::None, 0.95));
+        set_slip(&mut r, "f1.middle", slip(SlipState::Incipient, 0.7));
         let fused = fuse(&layout, &r);
         assert_eq!(fused.fingers[0].slip, Some(slip(SlipState::Incipient, 0.7)));
         assert!(fused.fingers[1..].iter().all(|f| f.slip.is_none()));
         // The grasp's: its finger (or palm) slipping most.
         assert_eq!(fused.slip(), Some(slip(SlipState::Incipient, 0.7)));
-        let palm = layout
-            .sensors
-            .iter()
-            .position(|s| s.id.to_string() == "palm")
-            .expect("palm");
-        r[palm] = r[palm].map(|x| SensorReading {
-            slip: Some(slip(SlipState::Gross, 0.9)),
-            ..x
-        });
+        set_slip(&mut r, "palm", slip(SlipState::Gross, 0.9));
         assert_eq!(fuse(&layout, &r).slip(), Some(slip(SlipState::Gross, 0.9)));
     }
 }
