@@ -190,6 +190,17 @@ fn check_config_names_file_field_and_range() {
     assert!(err.contains("[1, 100]"), "{err}");
 }
 
+/// A `[grasp]` whose most is below its first grip exits 2 naming the field.
+#[test]
+fn check_config_names_a_bad_grasp_section() {
+    let out = gelgrip(&["check-config", &fixture("bad-grasp.toml")]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("bad-grasp.toml"), "{err}");
+    assert!(err.contains("`grasp.max_force_n` = 0.5"), "{err}");
+    assert!(err.contains("grasp.preload_n (1 N)"), "{err}");
+}
+
 /// Bad `[[hub.sim.faults]]` timing faults exit 2 naming the field and its range.
 #[test]
 fn check_config_names_a_bad_sim_timing_fault() {

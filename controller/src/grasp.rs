@@ -38,8 +38,10 @@ use crate::fusion::FusedSet;
 
 mod finger;
 pub mod limits;
+pub mod settings;
 use finger::{FingerCtl, FingerInput, StepContext, Transition};
 pub use limits::{GraspLimits, MAX_TIMEOUT_S};
+pub use settings::GraspSettings;
 
 /// Per-finger phase.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]

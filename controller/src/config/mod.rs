@@ -7,6 +7,7 @@
 
 mod error;
 mod files;
+mod grasp;
 
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
@@ -138,6 +139,8 @@ pub struct AppConfig {
     /// `[ros]`: publishing to ROS 2 over Zenoh (`gelgrip run --ros`), validated by the
     /// program's ROS module.
     pub ros: BackendSection,
+    /// `[grasp]`: how a grasp finds and keeps its force.
+    pub grasp: crate::grasp::GraspSettings,
 }
 
 #[derive(Deserialize)]
@@ -159,6 +162,8 @@ struct RawConfig {
     record: toml::Table,
     #[serde(default)]
     ros: toml::Table,
+    #[serde(default)]
+    grasp: grasp::RawGrasp,
 }
 
 #[derive(Deserialize)]
@@ -315,6 +320,8 @@ impl AppConfig {
             base_dir: base_dir.to_path_buf(),
             files: files.clone(),
         };
+        let servos = validate_servos(&check, raw.servos)?;
+        let grasp = grasp::validate_grasp(&check, raw.grasp, &layout, servos.current_limit_ma)?;
         let hub = validate_hub(&check, raw.hub, base_dir, files, registry)?;
         registry.validate(&hub.transport, &hub.section, &layout)?;
         Ok(Self {
@@ -322,7 +329,8 @@ impl AppConfig {
             layout,
             hub,
             gate: validate_gate(&check, raw.gate)?,
-            servos: validate_servos(&check, raw.servos)?,
+            servos,
+            grasp,
             http: validate_http(&check, raw.http)?,
             pipeline,
             record,
