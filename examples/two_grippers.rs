@@ -28,6 +28,7 @@ async fn grasp(scene: &str) -> anyhow::Result<GraspOutcome> {
         current_limit_ma: session.config().servos.current_limit_ma,
         fingers: vec![0, 1, 2],
         timeout_s: 20.0,
+        auto_target: false,
     };
     let (_events, stop) = tokio::sync::mpsc::channel(1);
     let result = tokio::select! {

@@ -148,12 +148,16 @@ impl RunReport {
         }
         if let Some(t) = &self.task {
             s += &format!(
-                "  task {}: grasped {} ({}), peak {:.2} N for a {:.2} N target, stable after {} s, loop p99 {} ms\n",
+                "  task {}: grasped {} ({}), peak {:.2} N for {}, stable after {} s, loop p99 {} ms\n",
                 t.task,
                 t.grasped,
                 t.reason,
                 t.peak_force_n,
-                t.target_force_n,
+                match (t.target_force_n, t.settled_force_n) {
+                    (Some(target), _) => format!("a {target:.2} N target"),
+                    (None, Some(settled)) => format!("an auto target, settled at {settled:.2} N"),
+                    (None, None) => "an auto target".to_string(),
+                },
                 opt(t.time_to_stable_s),
                 opt(t.loop_latency_ms_p99)
             );

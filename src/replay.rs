@@ -278,7 +278,7 @@ impl ControllerReplay {
     /// A service as the run built it for `config` (the task's, and the dashboard's).
     fn new(config: &AppConfig) -> Self {
         let (service, _handle) =
-            GripperService::for_hand(&config.layout, config.servos.current_limit_ma);
+            GripperService::for_hand(&config.layout, config.servos.current_limit_ma, config.grasp);
         Self {
             service,
             compared: 0,

@@ -39,7 +39,7 @@ fn check_task(options: &RunOptions, config: &AppConfig) -> crate::Result<()> {
     match options.task.as_deref() {
         Some("gentle-grasp") if !config.layout.fingers.is_empty() => {
             let limit = config.servos.current_limit_ma;
-            GentleGrasp::check(&config.layout, limit, &options.grasp)
+            GentleGrasp::check(&config.layout, limit, &config.grasp, &options.grasp)
                 .map_err(|e| UsageError(format!("gentle-grasp: {e}")))?;
         }
         Some("gentle-grasp") | None => {}
@@ -159,7 +159,7 @@ fn pilot(
     let limit = config.servos.current_limit_ma;
     let pilot = match options.task.as_deref() {
         Some("gentle-grasp") => {
-            let task = GentleGrasp::start(plant, limit, &options.grasp)
+            let task = GentleGrasp::start(plant, limit, config.grasp, &options.grasp)
                 .map_err(|e| UsageError(e.to_string()))?;
             tracing::info!(task = "gentle-grasp", "task running");
             Pilot::GentleGrasp(Box::new(task))
@@ -171,7 +171,7 @@ fn pilot(
                 stages = script.stages.len(),
                 "task script"
             );
-            let mut gripper = CommandedGripper::new(plant, limit);
+            let mut gripper = CommandedGripper::new(plant, limit, config.grasp);
             gripper
                 .start_script(script)
                 .map_err(|running| Error::TaskRunning { task: running })?;
@@ -181,7 +181,7 @@ fn pilot(
             }
         }
         None => Pilot::Commanded {
-            gripper: Box::new(CommandedGripper::new(plant, limit)),
+            gripper: Box::new(CommandedGripper::new(plant, limit, config.grasp)),
             script_ends_run: false,
         },
     };

@@ -20,6 +20,7 @@
 use crate::args::ClockArg;
 use crate::args::parse_force_n;
 use clap::{Args, ValueEnum};
+use gelgrip_controller::grasp::TargetForce;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
@@ -163,6 +164,10 @@ fn row(scene: &Path, report: &Value, resolution: Option<(u32, u32)>) -> Value {
         row.insert("resolution".into(), Value::String(format!("{w}x{h}")));
     }
     add_slip(&mut row, &report["slip"]);
+    // A grasp that found its own force (`--target-force auto`) says what it settled on.
+    if report["target_force_n"].is_null() {
+        row.insert("settled_force_n".into(), report["settled_force_n"].clone());
+    }
     Value::Object(row)
 }
 
@@ -224,7 +229,7 @@ pub async fn gentle_grasp(
     scene: &Path,
     config: Option<&Path>,
     duration_s: f64,
-    target_force_n: f64,
+    target_force: TargetForce,
 ) -> anyhow::Result<Value> {
     let defaults = RunOptions::default();
     let options = RunOptions {
@@ -233,7 +238,7 @@ pub async fn gentle_grasp(
         clock,
         task: Some("gentle-grasp".into()),
         grasp: GraspOptions {
-            target_force_n,
+            target_force,
             ..defaults.grasp.clone()
         },
         headless: true,
@@ -295,7 +300,7 @@ pub async fn run(rig: &dyn Rig, args: BenchGraspArgs) -> anyhow::Result<u8> {
         add_budget(r, pipeline_p99);
     }
     if let Some(plot) = &args.plot {
-        crate::plot::save(&sweep_figure(&rows, args.target_force), plot)?;
+        crate::plot::save(&sweep_figure(&rows, &args.target_force.to_string()), plot)?;
         eprintln!("plot: {}", plot.display());
     }
     if args.json {
@@ -382,7 +387,7 @@ fn print_table(rows: &[Value]) {
 }
 
 /// Overshoot against set rate, one line per object (its three resolutions).
-fn sweep_figure(rows: &[Value], target_n: f64) -> crate::plot::Figure {
+fn sweep_figure(rows: &[Value], target: &str) -> crate::plot::Figure {
     let mut names: Vec<String> = rows
         .iter()
         .filter_map(|r| r["scene"].as_str().map(str::to_string))
@@ -407,7 +412,7 @@ fn sweep_figure(rows: &[Value], target_n: f64) -> crate::plot::Figure {
         .collect();
     crate::plot::Figure {
         title: format!(
-            "Gentle grasp ({target_n} N) at 320x240, 160x120, 80x60: overshoot against set rate"
+            "Gentle grasp ({target} N) at 320x240, 160x120, 80x60: overshoot against set rate"
         ),
         x_label: "set rate (Hz)".into(),
         y_label: "overshoot of the true peak force (%)".into(),
@@ -430,9 +435,10 @@ pub struct BenchGraspArgs {
     /// Scene files (default: every `configs/scenes/*.toml`).
     #[arg(long = "scene")]
     pub scenes: Vec<PathBuf>,
-    /// Force per finger, N.
-    #[arg(long, default_value_t = 1.5, value_parser = parse_force_n)]
-    pub target_force: f64,
+    /// Force per finger, N, in (0, 200]; or `auto`: each grasp finds its own force (the
+    /// rows gain `settled_force_n`).
+    #[arg(long, default_value = "1.5", value_parser = parse_target_force)]
+    pub target_force: TargetForce,
     /// Simulated seconds per object at most.
     #[arg(long, default_value_t = 25.0)]
     pub duration: f64,
@@ -457,4 +463,14 @@ pub struct BenchGraspArgs {
 pub enum GraspSweep {
     /// Sensor resolution: 320×240, 160×120, 80×60.
     Resolution,
+}
+
+/// `auto`, or a force in N in (0, 200] (`parse_force_n`).
+fn parse_target_force(s: &str) -> Result<TargetForce, String> {
+    if s.trim() == "auto" {
+        return Ok(TargetForce::Auto);
+    }
+    parse_force_n(s)
+        .map(TargetForce::Newtons)
+        .map_err(|e| format!("{e}; or `auto`"))
 }

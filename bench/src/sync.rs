@@ -232,7 +232,7 @@ async fn grasp(
         clock: ClockKind::Virtual,
         task: Some("gentle-grasp".into()),
         grasp: GraspOptions {
-            target_force_n: args.target_force,
+            target_force: gelgrip_controller::grasp::TargetForce::Newtons(args.target_force),
             speed_deg_s: case.speed_deg_s,
             ..defaults.grasp.clone()
         },

@@ -122,7 +122,7 @@ impl FusedSet {
 }
 
 /// The one of `a` and `b` slipping most: the more advanced state, then the less stick.
-fn worse_slip(a: Option<SensorSlip>, b: Option<SensorSlip>) -> Option<SensorSlip> {
+pub fn worse_slip(a: Option<SensorSlip>, b: Option<SensorSlip>) -> Option<SensorSlip> {
     match (a, b) {
         (Some(x), Some(y)) => Some(if (y.state, -y.stick_ratio) > (x.state, -x.stick_ratio) {
             y

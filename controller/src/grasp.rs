@@ -18,10 +18,13 @@
 //!   the median of the last three sets' fused force (a one-set outlier never moves a
 //!   finger), averaged.
 //! - **Hold**: after the force stays within ±5% of target for 0.5 s. The loop keeps running.
-//!   Once every finger holds, the contact area and centroid are taken as the reference; if
-//!   on two sets in a row the area drops or the centroid moves (slip), the finger
-//!   re-tightens: its target rises by 20% and it squeezes again. (Before every finger
-//!   holds, the others move the object on purpose; that is not slip.)
+//!   Once every finger holds, the slip reflex ([`reflex`]) moves the target with the slip a
+//!   marker gel shows, and a gross slip that `max_force_n` does not stop ends the grasp
+//!   (`slipping`) with the fingers holding. Where no contact's slip is known, the contact
+//!   area and centroid are taken as the reference; if on two sets in a row the area drops
+//!   or the centroid moves (slip), the finger re-tightens: its target rises by 20% and it
+//!   squeezes again. (Before every finger holds, the others move the object on purpose;
+//!   that is not slip.)
 //! - **No object**: a finger that reaches its closing goal, or stalls, without contact.
 //! - **Slow set rates**: below 20 sets/s the approach speed and the current's proportional
 //!   gain scale with the set period, the force is not median-filtered and is averaged over
@@ -34,14 +37,17 @@
 use serde::{Deserialize, Serialize};
 
 use crate::actuator::{FingerGoal, ServoState};
-use crate::fusion::FusedSet;
+use crate::fusion::{FusedSet, SensorSlip};
 
 mod finger;
 pub mod limits;
+pub mod reflex;
 pub mod settings;
+pub mod target_force;
 use finger::{FingerCtl, FingerInput, StepContext, Transition};
 pub use limits::{GraspLimits, MAX_TIMEOUT_S};
 pub use settings::GraspSettings;
+pub use target_force::TargetForce;
 
 /// Per-finger phase.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -90,6 +96,12 @@ pub struct GraspRequest {
     pub fingers: Vec<usize>,
     /// Give up after this long, s.
     pub timeout_s: f64,
+    /// The grasp finds its own force (`--target-force auto`): the fingers close to
+    /// `[grasp] preload_n` and the slip reflex tightens them as far as the load needs, up
+    /// to `max_force_n`; `target_force_n` is then not used. (Absent in older recordings:
+    /// false.)
+    #[serde(default)]
+    pub auto_target: bool,
 }
 
 /// Controller constants (defaults documented in `docs/control.md`).
@@ -156,6 +168,8 @@ pub struct Tuning {
     /// correction is a large step on an old reading, and one reading can differ from the
     /// next by more than the band.
     pub slow_hold_span_s: f64,
+    /// The `[grasp]` section: the slip reflex and the `auto` grasp.
+    pub grasp: GraspSettings,
 }
 
 impl Default for Tuning {
@@ -183,13 +197,14 @@ impl Default for Tuning {
             force_span_s: 0.08,
             reference_period_s: 0.05,
             slow_hold_span_s: 0.5,
+            grasp: GraspSettings::default(),
         }
     }
 }
 
 /// Why a grasp ended. Serialises to the grasp API's `reason` strings: `stable`,
-/// `force_limited`, `no_object`, `timeout after T s`, `preempted`, `released`, `stopped`,
-/// `watchdog`, `estop`.
+/// `force_limited`, `no_object`, `slipping`, `timeout after T s`, `preempted`, `released`,
+/// `stopped`, `watchdog`, `estop`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum GraspReason {
     /// Settled with at least two contacts at the target force.
@@ -198,6 +213,10 @@ pub enum GraspReason {
     ForceLimited,
     /// Settled without enough contact: nothing to grasp.
     NoObject,
+    /// The object slid and the most force the settings allow (`grasp.max_force_n`) did not
+    /// stop it; the fingers hold where they are. A grasp that had ended `stable` ends again
+    /// with this when its hold gives way.
+    Slipping,
     /// The request's own timeout passed first.
     Timeout {
         /// When, s since the grasp started.
@@ -228,6 +247,7 @@ impl std::fmt::Display for GraspReason {
             Self::Stable => f.write_str("stable"),
             Self::ForceLimited => f.write_str("force_limited"),
             Self::NoObject => f.write_str("no_object"),
+            Self::Slipping => f.write_str("slipping"),
             Self::Timeout { after_s } => write!(f, "timeout after {after_s:.1} s"),
             Self::Preempted => f.write_str("preempted"),
             Self::Released => f.write_str("released"),
@@ -263,6 +283,10 @@ pub struct GraspOutcome {
     pub final_force_n: f64,
     /// Why it ended.
     pub reason: GraspReason,
+    /// The force per finger a grasp that found its own force (`auto_target`) settled on:
+    /// the mean target of the fingers holding, N (`None` for a fixed target, or when
+    /// nothing was grasped).
+    pub settled_force_n: Option<f64>,
 }
 
 /// What one step commands.
@@ -290,6 +314,8 @@ pub struct GraspController {
     /// When the last set arrived, s, and the running mean of the set period, s.
     last_set_s: Option<f64>,
     set_period_s: Option<f64>,
+    /// Since when every active finger has held, s.
+    settled_since_s: Option<f64>,
     done: Option<GraspOutcome>,
 }
 
@@ -336,11 +362,17 @@ impl GraspController {
         close_deg: Vec<f64>,
         open_deg: Vec<f64>,
     ) -> Self {
-        let target = finite_or(request.target_force_n, 0.0).max(0.0);
+        // A grasp that finds its own force starts at the preload and may relax back to it;
+        // one at a fixed target never relaxes below that.
+        let target = if request.auto_target {
+            tuning.grasp.preload_n
+        } else {
+            finite_or(request.target_force_n, 0.0).max(0.0)
+        };
         let fingers = (0..close_deg.len())
             .map(|f| {
                 let open = open_deg.get(f).copied().unwrap_or(0.0);
-                FingerCtl::new(request.fingers.contains(&f), open, target)
+                FingerCtl::new(request.fingers.contains(&f), open, target, target)
             })
             .collect();
         Self {
@@ -353,6 +385,7 @@ impl GraspController {
             last_s: None,
             last_set_s: None,
             set_period_s: None,
+            settled_since_s: None,
             done: None,
         }
     }
@@ -417,6 +450,7 @@ impl GraspController {
             speed_deg_s: finite_or(self.request.speed_deg_s, 0.0).max(0.0) * rate.gain_scale,
             rate,
             settled: self.settled(),
+            grasp_slip: set.and_then(|s| self.grasp_slip(s)),
             tuning: &self.tuning,
         };
         for (f, c) in self.fingers.iter_mut().enumerate() {
@@ -430,7 +464,17 @@ impl GraspController {
             let fused = set.and_then(|s| s.fingers.get(f)).copied();
             c.step(&k, &now, fused, first_step);
         }
-        if self.done.is_none() {
+        if !self.settled() {
+            self.settled_since_s = None;
+        } else if self.settled_since_s.is_none() {
+            self.settled_since_s = Some(t_s);
+        }
+        let slipping = self.fingers.iter().any(|c| c.active && c.slipping);
+        let ended_slipping = self
+            .done
+            .as_ref()
+            .is_some_and(|d| d.reason == GraspReason::Slipping);
+        if self.done.is_none() || (slipping && !ended_slipping) {
             self.done = self.check_done(t_s - start, set);
         }
         ControlOutput {
@@ -482,6 +526,38 @@ impl GraspController {
         }
     }
 
+    /// The slip of the contact slipping most over the fingers taking part and the palm: a
+    /// finger that another drive moves on purpose (a task's trigger) is left out.
+    fn grasp_slip(&self, set: &FusedSet) -> Option<SensorSlip> {
+        let palm = set.palm.map(|p| p.slip);
+        let fingers = set
+            .fingers
+            .iter()
+            .zip(&self.fingers)
+            .filter(|(_, c)| c.active)
+            .map(|(f, _)| f.slip);
+        fingers.chain(palm).fold(None, crate::fusion::worse_slip)
+    }
+
+    /// A grasp that finds its own force has settled once every finger has held for
+    /// `stable_s` with its reflex moving none of their targets by more than the stable band
+    /// for as long (a fixed target: at once).
+    fn auto_settled(&self) -> bool {
+        if !self.request.auto_target {
+            return true;
+        }
+        let (Some(now), Some(since)) = (self.last_s, self.settled_since_s) else {
+            return false;
+        };
+        let stable_s = self.tuning.stable_s;
+        now - since >= stable_s
+            && self
+                .fingers
+                .iter()
+                .filter(|c| c.active)
+                .all(|c| c.moved_at_s.is_none_or(|t| now - t >= stable_s))
+    }
+
     /// Every active finger holds (on the object, or having found none).
     fn settled(&self) -> bool {
         self.fingers.iter().filter(|c| c.active).all(|c| {
@@ -495,7 +571,16 @@ impl GraspController {
 
     fn check_done(&self, elapsed_s: f64, set: Option<&FusedSet>) -> Option<GraspOutcome> {
         let active: Vec<&FingerCtl> = self.fingers.iter().filter(|c| c.active).collect();
-        let settled = self.settled();
+        if active.iter().any(|c| c.slipping) {
+            return Some(GraspOutcome {
+                grasped: false,
+                status: self.fingers.iter().map(|c| c.status).collect(),
+                final_force_n: set.map_or(0.0, FusedSet::total_force_n),
+                reason: GraspReason::Slipping,
+                settled_force_n: None,
+            });
+        }
+        let settled = self.settled() && self.auto_settled();
         let timed_out = elapsed_s >= finite_or(self.request.timeout_s, f64::INFINITY);
         if !settled && !timed_out {
             return None;
@@ -516,11 +601,19 @@ impl GraspController {
         } else {
             GraspReason::Timeout { after_s: elapsed_s }
         };
+        let holding_targets: Vec<f64> = active
+            .iter()
+            .filter(|c| c.status == FingerStatus::ContactClosing)
+            .map(|c| c.target_n)
+            .collect();
+        let settled_force_n = (self.request.auto_target && grasped)
+            .then(|| holding_targets.iter().sum::<f64>() / holding_targets.len().max(1) as f64);
         Some(GraspOutcome {
             grasped,
             status: self.fingers.iter().map(|c| c.status).collect(),
             final_force_n: set.map_or(0.0, FusedSet::total_force_n),
             reason,
+            settled_force_n,
         })
     }
 

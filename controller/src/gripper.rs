@@ -27,7 +27,8 @@ use crate::actuator::XM430_W350;
 use crate::actuator::{FingerGoal, ServoState};
 use crate::fusion::FusedSet;
 use crate::grasp::{
-    FingerStatus, GraspController, GraspLimits, GraspOutcome, GraspReason, GraspRequest, Tuning,
+    FingerStatus, GraspController, GraspLimits, GraspOutcome, GraspReason, GraspRequest,
+    GraspSettings, Tuning,
 };
 
 /// Why a grasp-API call failed.
@@ -376,17 +377,22 @@ impl GripperService {
     }
 
     /// The service for `layout`'s fingers (closing toward each finger's servo range, open
-    /// at 0°) with the default tuning and `current_limit_ma` as the cap; its handle refuses
+    /// at 0°) with the default tuning, the `[grasp]` section's `grasp` and
+    /// `current_limit_ma` as the cap; its handle refuses
     /// requests beyond what these fingers and their XM430-W350 servos can do at that cap
     /// ([`GraspLimits`]).
     pub fn for_hand(
         layout: &crate::layout::HandLayout,
         current_limit_ma: f64,
+        grasp: GraspSettings,
     ) -> (Self, GripperHandle) {
         let close: Vec<f64> = layout.fingers.iter().map(|f| f.servo_range_deg).collect();
         let n = close.len();
-        let (service, mut handle) =
-            Self::new(Tuning::default(), close, vec![0.0; n], current_limit_ma);
+        let tuning = Tuning {
+            grasp,
+            ..Tuning::default()
+        };
+        let (service, mut handle) = Self::new(tuning, close, vec![0.0; n], current_limit_ma);
         handle.limits = Some(Arc::new(GraspLimits::for_hand(
             layout,
             XM430_W350,
@@ -440,6 +446,7 @@ impl GripperService {
                 current_limit_ma: self.current_limit_ma,
                 fingers: (0..self.close_deg.len()).collect(),
                 timeout_s: f64::INFINITY,
+                auto_target: false,
             },
             self.tuning.clone(),
             self.close_deg.clone(),
@@ -462,6 +469,7 @@ impl GripperService {
                 ),
                 final_force_n: self.ctl.as_ref().map_or(0.0, |c| c.forces_n().iter().sum()),
                 reason,
+                settled_force_n: None,
             };
             let _ = reply.send(outcome);
         }

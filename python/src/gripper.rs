@@ -185,6 +185,7 @@ impl Gripper {
                     current_limit_ma: current_limit_ma.unwrap_or(r.current_limit_ma),
                     fingers: fingers.unwrap_or_else(|| (0..r.fingers).collect()),
                     timeout_s,
+                    auto_target: false,
                 },
             ))
         })

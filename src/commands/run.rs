@@ -7,7 +7,7 @@ use clap::Args;
 use gelgrip::session::{RunOptions, Session};
 use gelgrip_controller::actuator::XM430_W350;
 use gelgrip_controller::clock::ClockKind;
-use gelgrip_controller::grasp::MAX_TIMEOUT_S;
+use gelgrip_controller::grasp::{MAX_TIMEOUT_S, TargetForce};
 use gelgrip_controller::runtime::RuntimeEvent;
 use gelgrip_controller::runtime::gentle_grasp::GraspOptions;
 use gelgrip_ros_bridge::publisher::RosPublisher;
@@ -84,7 +84,7 @@ impl From<&RunArgs> for RunOptions {
             clock: args.clock.map_or(ClockKind::Real, ClockKind::from),
             task: args.task.clone(),
             grasp: GraspOptions {
-                target_force_n: args.target_force,
+                target_force: args.target_force,
                 speed_deg_s: args.speed,
                 timeout_s: args.task_timeout,
                 hold_s: args.hold,
@@ -165,9 +165,10 @@ pub struct RunArgs {
     pub task: Option<String>,
     /// Gentle grasp: force per finger, N: above 0 and at most what the configured fingers
     /// can press with at the current limit (163.7 N on the shipped hand at 1000 mA; checked
-    /// once the config is loaded, docs/control.md).
-    #[arg(long, default_value_t = 1.5, value_parser = parse_target_force_n)]
-    pub target_force: f64,
+    /// once the config is loaded, docs/control.md); or `auto`: the grasp closes to
+    /// `[grasp] preload_n` and its slip reflex finds the force.
+    #[arg(long, default_value = "1.5")]
+    pub target_force: TargetForce,
     /// Gentle grasp: approach speed, deg/s of servo rotation, in (0, 276]: the XM430-W350's
     /// no-load speed (faster approaches touch harder: see docs/control.md).
     #[arg(long, default_value_t = 15.0, value_parser = parse_speed_deg_s)]
@@ -205,18 +206,6 @@ fn parse_up_to(s: &str, what: &str, unit: &str, max: f64, why: &str) -> Result<f
         Ok(v)
     } else {
         Err(format!("{s} {unit} is outside (0, {max}] {unit}: {why}"))
-    }
-}
-
-/// A finite force above 0 N; its upper bound depends on the config (the gentle grasp
-/// checks it once the config is loaded).
-fn parse_target_force_n(s: &str) -> Result<f64, String> {
-    match s.parse::<f64>() {
-        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
-        _ => Err(format!(
-            "`{s}` is not a finite force above 0 N (its upper bound depends on the config: \
-             docs/control.md)"
-        )),
     }
 }
 

@@ -75,6 +75,7 @@ fn grasp_request(
         current_limit_ma: b.current_limit_ma.unwrap_or(s.current_limit_ma),
         fingers,
         timeout_s,
+        auto_target: false,
     };
     Ok((handle, request))
 }

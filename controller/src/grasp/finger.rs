@@ -2,9 +2,10 @@
 //! function per phase), and every phase change through one place ([`FingerCtl::enter`],
 //! with the [`Transition`] that says what the change resets).
 
+use super::reflex::{self, GIVE_UP_S};
 use super::{FingerStatus, Phase, RateScaling, SlipReference, Tuning, finite_or, median3};
 use crate::actuator::ServoState;
-use crate::fusion::FusedContact;
+use crate::fusion::{FusedContact, SensorSlip, SlipState};
 
 /// What one control step knows beside the finger, the same for every finger.
 pub(super) struct StepContext<'a> {
@@ -20,6 +21,9 @@ pub(super) struct StepContext<'a> {
     pub(super) speed_deg_s: f64,
     /// Every active finger held before this step.
     pub(super) settled: bool,
+    /// The slip of the contact slipping most over the grasp's fingers and the palm (`None`:
+    /// no contact's slip is known; the reflex then watches contact motion).
+    pub(super) grasp_slip: Option<SensorSlip>,
     /// The controller's constants.
     pub(super) tuning: &'a Tuning,
 }
@@ -77,6 +81,11 @@ pub(super) enum Transition {
         /// The target's multiplier.
         factor: f64,
     },
+    /// Hold → hold where it is: a gross slip that the most force allowed did not stop.
+    Slipping {
+        /// Where the finger stands, degrees.
+        present_deg: f64,
+    },
     /// Release → open: the finger reached its open position.
     Opened,
     /// Any phase → release (an active finger).
@@ -106,6 +115,21 @@ pub(super) struct FingerCtl {
     /// The force averaged over `Tuning::slow_hold_span_s`, N.
     slow_force_n: f64,
     pub(super) target_n: f64,
+    /// The least the reflex relaxes to: the request's target, or `preload_n` for a grasp
+    /// that finds its own force, N.
+    floor_n: f64,
+    /// When the reflex last moved the target by more than the stable band from where it
+    /// had stood (`moved_from_n`), s.
+    pub(super) moved_at_s: Option<f64>,
+    moved_from_n: f64,
+    /// When the reflex last moved the target, s.
+    reflex_at_s: Option<f64>,
+    /// The least force that holds, as the reflex tracks it.
+    least: reflex::LeastTrack,
+    /// Since when the grasp has slid with the target at its most, s.
+    gross_since_s: Option<f64>,
+    /// The grasp slid and the most force allowed did not stop it: the finger holds.
+    pub(super) slipping: bool,
     stable_since_s: Option<f64>,
     stall_ref: Option<(f64, f64)>,
     /// Contact area and centroid that slip is measured against (armed once the whole
@@ -124,8 +148,9 @@ pub(super) struct FingerCtl {
 }
 
 impl FingerCtl {
-    /// An open finger at `goal_deg`, taking part when `active`, regulating to `target_n`.
-    pub(super) fn new(active: bool, goal_deg: f64, target_n: f64) -> Self {
+    /// An open finger at `goal_deg`, taking part when `active`, regulating to `target_n`,
+    /// which the reflex relaxes to `floor_n` at the least.
+    pub(super) fn new(active: bool, goal_deg: f64, target_n: f64, floor_n: f64) -> Self {
         Self {
             phase: Phase::Open,
             active,
@@ -139,6 +164,13 @@ impl FingerCtl {
             peak_n: 0.0,
             slow_force_n: 0.0,
             target_n,
+            floor_n,
+            moved_at_s: None,
+            moved_from_n: target_n,
+            reflex_at_s: None,
+            least: reflex::LeastTrack::default(),
+            gross_since_s: None,
+            slipping: false,
             stable_since_s: None,
             stall_ref: None,
             slip_ref: None,
@@ -199,6 +231,10 @@ impl FingerCtl {
                 self.slip_ref = None;
                 self.slip_seen = 0;
             }
+            Transition::Slipping { present_deg } => {
+                self.slipping = true;
+                self.goal_deg = present_deg;
+            }
             Transition::Opened => {
                 self.phase = Phase::Open;
                 self.status = FingerStatus::AtGoal;
@@ -220,6 +256,9 @@ impl FingerCtl {
         self.status = FingerStatus::ContactClosing;
         self.slip_ref = None;
         self.slip_seen = 0;
+        self.reflex_at_s = None;
+        self.least = reflex::LeastTrack::default();
+        self.gross_since_s = None;
     }
 
     /// One step of this finger on its fused contact (`None`: no new set, the goals stay).
@@ -253,6 +292,7 @@ impl FingerCtl {
             Phase::Squeeze if !fused.contact && self.peak_n < 0.05 * self.target_n => {
                 self.squeeze_unfelt(k);
             }
+            Phase::Hold if self.slipping => self.goal_deg = now.present_deg,
             Phase::Squeeze | Phase::Hold => self.regulate(k, now, &fused),
             Phase::Release => self.release(k, now),
             Phase::Open | Phase::Fault => {}
@@ -415,8 +455,11 @@ impl FingerCtl {
         }
         if self.phase == Phase::Squeeze {
             self.settle(k, in_band);
-        } else if self.status == FingerStatus::ContactClosing && k.settled {
-            self.watch_slip(k, fused);
+        } else if self.status == FingerStatus::ContactClosing && k.settled && t.grasp.reflex {
+            match k.grasp_slip {
+                Some(slip) => self.slip_reflex(k, now, &slip),
+                None => self.watch_slip(k, fused),
+            }
         }
     }
 
@@ -457,7 +500,48 @@ impl FingerCtl {
         }
     }
 
-    /// Once the whole grasp holds: slip (the area falls or the centroid moves against the
+    /// Once the whole grasp holds, on a set whose slip is known: the target follows the
+    /// least force that holds with the margin ([`reflex`]), between the request's target
+    /// and `max_force_n`; a gross slip with the target at its most for [`GIVE_UP_S`] ends
+    /// the grasp (`slipping`), the finger holding where it is.
+    fn slip_reflex(&mut self, k: &StepContext<'_>, now: &FingerInput<'_>, slip: &SensorSlip) {
+        let g = &k.tuning.grasp;
+        let ceiling_n = g.max_force_n.max(self.floor_n);
+        let dt = self
+            .reflex_at_s
+            .map_or(0.0, |t0| (k.t_s - t0).clamp(0.0, 0.5));
+        self.reflex_at_s = Some(k.t_s);
+        let ahead_n = if reflex::sliding(slip) {
+            f64::INFINITY
+        } else {
+            self.least
+                .ahead_n(k.t_s, reflex::least_n(self.force_n, slip))
+        };
+        let aim_n = reflex::aim_n(g, ahead_n, slip, self.floor_n, ceiling_n);
+        self.target_n = reflex::follow(g, self.target_n, aim_n, dt);
+        if (self.target_n - self.moved_from_n).abs() > k.tuning.stable_band * self.moved_from_n {
+            self.moved_from_n = self.target_n;
+            self.moved_at_s = Some(k.t_s);
+        }
+        // Giving up takes the detector's own `gross`, not a low estimate: a low estimate at
+        // the most force may be the estimate's bias on a contact that holds (docs/slip.md,
+        // "The reflex"). At its most: the target there, and the force too (or the current
+        // at its limit).
+        let pressing_most = self.force_n >= (1.0 - k.tuning.stable_band) * ceiling_n
+            || self.current_ma >= k.limit_ma - 1.0;
+        if slip.state == SlipState::Gross && self.target_n >= ceiling_n && pressing_most {
+            let since = *self.gross_since_s.get_or_insert(k.t_s);
+            if k.t_s - since >= GIVE_UP_S {
+                self.enter(Transition::Slipping {
+                    present_deg: now.present_deg,
+                });
+            }
+        } else {
+            self.gross_since_s = None;
+        }
+    }
+
+    /// Once the whole grasp holds, where no contact's slip is known: slip (the area falls or the centroid moves against the
     /// reference, on `Tuning::slip_sets` sets in a row) re-tightens.
     fn watch_slip(&mut self, k: &StepContext<'_>, fused: &FusedContact) {
         let t = k.tuning;

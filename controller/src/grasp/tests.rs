@@ -72,6 +72,7 @@ pub(crate) fn request(target_n: f64) -> GraspRequest {
         current_limit_ma: 1000.0,
         fingers: vec![0, 1, 2],
         timeout_s: 30.0,
+        auto_target: false,
     }
 }
 
@@ -394,3 +395,5 @@ fn first_contact_presses_on_with_half_the_approach_margin() {
         "{contact_ma} vs {expected}"
     );
 }
+
+mod reflex;

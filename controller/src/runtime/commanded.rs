@@ -9,7 +9,7 @@
 //!   written); when a script ends they keep its last goals.
 
 use crate::frame::FrameSet;
-use crate::grasp::Phase;
+use crate::grasp::{GraspSettings, Phase};
 use crate::gripper::{CommandKind, GripperHandle, GripperService};
 use crate::runtime::RuntimeError;
 use crate::runtime::outcome::ScriptEnd;
@@ -49,6 +49,7 @@ pub struct CommandedGripper {
     service: GripperService,
     handle: GripperHandle,
     current_limit_ma: f64,
+    grasp: GraspSettings,
     script: Option<ScriptRun>,
     /// The script that ran last (kept for the report and the dashboard).
     last_script: Option<ScriptRun>,
@@ -57,14 +58,16 @@ pub struct CommandedGripper {
 }
 
 impl CommandedGripper {
-    /// The gripper on `plant`, whose currents stop at `current_limit_ma`.
-    pub fn new(plant: Plant, current_limit_ma: f64) -> Self {
-        let (service, handle) = GripperService::for_hand(&plant.layout, current_limit_ma);
+    /// The gripper on `plant`, whose currents stop at `current_limit_ma`, its grasps and
+    /// scripts keeping their force as `grasp` says.
+    pub fn new(plant: Plant, current_limit_ma: f64, grasp: GraspSettings) -> Self {
+        let (service, handle) = GripperService::for_hand(&plant.layout, current_limit_ma, grasp);
         Self {
             plant,
             service,
             handle,
             current_limit_ma,
+            grasp,
             script: None,
             last_script: None,
             watchdog_holding: false,
@@ -95,7 +98,7 @@ impl CommandedGripper {
         // Commands queued before the start belong to the service, not to the script.
         self.apply_urgent();
         self.service.forget();
-        let run = ScriptRun::new(script, &self.plant, self.current_limit_ma);
+        let run = ScriptRun::new(script, &self.plant, self.current_limit_ma, self.grasp);
         tracing::info!(task = run.name(), "task script running");
         self.handle.set_busy(Some(run.name()));
         self.script = Some(run);

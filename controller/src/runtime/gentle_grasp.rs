@@ -14,7 +14,9 @@
 
 use crate::actuator::XM430_W350;
 use crate::frame::FrameSet;
-use crate::grasp::{GraspLimits, GraspOutcome, GraspReason, GraspRequest, Phase};
+use crate::grasp::{
+    GraspLimits, GraspOutcome, GraspReason, GraspRequest, GraspSettings, Phase, TargetForce,
+};
 use crate::gripper::{CommandKind, GripperError, GripperHandle, GripperService, PendingGrasp};
 use crate::layout::HandLayout;
 use crate::runtime::RuntimeError;
@@ -37,8 +39,8 @@ const HELD_SLIP_MM: f64 = 1.0;
 /// The task's options.
 #[derive(Debug, Clone, PartialEq)]
 pub struct GraspOptions {
-    /// Force per finger, N.
-    pub target_force_n: f64,
+    /// Force per finger: N, or `auto` (the grasp finds its own).
+    pub target_force: TargetForce,
     /// Approach speed, deg/s.
     pub speed_deg_s: f64,
     /// Give up after, s.
@@ -69,7 +71,7 @@ pub struct GentleGrasp {
     peak_force_n: f64,
     hold_test_peak_force_n: Option<f64>,
     true_peak_force_n: Option<f64>,
-    target_force_n: f64,
+    target_force: TargetForce,
     hold_s: f64,
     time_to_stable_s: Option<f64>,
     hold_slip_mm: Option<f64>,
@@ -78,18 +80,23 @@ pub struct GentleGrasp {
 }
 
 impl GentleGrasp {
-    /// The grasp the task asks for on `layout`'s fingers, capped at `current_limit_ma`.
+    /// The grasp the task asks for on `layout`'s fingers, capped at `current_limit_ma`, its
+    /// force kept as `grasp` says.
     pub fn request(
         layout: &HandLayout,
         current_limit_ma: f64,
+        grasp: &GraspSettings,
         options: &GraspOptions,
     ) -> GraspRequest {
         GraspRequest {
-            target_force_n: options.target_force_n,
+            // Under `auto` the request's force is not used; the preload stands in for it in
+            // the grasp limits' check.
+            target_force_n: options.target_force.newtons().unwrap_or(grasp.preload_n),
             speed_deg_s: options.speed_deg_s,
             current_limit_ma,
             fingers: (0..layout.fingers.len()).collect(),
             timeout_s: options.timeout_s,
+            auto_target: options.target_force.is_auto(),
         }
     }
 
@@ -99,11 +106,13 @@ impl GentleGrasp {
     pub fn check(
         layout: &HandLayout,
         current_limit_ma: f64,
+        grasp: &GraspSettings,
         options: &GraspOptions,
     ) -> Result<(), GripperError> {
         GraspLimits::for_hand(layout, XM430_W350, current_limit_ma).check(&Self::request(
             layout,
             current_limit_ma,
+            grasp,
             options,
         ))
     }
@@ -114,11 +123,12 @@ impl GentleGrasp {
     pub fn start(
         plant: Plant,
         current_limit_ma: f64,
+        grasp: GraspSettings,
         options: &GraspOptions,
     ) -> Result<Self, GripperError> {
         let layout = &plant.layout;
-        let request = Self::request(layout, current_limit_ma, options);
-        let (service, handle) = GripperService::for_hand(layout, current_limit_ma);
+        let request = Self::request(layout, current_limit_ma, &grasp, options);
+        let (service, handle) = GripperService::for_hand(layout, current_limit_ma, grasp);
         let pending = handle.start_grasp(request)?;
         // Other clients (the dashboard) may stop or e-stop this grasp, never start another.
         handle.set_busy(Some(TASK_NAME));
@@ -133,7 +143,7 @@ impl GentleGrasp {
             peak_force_n: 0.0,
             hold_test_peak_force_n: None,
             true_peak_force_n: None,
-            target_force_n: options.target_force_n,
+            target_force: options.target_force,
             hold_s: options.hold_s,
             time_to_stable_s: None,
             hold_slip_mm: None,
@@ -359,7 +369,8 @@ impl GentleGrasp {
             peak_force_n: self.peak_force_n,
             hold_test_peak_force_n: self.hold_test_peak_force_n,
             true_peak_force_n: self.true_peak_force_n,
-            target_force_n: self.target_force_n,
+            target_force_n: self.target_force.newtons(),
+            settled_force_n: outcome.as_ref().and_then(|o| o.settled_force_n),
             time_to_stable_s: self.time_to_stable_s,
             loop_latency_ms_p50: None,
             loop_latency_ms_p99: None,

@@ -52,7 +52,7 @@ impl Default for RunOptions {
             clock: ClockKind::Real,
             task: None,
             grasp: GraspOptions {
-                target_force_n: 1.5,
+                target_force: crate::grasp::TargetForce::default(),
                 speed_deg_s: 15.0,
                 timeout_s: 20.0,
                 hold_s: 0.0,

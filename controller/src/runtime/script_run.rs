@@ -5,7 +5,7 @@
 //! The commanded gripper (`CommandedGripper`) hosts it on the plant it owns.
 
 use crate::frame::FrameSet;
-use crate::grasp::{Phase, Tuning};
+use crate::grasp::{GraspSettings, Phase, Tuning};
 use crate::runtime::RuntimeError;
 use crate::runtime::plant::Plant;
 use crate::runtime::ports::Sensing;
@@ -23,12 +23,21 @@ pub struct ScriptRun {
 }
 
 impl ScriptRun {
-    /// A run of `script` on `plant`'s fingers, whose currents stop at `current_limit_ma`.
-    pub fn new(script: TaskScript, plant: &Plant, current_limit_ma: f64) -> Self {
+    /// A run of `script` on `plant`'s fingers, whose currents stop at `current_limit_ma`,
+    /// its forces kept as `grasp` says.
+    pub fn new(
+        script: TaskScript,
+        plant: &Plant,
+        current_limit_ma: f64,
+        grasp: GraspSettings,
+    ) -> Self {
         let runner = TaskRunner::new(
             script,
             &plant.layout,
-            Tuning::default(),
+            Tuning {
+                grasp,
+                ..Tuning::default()
+            },
             vec![0.0; plant.layout.fingers.len()],
             current_limit_ma,
         );
@@ -167,7 +176,8 @@ impl ScriptRun {
             peak_force_n: self.peak_force_n,
             hold_test_peak_force_n: None,
             true_peak_force_n: self.true_peak_force_n,
-            target_force_n: self.runner.max_target_force_n(),
+            target_force_n: Some(self.runner.max_target_force_n()),
+            settled_force_n: None,
             time_to_stable_s: None,
             loop_latency_ms_p50: None,
             loop_latency_ms_p99: None,

@@ -24,8 +24,11 @@ pub struct TaskReport {
     /// The simulator's ground truth: peak force of any finger (the sum over its pads)
     /// during the grasp and the hold, N (simulator only).
     pub true_peak_force_n: Option<f64>,
-    /// The requested force per finger, N.
-    pub target_force_n: f64,
+    /// The requested force per finger, N (null under `--target-force auto`).
+    pub target_force_n: Option<f64>,
+    /// The force per finger an `auto` grasp settled on, N (null for a fixed target, or
+    /// when nothing was grasped).
+    pub settled_force_n: Option<f64>,
     /// From the task start to a stable grasp, s (null if never stable).
     pub time_to_stable_s: Option<f64>,
     /// Median loop latency, ms.

@@ -297,6 +297,7 @@ impl TaskRunner {
                         current_limit_ma: cap(current_ma),
                         fingers: vec![f],
                         timeout_s: f64::INFINITY,
+                        auto_target: false,
                     },
                     self.tuning.clone(),
                     self.close_deg.clone(),

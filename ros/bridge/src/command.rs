@@ -347,6 +347,7 @@ impl Worker {
             current_limit_ma: self.setup.current_limit_ma,
             fingers: (0..self.setup.range_deg.len()).collect(),
             timeout_s: TIMEOUT_S,
+            auto_target: false,
         };
         let grasp_id = match self.store.start(handle, grasp) {
             Ok(n) => n,

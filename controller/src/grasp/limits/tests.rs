@@ -26,6 +26,7 @@ fn request(force_n: f64, speed_deg_s: f64, timeout_s: f64) -> GraspRequest {
         current_limit_ma: 1000.0,
         fingers: vec![0, 1, 2],
         timeout_s,
+        auto_target: false,
     }
 }
 
@@ -203,7 +204,8 @@ fn extreme_layouts_and_caps_give_finite_bounds() {
 
 #[test]
 fn a_service_for_the_hand_refuses_out_of_range_requests_through_its_handle() {
-    let (_service, handle) = GripperService::for_hand(&layout_with(&[]), 1000.0);
+    let (_service, handle) =
+        GripperService::for_hand(&layout_with(&[]), 1000.0, Default::default());
     assert_eq!(handle.limits(), Some(&shipped(1000.0)));
     let err = handle
         .start_grasp(request(1e308, 15.0, 20.0))

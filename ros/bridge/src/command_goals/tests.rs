@@ -44,6 +44,7 @@ fn outcome(reason: GraspReason) -> GraspOutcome {
         status: vec![FingerStatus::ContactClosing; 3],
         final_force_n: 15.0,
         reason,
+        settled_force_n: None,
     }
 }
 
@@ -81,6 +82,9 @@ fn outcomes_map_to_ros2_control_meanings() {
     );
     assert_eq!(s, GoalStatusCode::Succeeded);
     assert!(!r.reached_goal);
+    let (s, r, why) = finish(Some(&outcome(GraspReason::Slipping)), Ending::Grasp, &held);
+    assert_eq!((s, why.as_str()), (GoalStatusCode::Aborted, "slipping"));
+    assert!(!r.reached_goal && !r.stalled);
     let (s, r, _) = finish(Some(&outcome(GraspReason::Estop)), Ending::Grasp, &held);
     assert_eq!(s, GoalStatusCode::Aborted);
     assert!(!r.reached_goal);
