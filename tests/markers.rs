@@ -251,6 +251,61 @@ fn bench_slip_feels_the_ball_slide_before_it_slides() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// `bench slip --reflex on` on one short trial: the controller takes the ball's grip over
+/// and its slip reflex keeps the ball while the pull grows to 80% of what `max_force_n`
+/// holds (1.5 N per finger here, so that the trial is short), with little more grip than
+/// the least that holds the final pull.
+#[test]
+fn bench_slip_with_the_reflex_keeps_the_ball_with_little_more_than_the_least_grip() {
+    let dir = scratch("bench-slip-reflex");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let marker = std::fs::read_to_string(root.join("configs/gelgripper-sim-markers.toml"))
+        .expect("the marker config");
+    let layout = root.join("configs/layouts/three-finger-markers.toml");
+    let config = dir.join("reflex.toml");
+    let text = marker.replace(
+        "layout = \"layouts/three-finger-markers.toml\"",
+        &format!("layout = {:?}", layout.display().to_string()),
+    ) + "\n[grasp]\nmax_force_n = 1.5\n";
+    std::fs::write(&config, text).expect("the config");
+    let out = common::gelgrip_cached(&[
+        "bench",
+        "slip",
+        "--config",
+        s(&config),
+        "--scene",
+        "configs/scenes/tennis-ball.toml",
+        "--friction",
+        "1.0",
+        "--load-time-s",
+        "0.5",
+        "--trials",
+        "1",
+        "--reflex",
+        "on",
+        "--json",
+    ]);
+    let report = json(&out);
+    let r = &report["rows"][0];
+    let num = |k: &str| r[k].as_f64().unwrap_or_else(|| panic!("{k}: {r}"));
+    assert_eq!(
+        (r["reflex"].as_bool(), r["dropped"].as_bool()),
+        (Some(true), Some(false)),
+        "{r}"
+    );
+    assert!(num("motion_mm") < 1.0, "{r}");
+    // The ramp stopped at 80% of μ × 3 fingers × 1.5 N, and the contacts carried it.
+    let least = num("least_grip_n");
+    assert!(
+        least > 0.5 * 0.8 * 3.0 * 1.5 && least <= 0.8 * 3.0 * 1.5 * 1.05,
+        "{r}"
+    );
+    let final_grip = num("final_grip_n");
+    assert!(final_grip >= least && final_grip <= 1.5 * least, "{r}");
+    assert_eq!(report["summary"]["dropped"], 0, "{report}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn bench_slip_refuses_a_load_time_of_zero_and_a_figure_it_cannot_draw() {
     let out = gelgrip(&["bench", "slip", "--load-time-s", "0.5,0", "--trials", "1"]);

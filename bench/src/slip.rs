@@ -7,8 +7,13 @@
 //! the sets between detection and gross slip and the false alarms; the summary gives the
 //! shares the acceptance names (docs/slip.md). Trial `k` of a cell runs with simulator seed
 //! `S + k` (other camera units and noise, and another phase of the load against the sets).
+//!
+//! `--reflex on` puts the grasp controller and its slip reflex in the loop ([`reflex`]):
+//! the rows then say whether the object was kept (its motion, a drop) and with how much
+//! more grip than the least that holds the final load.
 
 pub mod plot;
+pub mod reflex;
 pub mod trial;
 
 use std::path::{Path, PathBuf};
@@ -79,9 +84,23 @@ pub struct BenchSlipArgs {
     /// Draw the first trial (load, true and estimated stick ratio, detection), .svg or .png.
     #[arg(long)]
     pub plot: Option<PathBuf>,
+    /// The slip reflex: `on` puts the grasp controller in the loop and the ramp stops at
+    /// 80% of what `[grasp] max_force_n` can hold; `off` (the default) measures the
+    /// sensing alone, the object pulled until it slides.
+    #[arg(long, value_enum, default_value = "off")]
+    pub reflex: OnOff,
     /// Print `{"rows": […], "summary": {…}}` on one line.
     #[arg(long)]
     pub json: bool,
+}
+
+/// A switch on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum OnOff {
+    /// On.
+    On,
+    /// Off.
+    Off,
 }
 
 /// The sweep's shares, as the acceptance names them.
@@ -105,6 +124,14 @@ pub struct SlipSummary {
     pub lead_sets_median: Option<f64>,
     /// The median true stick ratio at detection.
     pub true_stick_ratio_at_detect_median: Option<f64>,
+    /// Trials whose object was dropped.
+    pub dropped: usize,
+    /// Share of trials whose object moved less than 1 mm against the fingers.
+    pub motion_under_1mm_share: f64,
+    /// The largest `final_grip_n / least_grip_n` over the trials that were not dropped.
+    pub grip_over_least_max: Option<f64>,
+    /// Its median.
+    pub grip_over_least_median: Option<f64>,
 }
 
 fn median(mut v: Vec<f64>) -> Option<f64> {
@@ -141,7 +168,18 @@ pub fn summarize(rows: &[SlipRow]) -> SlipSummary {
                 .filter_map(|r| r.true_stick_ratio_at_detect)
                 .collect(),
         ),
+        dropped: rows.iter().filter(|r| r.dropped).count(),
+        motion_under_1mm_share: share(&|r| r.motion_mm < 1.0),
+        grip_over_least_max: grip_over_least(rows).reduce(f64::max),
+        grip_over_least_median: median(grip_over_least(rows).collect()),
     }
+}
+
+/// `final_grip_n / least_grip_n` of each row kept with a load on it.
+fn grip_over_least(rows: &[SlipRow]) -> impl Iterator<Item = f64> + '_ {
+    rows.iter()
+        .filter(|r| !r.dropped && r.least_grip_n > 0.0)
+        .map(|r| r.final_grip_n / r.least_grip_n)
 }
 
 /// The scene at `path` for `config`'s hand.
@@ -254,7 +292,7 @@ pub fn run(rig: &dyn Rig, args: BenchSlipArgs) -> anyhow::Result<u8> {
                 for &load_time_s in &args.load_time_s {
                     s.reference()?;
                     let mut rigging = Rigging {
-                        layout: &s.config.layout,
+                        config: &s.config,
                         sim: &s.sim,
                         pipes: &mut s.pipes,
                         set_period_us: period_us,
@@ -265,7 +303,10 @@ pub fn run(rig: &dyn Rig, args: BenchSlipArgs) -> anyhow::Result<u8> {
                         trial: k,
                         seed,
                     };
-                    let (row, trace) = trial::run(&mut rigging, &spec)?;
+                    let (row, trace) = match args.reflex {
+                        OnOff::On => reflex::run(&mut rigging, &spec)?,
+                        OnOff::Off => trial::run(&mut rigging, &spec)?,
+                    };
                     first_trace.get_or_insert(trace);
                     rows.push(row);
                     bar.inc(1);
@@ -292,7 +333,7 @@ fn opt(v: Option<f64>, decimals: usize) -> String {
 
 fn print_table(rows: &[SlipRow], s: &SlipSummary) {
     println!(
-        "{:<14} {:>5} {:>6} {:>5} {:>7} {:>8} {:>9} {:>8} {:>8} {:>5} {:>6}",
+        "{:<14} {:>5} {:>6} {:>5} {:>7} {:>8} {:>9} {:>8} {:>8} {:>5} {:>6} {:>7} {:>7} {:>7} {:>4}",
         "object",
         "mu",
         "load_s",
@@ -303,11 +344,15 @@ fn print_table(rows: &[SlipRow], s: &SlipSummary) {
         "gross_s",
         "detect_s",
         "lead",
-        "false"
+        "false",
+        "move_mm",
+        "final_N",
+        "least_N",
+        "drop"
     );
     for r in rows {
         println!(
-            "{:<14} {:>5.2} {:>6.2} {:>5} {:>7.2} {:>8.2} {:>9} {:>8} {:>8} {:>5} {:>6}",
+            "{:<14} {:>5.2} {:>6.2} {:>5} {:>7.2} {:>8.2} {:>9} {:>8} {:>8} {:>5} {:>6} {:>7.2} {:>7.2} {:>7.2} {:>4}",
             r.object,
             r.friction,
             r.load_time_s,
@@ -318,18 +363,27 @@ fn print_table(rows: &[SlipRow], s: &SlipSummary) {
             opt(r.t_gross_s, 3),
             opt(r.t_detect_s, 3),
             r.lead_sets.map_or("-".into(), |l| l.to_string()),
-            r.false_alarms
+            r.false_alarms,
+            r.motion_mm,
+            r.final_grip_n,
+            r.least_grip_n,
+            if r.dropped { "yes" } else { "no" }
         );
     }
     println!(
         "trials {}  slid {}  detected {}  lead >= 2 sets {:.1}%  not before incipient {:.1}%  \
-         rows with false alarms {}  median lead {} sets",
+         rows with false alarms {}  median lead {} sets\n\
+         dropped {}  motion < 1 mm {:.1}%  final/least grip: median {}, max {}",
         s.trials,
         s.slid,
         s.detected,
         100.0 * s.lead_2_sets_share,
         100.0 * s.not_early_share,
         s.rows_with_false_alarms,
-        opt(s.lead_sets_median, 0)
+        opt(s.lead_sets_median, 0),
+        s.dropped,
+        100.0 * s.motion_under_1mm_share,
+        opt(s.grip_over_least_median, 2),
+        opt(s.grip_over_least_max, 2)
     );
 }

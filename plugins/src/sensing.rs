@@ -41,14 +41,7 @@ impl Tactile {
     /// nothing touching): until then every reading is `None`, which holds the fingers.
     /// Otherwise each pipeline is referenced already.
     pub fn new(pipes: Vec<SensorPipeline>, layout: &HandLayout, reference_from_live: bool) -> Self {
-        let geometry = layout
-            .sensors
-            .iter()
-            .map(|spec| {
-                let (w, h) = (spec.resolution.width_px, spec.resolution.height_px);
-                (f64::from(w), f64::from(h), spec.mm_per_px)
-            })
-            .collect();
+        let geometry = sensor_geometry(layout);
         let n = pipes.len();
         Self {
             pipes: StreamingSensors::new(pipes, Needs::DEPTH),
@@ -177,22 +170,40 @@ impl Tactile {
             .iter()
             .zip(&self.geometry)
             .zip(&by_sensor)
-            .map(|((r, (w, h, mm)), frame)| {
+            .map(|((r, geometry), frame)| {
                 frame.as_ref()?;
-                let s = r.as_ref().ok()?;
-                Some(SensorReading {
-                    in_contact: s.in_contact,
-                    area_mm2: s.area_mm2,
-                    max_depth_mm: s.max_depth_mm.unwrap_or(0.0),
-                    volume_mm3: s.volume_mm3.unwrap_or(0.0),
-                    force_n: s.force_n.unwrap_or(0.0),
-                    centroid_mm: s
-                        .centroid_px
-                        .map(|(x, y)| ((x - w / 2.0) * mm, (y - h / 2.0) * mm)),
-                    slip: s.shear.map(|e| e.slip()),
-                })
+                Some(sensor_reading(r.as_ref().ok()?, *geometry))
             })
             .collect()
+    }
+}
+
+/// Each of `layout`'s sensors' image width and height (px) and pixel size (mm/px), in
+/// layout order: what [`sensor_reading`] places a contact with.
+pub fn sensor_geometry(layout: &HandLayout) -> Vec<(f64, f64, f64)> {
+    layout
+        .sensors
+        .iter()
+        .map(|spec| {
+            let (w, h) = (spec.resolution.width_px, spec.resolution.height_px);
+            (f64::from(w), f64::from(h), spec.mm_per_px)
+        })
+        .collect()
+}
+
+/// The reading the controller fuses from a pipeline's summary `s` of a sensor whose image
+/// is `w × h` px of `mm` mm/px: its centroid in mm from the image's centre.
+pub fn sensor_reading(s: &ContactSummary, (w, h, mm): (f64, f64, f64)) -> SensorReading {
+    SensorReading {
+        in_contact: s.in_contact,
+        area_mm2: s.area_mm2,
+        max_depth_mm: s.max_depth_mm.unwrap_or(0.0),
+        volume_mm3: s.volume_mm3.unwrap_or(0.0),
+        force_n: s.force_n.unwrap_or(0.0),
+        centroid_mm: s
+            .centroid_px
+            .map(|(x, y)| ((x - w / 2.0) * mm, (y - h / 2.0) * mm)),
+        slip: s.shear.map(|e| e.slip()),
     }
 }
 

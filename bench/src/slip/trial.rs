@@ -5,6 +5,7 @@
 //! shear, noise, JPEG) and read by the run's pipelines; the world gives the truth.
 
 use anyhow::Context;
+use gelgrip_controller::config::AppConfig;
 use gelgrip_controller::fusion::{SlipState, weight_force_n};
 use gelgrip_controller::layout::HandLayout;
 use gelgrip_controller::runtime::slip_tally::FALSE_ALARM_STICK_RATIO;
@@ -94,6 +95,75 @@ pub struct SlipRow {
     pub sets: usize,
     /// The bus's set period, ms.
     pub set_period_ms: f64,
+    /// The slip reflex held the object (`--reflex on`): the grasp controller in the loop.
+    pub reflex: bool,
+    /// The object's total motion against the fingers since the load began, mm.
+    pub motion_mm: f64,
+    /// The object slid out of the grasp: out of every contact, or
+    /// [`super::reflex::DROP_MM`] along the pads.
+    pub dropped: bool,
+    /// The true total normal force of the contacts at the end, N.
+    pub final_grip_n: f64,
+    /// The least total normal force that would have held the final load: the pull at the
+    /// last set, over μ, N.
+    pub least_grip_n: f64,
+}
+
+/// What a trial's row says of its start.
+pub(super) struct TrialStart {
+    /// The scene's object and its friction μ.
+    pub(super) object: String,
+    pub(super) friction: f64,
+    /// The grip's total normal force and its μP when the load began, N.
+    pub(super) grip_n: f64,
+    pub(super) holding_limit_n: f64,
+    /// When the load began, µs, and the set period, µs.
+    pub(super) load_start_us: u64,
+    pub(super) set_period_us: u64,
+}
+
+impl TrialStart {
+    /// The row of a trial that read `sets` sets, tallied in `tally`, its world `w` at the
+    /// end and the pull then `pull_n`; `reflex`: the controller held the object.
+    pub(super) fn row(
+        self,
+        spec: &TrialSpec,
+        w: &World,
+        tally: &Tally,
+        sets: usize,
+        pull_n: f64,
+        reflex: bool,
+    ) -> SlipRow {
+        let truth = *w.slip_truth();
+        let load_s = self.load_start_us as f64 / 1e6;
+        SlipRow {
+            object: self.object,
+            friction: self.friction,
+            load_time_s: spec.load_time_s,
+            trial: spec.trial,
+            seed: spec.seed,
+            grip_n: self.grip_n,
+            holding_limit_n: self.holding_limit_n,
+            t_incipient_s: truth.incipient_s.map(|t| t - load_s),
+            t_gross_s: truth.gross_s.map(|t| t - load_s),
+            t_detect_s: tally.detect.map(|d| d.1),
+            lead_sets: tally
+                .detect
+                .zip(tally.gross_set)
+                .map(|(d, g)| g as i64 - d.0 as i64),
+            false_alarms: tally.false_alarms,
+            true_stick_ratio_at_detect: tally.detect.map(|d| d.2),
+            sets,
+            set_period_ms: self.set_period_us as f64 / 1e3,
+            reflex,
+            motion_mm: truth.motion_mm,
+            dropped: w.object().is_some_and(|o| o.dropped)
+                || w.grip_n() <= 0.0
+                || truth.motion_mm >= super::reflex::DROP_MM,
+            final_grip_n: w.grip_n(),
+            least_grip_n: pull_n / self.friction,
+        }
+    }
 }
 
 /// One set of a trial, for the plot.
@@ -113,8 +183,8 @@ pub struct TraceSet {
 
 /// What a trial runs on.
 pub struct Rigging<'a> {
-    /// The hand.
-    pub layout: &'a HandLayout,
+    /// The run's configuration: the hand, its servos and the `[grasp]` section.
+    pub config: &'a AppConfig,
     /// The simulator's settings, with the trial's seed.
     pub sim: &'a SimConfig,
     /// The run's pipelines for that seed, freshly referenced.
@@ -217,7 +287,9 @@ pub fn hold(layout: &HandLayout, scene: &SceneSpec, aim_n: f64, max_current_ma: 
 }
 
 /// Each sensor's reading of slip in a set.
-fn states(results: &[Result<ContactSummary, PipelineError>]) -> Vec<Option<(SlipState, f64)>> {
+pub(super) fn states(
+    results: &[Result<ContactSummary, PipelineError>],
+) -> Vec<Option<(SlipState, f64)>> {
     results
         .iter()
         .map(|r| {
@@ -229,11 +301,16 @@ fn states(results: &[Result<ContactSummary, PipelineError>]) -> Vec<Option<(Slip
 
 /// What the sets of a trial showed so far.
 #[derive(Debug, Default)]
-struct Tally {
-    detect: Option<(usize, f64, f64)>,
-    gross_set: Option<usize>,
-    false_alarms: u32,
-    trace: Vec<TraceSet>,
+pub(super) struct Tally {
+    /// The detecting set: its number, time since the load began (s) and the least true
+    /// stick ratio then.
+    pub(super) detect: Option<(usize, f64, f64)>,
+    /// The first set at or after gross slip.
+    pub(super) gross_set: Option<usize>,
+    /// Readings of slip while that sensor's contacts all stuck.
+    pub(super) false_alarms: u32,
+    /// Every set, for the plot.
+    pub(super) trace: Vec<TraceSet>,
 }
 
 /// Run one trial.
@@ -265,7 +342,7 @@ pub fn run(rig: &mut Rigging<'_>, spec: &TrialSpec) -> anyhow::Result<(SlipRow, 
         offset_n: -push_n,
     }));
     let world = world.into_shared();
-    let mut frames = SceneFrames::new(world.clone(), rig.layout, rig.sim)?;
+    let mut frames = SceneFrames::new(world.clone(), &rig.config.layout, rig.sim)?;
     let end_us = load_start_us + ((2.0 * spec.load_time_s + 1.0) * 1e6) as u64;
     let since_load = |t_us: u64| (t_us as f64 - load_start_us as f64) / 1e6;
     let mut tally = Tally::default();
@@ -287,36 +364,25 @@ pub fn run(rig: &mut Rigging<'_>, spec: &TrialSpec) -> anyhow::Result<(SlipRow, 
             break;
         }
     }
-    let truth = *world
+    let w = world
         .lock()
-        .map_err(|_| anyhow::anyhow!("the world was poisoned"))?
-        .slip_truth();
-    let load_s = load_start_us as f64 / 1e6;
-    let row = SlipRow {
+        .map_err(|_| anyhow::anyhow!("the world was poisoned"))?;
+    // The pull at the last set read.
+    let pull_n = rate * since_load(settled_us + (nth.max(1) as u64 - 1) * period).max(0.0);
+    let start = TrialStart {
         object,
         friction,
-        load_time_s: spec.load_time_s,
-        trial: spec.trial,
-        seed: spec.seed,
         grip_n,
         holding_limit_n: limit_n,
-        t_incipient_s: truth.incipient_s.map(|t| t - load_s),
-        t_gross_s: truth.gross_s.map(|t| t - load_s),
-        t_detect_s: tally.detect.map(|d| d.1),
-        lead_sets: tally
-            .detect
-            .zip(tally.gross_set)
-            .map(|(d, g)| g as i64 - d.0 as i64),
-        false_alarms: tally.false_alarms,
-        true_stick_ratio_at_detect: tally.detect.map(|d| d.2),
-        sets: nth,
-        set_period_ms: period as f64 / 1e3,
+        load_start_us,
+        set_period_us: period,
     };
+    let row = start.row(spec, &w, &tally, nth, pull_n, false);
     Ok((row, tally.trace))
 }
 
 /// Read the truth of set `nth` at `t_s` and tally its sensors' readings `read`.
-fn observe(
+pub(super) fn observe(
     world: &SharedWorld,
     read: &[Option<(SlipState, f64)>],
     t_s: f64,
