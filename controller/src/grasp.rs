@@ -372,7 +372,7 @@ impl GraspController {
         let fingers = (0..close_deg.len())
             .map(|f| {
                 let open = open_deg.get(f).copied().unwrap_or(0.0);
-                FingerCtl::new(request.fingers.contains(&f), open, target, target)
+                FingerCtl::new(request.fingers.contains(&f), open, target)
             })
             .collect();
         Self {

@@ -75,6 +75,23 @@ impl Loop<'_, '_> {
         Ok(fuse(&self.rig.config.layout, &readings))
     }
 
+    /// Close the fingers from open as a grasp that finds its own force, until it holds
+    /// (an error naming `object` when it does not within [`GRASP_MAX_S`]).
+    fn grasp(&mut self, object: &str) -> anyhow::Result<GraspController> {
+        let mut ctl = controller(self.rig);
+        while ctl.outcome().is_none() && self.now_us() < (GRASP_MAX_S * 1e6) as u64 {
+            let set = self.read()?;
+            self.control(&mut ctl, &set)?;
+        }
+        anyhow::ensure!(
+            ctl.outcome().is_some_and(|o| o.reason.is_stable()),
+            "{object}: the controller did not grasp it ({})",
+            ctl.outcome()
+                .map_or("no outcome".to_string(), |o| o.reason.to_string())
+        );
+        Ok(ctl)
+    }
+
     /// Step `ctl` on `set` and write its goals.
     fn control(&mut self, ctl: &mut GraspController, set: &FusedSet) -> anyhow::Result<()> {
         let states = self
@@ -145,17 +162,7 @@ pub fn run(rig: &mut Rigging<'_>, spec: &TrialSpec) -> anyhow::Result<(SlipRow, 
         nth: 0,
         rig,
     };
-    let mut ctl = controller(sets.rig);
-    while ctl.outcome().is_none() && sets.now_us() < (GRASP_MAX_S * 1e6) as u64 {
-        let set = sets.read()?;
-        sets.control(&mut ctl, &set)?;
-    }
-    anyhow::ensure!(
-        ctl.outcome().is_some_and(|o| o.reason.is_stable()),
-        "{object}: the controller did not grasp it ({})",
-        ctl.outcome()
-            .map_or("no outcome".to_string(), |o| o.reason.to_string())
-    );
+    let mut ctl = sets.grasp(&object)?;
     let (grip_n, (limit_n, push_n)) = {
         let w = lock(&world)?;
         (w.grip_n(), w.grip_loads_n())

@@ -149,8 +149,8 @@ pub(super) struct FingerCtl {
 
 impl FingerCtl {
     /// An open finger at `goal_deg`, taking part when `active`, regulating to `target_n`,
-    /// which the reflex relaxes to `floor_n` at the least.
-    pub(super) fn new(active: bool, goal_deg: f64, target_n: f64, floor_n: f64) -> Self {
+    /// which the reflex relaxes to at the least.
+    pub(super) fn new(active: bool, goal_deg: f64, target_n: f64) -> Self {
         Self {
             phase: Phase::Open,
             active,
@@ -164,7 +164,7 @@ impl FingerCtl {
             peak_n: 0.0,
             slow_force_n: 0.0,
             target_n,
-            floor_n,
+            floor_n: target_n,
             moved_at_s: None,
             moved_from_n: target_n,
             reflex_at_s: None,
