@@ -407,3 +407,52 @@ fn slip_columns_in_the_task_log(log: &Path) {
             .all(|s| ["", "none", "incipient", "gross"].contains(s))
     );
 }
+
+/// `run --target-force auto` on the marker config: the tennis ball is grasped at the
+/// preload, lifted (the task log's `lift` stage) while the reflex finds the force its
+/// weight needs, and held through the hold test at a settled force below today's fixed
+/// 1.5 N; `target_force_n` is null.
+#[test]
+fn an_auto_grasp_finds_the_force_the_tennis_ball_needs_and_holds_it() {
+    let log = Path::new(env!("CARGO_TARGET_TMPDIR")).join("markers-auto-log.csv");
+    let report = json(&common::gelgrip_cached(&[
+        "run",
+        "--log",
+        log.to_str().expect("a UTF-8 path"),
+        "--config",
+        "configs/gelgripper-sim-markers.toml",
+        "--clock",
+        "virtual",
+        "--task",
+        "gentle-grasp",
+        "--target-force",
+        "auto",
+        "--scene",
+        "configs/scenes/tennis-ball.toml",
+        "--headless",
+        "--json",
+    ]));
+    assert_eq!(report["grasped"], true, "{report}");
+    assert_eq!(report["reason"], "stable", "{report}");
+    assert_eq!(report["crushed"], false, "{report}");
+    assert!(report["target_force_n"].is_null(), "{report}");
+    let settled = report["settled_force_n"].as_f64().expect("settled_force_n");
+    // Above the preload (the weight needed more), below the fixed default.
+    assert!(settled > 0.3 && settled < 1.5, "{report}");
+    let slip = report["hold_slip_mm"].as_f64().expect("hold_slip_mm");
+    assert!(slip < 1.0, "{report}");
+    let csv = std::fs::read_to_string(&log).expect("the task log");
+    let header: Vec<&str> = csv.lines().next().expect("a header").split(',').collect();
+    let stage = header
+        .iter()
+        .position(|h| *h == "stage")
+        .expect("a stage column");
+    let stages: Vec<&str> = csv
+        .lines()
+        .skip(1)
+        .filter_map(|l| l.split(',').nth(stage))
+        .collect();
+    for s in ["grasp", "lift", "hold_test"] {
+        assert!(stages.contains(&s), "no {s} stage: {header:?}");
+    }
+}

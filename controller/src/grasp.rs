@@ -558,6 +558,19 @@ impl GraspController {
                 .all(|c| c.moved_at_s.is_none_or(|t| now - t >= stable_s))
     }
 
+    /// Under `auto`, the force the grasp has found: the mean target of the fingers holding
+    /// the object, N (`None` for a fixed target, or with no finger holding).
+    pub fn settled_force_n(&self) -> Option<f64> {
+        let targets: Vec<f64> = self
+            .fingers
+            .iter()
+            .filter(|c| c.active && c.status == FingerStatus::ContactClosing)
+            .map(|c| c.target_n)
+            .collect();
+        (self.request.auto_target && !targets.is_empty())
+            .then(|| targets.iter().sum::<f64>() / targets.len() as f64)
+    }
+
     /// Every active finger holds (on the object, or having found none).
     fn settled(&self) -> bool {
         self.fingers.iter().filter(|c| c.active).all(|c| {
@@ -601,13 +614,7 @@ impl GraspController {
         } else {
             GraspReason::Timeout { after_s: elapsed_s }
         };
-        let holding_targets: Vec<f64> = active
-            .iter()
-            .filter(|c| c.status == FingerStatus::ContactClosing)
-            .map(|c| c.target_n)
-            .collect();
-        let settled_force_n = (self.request.auto_target && grasped)
-            .then(|| holding_targets.iter().sum::<f64>() / holding_targets.len().max(1) as f64);
+        let settled_force_n = self.settled_force_n().filter(|_| grasped);
         Some(GraspOutcome {
             grasped,
             status: self.fingers.iter().map(|c| c.status).collect(),

@@ -182,3 +182,74 @@ mod tests {
         }
     }
 }
+
+/// The hold test's pull ([`crate::world::World::load_test`]): the object is let go and
+/// pulled along gravity by its weight times a factor that rises from `from` to `to` over
+/// `rise_s`, counted from the first step after it was asked for (a lift accelerates the
+/// object over a few tenths of a second; a step from a table to twice the weight is not a
+/// lift).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WeightPull {
+    from: f64,
+    to: f64,
+    rise_s: f64,
+    since_s: Option<f64>,
+    last: f64,
+}
+
+impl WeightPull {
+    /// A pull from `from` to `to` times the weight over `rise_s` (a non-finite factor
+    /// counts as 1, a negative one as 0; a rise of zero or less is a step).
+    pub fn new(from: f64, to: f64, rise_s: f64) -> Self {
+        let factor = |f: f64| if f.is_finite() { f.max(0.0) } else { 1.0 };
+        Self {
+            from: factor(from),
+            to: factor(to),
+            rise_s: if rise_s.is_finite() {
+                rise_s.max(0.0)
+            } else {
+                0.0
+            },
+            since_s: None,
+            last: factor(from),
+        }
+    }
+
+    /// The factor at `t_s` (its rise starts at the first call).
+    pub fn factor_at(&mut self, t_s: f64) -> f64 {
+        let since = *self.since_s.get_or_insert(t_s);
+        let share = if self.rise_s > 0.0 {
+            ((t_s - since) / self.rise_s).clamp(0.0, 1.0)
+        } else {
+            1.0
+        };
+        self.last = self.from + (self.to - self.from) * share;
+        self.last
+    }
+
+    /// The factor last applied.
+    pub fn last_factor(&self) -> f64 {
+        self.last
+    }
+}
+
+#[cfg(test)]
+mod weight_pull_tests {
+    use super::WeightPull;
+
+    #[test]
+    fn the_pull_rises_from_its_first_step_and_then_stays() {
+        let mut p = WeightPull::new(1.0, 2.0, 0.5);
+        assert_eq!(p.factor_at(10.0), 1.0);
+        assert!((p.factor_at(10.25) - 1.5).abs() < 1e-12);
+        assert_eq!(p.factor_at(10.5), 2.0);
+        assert_eq!(p.factor_at(99.0), 2.0);
+        assert_eq!(p.last_factor(), 2.0);
+        let mut step = WeightPull::new(0.0, 2.0, 0.0);
+        assert_eq!(step.factor_at(3.0), 2.0);
+        // Not finite: from 1; negative: 0; a rise of inf: a step.
+        let mut bad = WeightPull::new(f64::NAN, -1.0, f64::INFINITY);
+        assert_eq!(bad.last_factor(), 1.0);
+        assert_eq!(bad.factor_at(0.0), 0.0);
+    }
+}

@@ -43,9 +43,9 @@ impl GroundTruth for SimTruth {
         w.object().map(|o| o.slip_mm)
     }
 
-    fn pull_object(&mut self, factor: f64) {
+    fn pull_object(&mut self, factor: f64, rise_s: f64) {
         if let Ok(mut w) = self.world.lock() {
-            w.load_test(factor);
+            w.load_test(factor, rise_s);
         }
     }
 

@@ -19,7 +19,7 @@ use crate::config::SensorFaults;
 use crate::contact::{PadContact, PadGrid, height_map, pad_contact};
 use crate::fault_storm::{FaultStorm, FaultTally, StormEvent};
 use crate::finger::{FingerMechanics, PadFrame, PadLoad};
-use crate::load::LoadSpec;
+use crate::load::{LoadSpec, WeightPull};
 use crate::markers::GelShear;
 use crate::motor::Xm430Motor;
 use crate::object::ObjectState;
@@ -74,9 +74,9 @@ pub struct World {
     t_us: Option<u64>,
     elapsed_us: u64,
     log: WorldLog,
-    /// Set by [`World::load_test`]: the object is let go and pulled by this many times its
-    /// weight.
-    weight_factor: Option<f64>,
+    /// Set by [`World::load_test`]: the object is let go and pulled by a rising multiple
+    /// of its weight.
+    weight_pull: Option<WeightPull>,
     /// Faults injected at run time per sensor (the dashboard's sim controls); they replace
     /// the configured ones.
     injected_faults: Vec<Option<SensorFaults>>,
@@ -172,7 +172,7 @@ impl World {
             scene,
             t_us: None,
             elapsed_us: 0,
-            weight_factor: None,
+            weight_pull: None,
             injected_faults: Vec::new(),
             hub_unplugged_until_us: None,
             scene_since_us: 0,
@@ -192,7 +192,7 @@ impl World {
             .as_ref()
             .map(|s| ObjectState::new(s.object.clone(), s.slip_dir));
         self.scene = scene;
-        self.weight_factor = None;
+        self.weight_pull = None;
         for c in &mut self.contacts {
             *c = PadContact::default();
         }
@@ -330,15 +330,16 @@ impl World {
         self.elapsed_us as f64 / 1e6
     }
 
-    /// Let go of the object and pull it with `factor` times its weight along gravity (the
-    /// "held" test: a grasp holds when the object slips less than 1 mm under twice its
-    /// weight).
-    pub fn load_test(&mut self, factor: f64) {
-        self.weight_factor = Some(if factor.is_finite() {
-            factor.max(0.0)
-        } else {
-            1.0
-        });
+    /// Let go of the object and pull it along gravity with `factor` times its weight,
+    /// reached over `rise_s` from what it carries now (the hold test: a grasp holds when
+    /// the object slips less than 1 mm under twice its weight; a lift: once its weight).
+    pub fn load_test(&mut self, factor: f64, rise_s: f64) {
+        let now = match &self.weight_pull {
+            Some(p) => p.last_factor(),
+            None if self.log.has(EventKind::Released) => 1.0,
+            None => 0.0,
+        };
+        self.weight_pull = Some(WeightPull::new(now, factor, rise_s));
     }
 
     /// Command every finger to close fully, its current capped at `current_ma`.
@@ -533,14 +534,14 @@ impl World {
                 .push(WorldEvent::at(t_s, EventKind::BoltTight).value(o.bolt_torque_nm));
         }
         let since_scene_s = t_s - self.scene_since_us as f64 / 1e6;
-        let released = self.weight_factor.is_some()
-            || scene.release_after_s.is_some_and(|r| since_scene_s >= r);
+        let released =
+            self.weight_pull.is_some() || scene.release_after_s.is_some_and(|r| since_scene_s >= r);
         if released && !self.log.has(EventKind::Released) {
             self.log.push(WorldEvent::at(t_s, EventKind::Released));
         }
         let pull_n = o.spec().load.map_or(0.0, |l| l.force_at_n(since_scene_s));
         let gravity_n = if released {
-            self.weight_factor.unwrap_or(1.0)
+            self.weight_pull.as_mut().map_or(1.0, |p| p.factor_at(t_s))
                 * o.spec().mass_kg
                 * G_M_PER_S2
                 * scene.gravity_dir.dot(scene.slip_dir)

@@ -126,6 +126,8 @@ pub(super) struct FingerCtl {
     reflex_at_s: Option<f64>,
     /// The least force that holds, as the reflex tracks it.
     least: reflex::LeastTrack,
+    /// The force at which the last slide stopped (a floor of the reflex's aim).
+    slide_stop: reflex::SlideStop,
     /// Since when the grasp has slid with the target at its most, s.
     gross_since_s: Option<f64>,
     /// The grasp slid and the most force allowed did not stop it: the finger holds.
@@ -169,6 +171,7 @@ impl FingerCtl {
             moved_from_n: target_n,
             reflex_at_s: None,
             least: reflex::LeastTrack::default(),
+            slide_stop: reflex::SlideStop::default(),
             gross_since_s: None,
             slipping: false,
             stable_since_s: None,
@@ -258,6 +261,7 @@ impl FingerCtl {
         self.slip_seen = 0;
         self.reflex_at_s = None;
         self.least = reflex::LeastTrack::default();
+        self.slide_stop = reflex::SlideStop::default();
         self.gross_since_s = None;
     }
 
@@ -517,7 +521,8 @@ impl FingerCtl {
             self.least
                 .ahead_n(k.t_s, reflex::least_n(self.force_n, slip))
         };
-        let aim_n = reflex::aim_n(g, ahead_n, slip, self.floor_n, ceiling_n);
+        let stopped_n = self.slide_stop.floor_n(k.t_s, self.force_n, slip);
+        let aim_n = reflex::aim_n(g, ahead_n.max(stopped_n), slip, self.floor_n, ceiling_n);
         self.target_n = reflex::follow(g, self.target_n, aim_n, dt);
         if (self.target_n - self.moved_from_n).abs() > k.tuning.stable_band * self.moved_from_n {
             self.moved_from_n = self.target_n;

@@ -96,6 +96,55 @@ impl LeastTrack {
     }
 }
 
+/// How long the force at which a slide last stopped stands as a floor of the aim when the
+/// contact's shear is too small to scale it by, s.
+pub const STOP_MEMORY_S: f64 = 10.0;
+
+/// A shear below this, mm, is too small to scale the floor by (a gel without markers
+/// reads none).
+const SHEAR_FLOOR_MM: f64 = 0.005;
+
+/// The force at which the grasp last stopped sliding: measured, where the least force from
+/// the stick ratio is a model. Relaxing below it with the margin would find the slide
+/// again (and tighten again, a cycle of seconds), so the aim keeps above it, scaled by the
+/// contact's shear now over its shear then (the shear grows with the tangential load, and
+/// so does the least force that holds): while the load stays, the floor stays; when it
+/// goes, the floor goes with it. Without a shear to scale by, the floor stands for
+/// [`STOP_MEMORY_S`]. Only a slide counts ([`sliding`]): an `incipient` reading that comes
+/// and goes on a contact that holds would ratchet the grip up.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct SlideStop {
+    /// The last set slid.
+    sliding: bool,
+    /// When (s), at what force (N) and what shear (mm) the last slide stopped.
+    stopped: Option<(f64, f64, f64)>,
+}
+
+impl SlideStop {
+    /// Take the set at `t_s`, the finger pressing `force_n` and the grasp slipping as
+    /// `slip`: the floor the aim keeps, N (0 when no slide has stopped, or its floor has
+    /// gone).
+    pub fn floor_n(&mut self, t_s: f64, force_n: f64, slip: &SensorSlip) -> f64 {
+        let now = sliding(slip);
+        let shear_mm = shear_mm(slip);
+        if self.sliding && !now && force_n.is_finite() {
+            self.stopped = Some((t_s, force_n.max(0.0), shear_mm));
+        }
+        self.sliding = now;
+        match self.stopped {
+            Some((_, f, shear0)) if shear0 >= SHEAR_FLOOR_MM => f * (shear_mm / shear0).min(1.0),
+            Some((t0, f, _)) if t_s - t0 <= STOP_MEMORY_S => f,
+            _ => 0.0,
+        }
+    }
+}
+
+/// The size of a contact's shear, mm (0 when not finite).
+fn shear_mm(slip: &SensorSlip) -> f64 {
+    let s = slip.shear_mm[0].hypot(slip.shear_mm[1]);
+    if s.is_finite() { s } else { 0.0 }
+}
+
 /// The force to aim at when the least that holds is `ahead_n` (looking ahead) and the
 /// grasp slips as `slip`: that with the margin, within `[floor_n, ceiling_n]`; the ceiling
 /// while it slides, N.
@@ -137,6 +186,72 @@ mod tests {
             stick_ratio,
             state,
         }
+    }
+
+    fn sheared(stick_ratio: f64, state: SlipState, shear_mm: f64) -> SensorSlip {
+        SensorSlip {
+            shear_mm: [shear_mm, 0.0],
+            ..slip(stick_ratio, state)
+        }
+    }
+
+    #[test]
+    fn a_slide_that_stops_leaves_its_force_as_a_floor_while_its_load_stays() {
+        let mut stop = SlideStop::default();
+        assert_eq!(
+            stop.floor_n(0.0, 0.3, &sheared(1.0, SlipState::None, 0.1)),
+            0.0
+        );
+        // Incipient alone is not a slide.
+        let incipient = sheared(0.8, SlipState::Incipient, 0.1);
+        assert_eq!(stop.floor_n(0.1, 0.3, &incipient), 0.0);
+        assert_eq!(
+            stop.floor_n(0.2, 0.3, &sheared(1.0, SlipState::None, 0.1)),
+            0.0
+        );
+        assert_eq!(
+            stop.floor_n(0.3, 0.35, &sheared(0.8, SlipState::Gross, 0.1)),
+            0.0
+        );
+        assert_eq!(
+            stop.floor_n(0.4, 0.5, &sheared(0.9, SlipState::None, 0.1)),
+            0.5
+        );
+        // The load stays (long after): so does the floor; never above the force itself.
+        assert_eq!(
+            stop.floor_n(60.0, 0.4, &sheared(1.0, SlipState::None, 0.2)),
+            0.5
+        );
+        // Half the load: half the floor; none: none.
+        assert!(
+            (stop.floor_n(61.0, 0.4, &sheared(1.0, SlipState::None, 0.05)) - 0.25).abs() < 1e-12
+        );
+        assert_eq!(
+            stop.floor_n(62.0, 0.4, &sheared(1.0, SlipState::None, 0.0)),
+            0.0
+        );
+    }
+
+    #[test]
+    fn without_a_shear_the_floor_stands_for_a_while() {
+        let mut stop = SlideStop::default();
+        stop.floor_n(0.3, 0.35, &slip(0.2, SlipState::Gross));
+        assert_eq!(stop.floor_n(0.4, 0.5, &slip(0.9, SlipState::None)), 0.5);
+        assert_eq!(stop.floor_n(5.0, 0.4, &slip(1.0, SlipState::None)), 0.5);
+        assert_eq!(stop.floor_n(10.5, 0.4, &slip(1.0, SlipState::None)), 0.0);
+        // A non-finite force or shear leaves no floor.
+        let mut stop = SlideStop::default();
+        stop.floor_n(0.0, 0.3, &slip(0.2, SlipState::Incipient));
+        assert_eq!(
+            stop.floor_n(0.1, f64::NAN, &slip(1.0, SlipState::None)),
+            0.0
+        );
+        let mut stop = SlideStop::default();
+        stop.floor_n(0.0, 0.3, &sheared(0.2, SlipState::Incipient, f64::NAN));
+        assert_eq!(
+            stop.floor_n(0.1, 0.5, &sheared(1.0, SlipState::None, f64::INFINITY)),
+            0.5
+        );
     }
 
     #[test]

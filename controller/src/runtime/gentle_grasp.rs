@@ -3,8 +3,11 @@
 //! ([`crate::gripper`]: the task asks for the grasp, stop and e-stop through its handle, as
 //! the dashboard does), whose goals are written to the servos at once. When the grasp is
 //! stable (and after `hold_s`), the task tests the hold where there is a ground truth (the
-//! object is let go and pulled with twice its weight for 1 s; held = it slips less than
-//! 1 mm), then ends.
+//! object is let go and pulled with twice its weight, reached over 0.25 s as a lift
+//! would, for 1 s; held = it slips less than 1 mm), then ends. Under `--target-force auto`
+//! the grasp settles at the preload first; with a ground truth the task then lifts (the
+//! object's weight comes on over 0.5 s), the slip reflex tightens as far as the weight
+//! needs, and the force it settles on under the weight is the grasp's `settled_force_n`.
 //!
 //! Safety: the controller acts only on gated sets; a finger with a missing sensor holds; a
 //! watchdog stops all motion (hold at the present position) when no set arrives within
@@ -29,8 +32,19 @@ use crate::runtime::task_report::TaskReport;
 /// The built-in task's name (`run --task gentle-grasp`).
 pub const TASK_NAME: &str = "gentle-grasp";
 
-/// Length of the hold test, s.
+/// Length of the hold test once its pull is reached, s.
 const HOLD_TEST_S: f64 = 1.0;
+/// The hold test's pull rises to its full value over this long, s.
+const HOLD_TEST_RISE_S: f64 = 0.25;
+/// Under `auto`, the lift: the object's weight comes on over this long, s…
+const LIFT_RISE_S: f64 = 0.5;
+/// …and the grip has settled once its force has stayed within [`LIFT_BAND`] for this
+/// long, s…
+const LIFT_STEADY_S: f64 = 0.5;
+/// …a share of the force…
+const LIFT_BAND: f64 = 0.05;
+/// …or, at the latest, this long after the lift began, s.
+const LIFT_TIMEOUT_S: f64 = 3.0;
 /// Weight multiple of the hold test.
 const HOLD_TEST_FACTOR: f64 = 2.0;
 /// "Held": slip during the hold test below this, mm.
@@ -52,8 +66,19 @@ pub struct GraspOptions {
 #[derive(Debug)]
 enum Stage {
     Grasp,
-    Hold { until_s: f64 },
-    HoldTest { since_s: f64, slip0_mm: f64 },
+    /// Under `auto`: the weight comes on; `steady` is since when (s) and at what settled
+    /// force (N) the grip has stayed steady.
+    Lift {
+        since_s: f64,
+        steady: Option<(f64, f64)>,
+    },
+    Hold {
+        until_s: f64,
+    },
+    HoldTest {
+        since_s: f64,
+        slip0_mm: f64,
+    },
     Done,
 }
 
@@ -178,7 +203,7 @@ impl GentleGrasp {
             .controller()
             .map_or(0.0, |c| c.forces_n().into_iter().fold(0.0, f64::max));
         match self.stage {
-            Stage::Grasp | Stage::Hold { .. } => {
+            Stage::Grasp | Stage::Lift { .. } | Stage::Hold { .. } => {
                 self.peak_force_n = self.peak_force_n.max(regulated);
                 if let Some(peak) = self.plant.true_finger_peak_n(&truth) {
                     self.true_peak_force_n = Some(self.true_peak_force_n.unwrap_or(0.0).max(peak));
@@ -225,14 +250,18 @@ impl GentleGrasp {
                         self.time_to_stable_s = Some(t_s - start);
                     }
                     self.outcome = Some(outcome);
-                    if stable && self.hold_s > 0.0 {
-                        self.stage = Stage::Hold {
-                            until_s: t_s + self.hold_s,
-                        };
-                    } else {
-                        return Ok(self.begin_hold_test(stable, t_s));
+                    if stable && self.target_force.is_auto() && self.begin_lift(t_s) {
+                        return Ok(None);
                     }
+                    return Ok(self.hold_after_stable(stable, t_s));
                 }
+            }
+            Stage::Lift { since_s, steady } => {
+                if self.slipping() {
+                    self.stage = Stage::Done;
+                    return Ok(Some(EndReason::Done));
+                }
+                return Ok(self.advance_lift(t_s, since_s, steady));
             }
             Stage::Hold { until_s } => {
                 if t_s >= until_s {
@@ -240,7 +269,8 @@ impl GentleGrasp {
                 }
             }
             Stage::HoldTest { since_s, slip0_mm } => {
-                if t_s - since_s >= HOLD_TEST_S {
+                self.slipping();
+                if t_s - since_s >= HOLD_TEST_RISE_S + HOLD_TEST_S {
                     self.hold_slip_mm = self.slip_mm().map(|s| (s - slip0_mm).abs());
                     self.stage = Stage::Done;
                     return Ok(Some(EndReason::Done));
@@ -249,6 +279,85 @@ impl GentleGrasp {
             Stage::Done => return Ok(Some(EndReason::Done)),
         }
         Ok(None)
+    }
+
+    /// After a stable grasp: hold for `hold_s`, then the hold test (at once without a
+    /// hold, or after a grasp that did not hold); returns an end reason when the task ends.
+    fn hold_after_stable(&mut self, stable: bool, t_s: f64) -> Option<EndReason> {
+        if stable && self.hold_s > 0.0 {
+            self.stage = Stage::Hold {
+                until_s: t_s + self.hold_s,
+            };
+            None
+        } else {
+            self.begin_hold_test(stable, t_s)
+        }
+    }
+
+    /// Under `auto`, with a ground truth: let the object go, its weight coming on over
+    /// [`LIFT_RISE_S`] (false without a ground truth: the grasp's outcome stands).
+    fn begin_lift(&mut self, t_s: f64) -> bool {
+        let Some(truth) = self.plant.truth_mut() else {
+            return false;
+        };
+        truth.pull_object(1.0, LIFT_RISE_S);
+        self.stage = Stage::Lift {
+            since_s: t_s,
+            steady: None,
+        };
+        true
+    }
+
+    /// The lift at `t_s`: once the weight is on and the settled force has stayed within
+    /// [`LIFT_BAND`] for [`LIFT_STEADY_S`] (or [`LIFT_TIMEOUT_S`] after the lift began), the
+    /// outcome takes that force and the task holds.
+    fn advance_lift(
+        &mut self,
+        t_s: f64,
+        since_s: f64,
+        steady: Option<(f64, f64)>,
+    ) -> Option<EndReason> {
+        let force_n = self.service.controller().and_then(|c| c.settled_force_n());
+        let Some(force_n) = force_n else {
+            // No finger holds any more: the outcome stands and the hold test tells.
+            return self.hold_after_stable(true, t_s);
+        };
+        let weighed = t_s - since_s >= LIFT_RISE_S;
+        let steady = match steady {
+            Some((at, f0)) if weighed && (force_n - f0).abs() <= LIFT_BAND * f0 => (at, f0),
+            _ => (t_s, force_n),
+        };
+        let done = weighed && t_s - steady.0 >= LIFT_STEADY_S || t_s - since_s >= LIFT_TIMEOUT_S;
+        if !done {
+            self.stage = Stage::Lift {
+                since_s,
+                steady: Some(steady),
+            };
+            return None;
+        }
+        if let Some(outcome) = self.outcome.as_mut() {
+            outcome.settled_force_n = Some(force_n);
+        }
+        self.hold_after_stable(true, t_s)
+    }
+
+    /// Whether the controller has ended the grasp `slipping` since its outcome (the reflex
+    /// could not stop a slide within `max_force_n`; the fingers hold): the task's outcome
+    /// takes that reason.
+    fn slipping(&mut self) -> bool {
+        let ended = self
+            .service
+            .controller()
+            .and_then(|c| c.outcome())
+            .filter(|o| o.reason == GraspReason::Slipping)
+            .cloned();
+        match ended {
+            Some(o) => {
+                self.outcome = Some(o);
+                true
+            }
+            None => false,
+        }
     }
 
     /// A release, stop or e-stop from another client (its own grasp is the first command)
@@ -291,7 +400,7 @@ impl GentleGrasp {
         let slip0 = self.slip_mm();
         match (stable, self.plant.truth_mut(), slip0) {
             (true, Some(truth), Some(slip0)) => {
-                truth.pull_object(HOLD_TEST_FACTOR);
+                truth.pull_object(HOLD_TEST_FACTOR, HOLD_TEST_RISE_S);
                 self.stage = Stage::HoldTest {
                     since_s: t_s,
                     slip0_mm: slip0,
@@ -338,10 +447,11 @@ impl GentleGrasp {
             .map_or_else(Vec::new, |c| c.finger_states())
     }
 
-    /// The stage now (`grasp`, `hold`, `hold_test`, `done`).
+    /// The stage now (`grasp`, `lift`, `hold`, `hold_test`, `done`).
     pub fn stage_label(&self) -> &'static str {
         match self.stage {
             Stage::Grasp => "grasp",
+            Stage::Lift { .. } => "lift",
             Stage::Hold { .. } => "hold",
             Stage::HoldTest { .. } => "hold_test",
             Stage::Done => "done",

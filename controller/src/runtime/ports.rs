@@ -36,8 +36,9 @@ pub trait GroundTruth: Send {
     fn pad_forces_n(&self) -> Vec<f64>;
     /// How far the object has slipped, mm (`None` without an object).
     fn slip_mm(&self) -> Option<f64>;
-    /// Let the object go and pull it with `factor` times its weight (the hold test).
-    fn pull_object(&mut self, factor: f64);
+    /// Let the object go and pull it with `factor` times its weight, reached over `rise_s`
+    /// from what it carries now (the hold test; the `auto` grasp's lift).
+    fn pull_object(&mut self, factor: f64, rise_s: f64);
     /// Each pad's true stick ratio, in layout order (1: no contact or no tangential load;
     /// empty when the frames do not come from this simulator).
     fn stick_ratios(&self) -> Vec<f64> {

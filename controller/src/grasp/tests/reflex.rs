@@ -16,8 +16,9 @@ fn loaded_set(fingers: &[ToyFinger], load_n: f64) -> FusedSet {
     } else {
         1.0
     };
+    // The gel shears with each contact's share of the pull (a toy compliance, mm per N).
     let slip = SensorSlip {
-        shear_mm: [0.0, 0.0],
+        shear_mm: [0.05 * load_n / fingers.len().max(1) as f64, 0.0],
         stick_ratio: (1.0 - used).max(0.0).cbrt(),
         state: if used >= 1.0 {
             SlipState::Gross
