@@ -28,7 +28,7 @@ use crate::actuator::{FingerGoal, ServoState};
 use crate::fusion::FusedSet;
 use crate::grasp::{
     FingerStatus, GraspController, GraspLimits, GraspOutcome, GraspReason, GraspRequest,
-    GraspSettings, Tuning,
+    GraspSettings, TargetForce, Tuning,
 };
 
 /// Why a grasp-API call failed.
@@ -175,6 +175,8 @@ pub struct GripperHandle {
     limits: Option<Arc<GraspLimits>>,
     /// The task that owns the gripper, if any (grasps are refused meanwhile).
     busy: Arc<Mutex<Option<String>>>,
+    /// `[grasp] preload_n`: where an `auto` grasp closes to, N.
+    preload_n: f64,
 }
 
 impl std::fmt::Debug for Command {
@@ -246,6 +248,13 @@ impl GripperHandle {
     /// ([`GripperService::for_hand`]).
     pub fn limits(&self) -> Option<&GraspLimits> {
         self.limits.as_deref()
+    }
+
+    /// A request's force and whether the grasp finds its own, for `target`: under `auto`
+    /// the request carries `[grasp] preload_n` (where the fingers close to, and what the
+    /// grasp limits check).
+    pub fn target(&self, target: TargetForce) -> (f64, bool) {
+        (target.newtons().unwrap_or(self.preload_n), target.is_auto())
     }
 
     /// The task that owns the gripper now, if any.
@@ -359,6 +368,7 @@ impl GripperService {
             fingers: close_deg.len(),
             limits: None,
             busy: Arc::new(Mutex::new(None)),
+            preload_n: tuning.grasp.preload_n,
         };
         let service = Self {
             rx,

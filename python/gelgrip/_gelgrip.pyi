@@ -1,6 +1,6 @@
 """Type stubs of gelgrip's Rust extension module (re-exported by ``gelgrip``)."""
 
-from typing import Iterator, List, Optional, Sequence, Tuple, TypedDict, Union
+from typing import Iterator, List, Literal, Optional, Sequence, Tuple, TypedDict, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -116,6 +116,7 @@ class GraspResult(TypedDict):
     status: List[str]
     final_force_n: float
     reason: str
+    settled_force_n: Optional[float]  # under target_force_n="auto": the force it settled on
 
 class SensorSlip(TypedDict):
     state: str  # "none", "incipient" or "gross"
@@ -306,7 +307,7 @@ class Gripper:
     def sets(self) -> SetIterator: ...
     def grasp(
         self,
-        target_force_n: float = 1.5,
+        target_force_n: Union[float, Literal["auto"]] = 1.5,
         speed_deg_s: float = 15.0,
         timeout_s: float = 20.0,
         fingers: Optional[Sequence[int]] = None,
@@ -314,7 +315,7 @@ class Gripper:
     ) -> GraspResult: ...
     def start_grasp(
         self,
-        target_force_n: float = 1.5,
+        target_force_n: Union[float, Literal["auto"]] = 1.5,
         speed_deg_s: float = 15.0,
         timeout_s: float = 20.0,
         fingers: Optional[Sequence[int]] = None,

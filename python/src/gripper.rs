@@ -20,7 +20,7 @@ use tokio::sync::mpsc;
 use gelgrip::output::RunReport;
 use gelgrip::session::{RunOptions, Session};
 use gelgrip_controller::clock::ClockKind;
-use gelgrip_controller::grasp::GraspRequest;
+use gelgrip_controller::grasp::{GraspRequest, TargetForce};
 use gelgrip_controller::gripper::{GripperError as RustGripperError, GripperHandle, PendingGrasp};
 use gelgrip_controller::runtime::RuntimeEvent;
 use gelgrip_controller::runtime::outcome::EndReason;
@@ -159,6 +159,26 @@ fn wait_outcome(
     }
 }
 
+/// `target_force_n` as Python passes it: a number of N, or `"auto"`.
+#[derive(FromPyObject)]
+enum ForceArg {
+    Newtons(f64),
+    Text(String),
+}
+
+impl ForceArg {
+    /// The force, or a `ValueError` naming the argument.
+    fn target(self) -> PyResult<TargetForce> {
+        match self {
+            Self::Newtons(n) => Ok(TargetForce::Newtons(n)),
+            Self::Text(s) if s == "auto" => Ok(TargetForce::Auto),
+            Self::Text(s) => Err(PyValueError::new_err(format!(
+                "target_force_n = {s:?}: expected a force in N or \"auto\""
+            ))),
+        }
+    }
+}
+
 impl Gripper {
     fn with_running<T>(&self, f: impl FnOnce(&Running) -> PyResult<T>) -> PyResult<T> {
         let guard = self.running.lock().map_err(|_| closed())?;
@@ -170,13 +190,15 @@ impl Gripper {
 
     fn request(
         &self,
-        target_force_n: f64,
+        target_force_n: ForceArg,
         speed_deg_s: f64,
         timeout_s: f64,
         fingers: Option<Vec<usize>>,
         current_limit_ma: Option<f64>,
     ) -> PyResult<(GripperHandle, GraspRequest)> {
+        let target = target_force_n.target()?;
         self.with_running(|r| {
+            let (target_force_n, auto_target) = r.handle.target(target);
             Ok((
                 r.handle.clone(),
                 GraspRequest {
@@ -185,7 +207,7 @@ impl Gripper {
                     current_limit_ma: current_limit_ma.unwrap_or(r.current_limit_ma),
                     fingers: fingers.unwrap_or_else(|| (0..r.fingers).collect()),
                     timeout_s,
-                    auto_target: false,
+                    auto_target,
                 },
             ))
         })
@@ -351,12 +373,13 @@ impl Gripper {
     }
 
     /// Grasp and wait until the grasp ends; its result (the HTTP API's fields).
+    /// `target_force_n`: N per finger, or `"auto"` (the grasp finds its own force).
     /// `KeyboardInterrupt` during the wait stops the fingers.
-    #[pyo3(signature = (target_force_n=1.5, speed_deg_s=15.0, timeout_s=20.0, fingers=None, current_limit_ma=None))]
+    #[pyo3(signature = (target_force_n=ForceArg::Newtons(1.5), speed_deg_s=15.0, timeout_s=20.0, fingers=None, current_limit_ma=None))]
     fn grasp<'py>(
         &self,
         py: Python<'py>,
-        target_force_n: f64,
+        target_force_n: ForceArg,
         speed_deg_s: f64,
         timeout_s: f64,
         fingers: Option<Vec<usize>>,
@@ -373,10 +396,10 @@ impl Gripper {
     }
 
     /// Start a grasp and return at once; `wait` on the handle for its result.
-    #[pyo3(signature = (target_force_n=1.5, speed_deg_s=15.0, timeout_s=20.0, fingers=None, current_limit_ma=None))]
+    #[pyo3(signature = (target_force_n=ForceArg::Newtons(1.5), speed_deg_s=15.0, timeout_s=20.0, fingers=None, current_limit_ma=None))]
     fn start_grasp(
         &self,
-        target_force_n: f64,
+        target_force_n: ForceArg,
         speed_deg_s: f64,
         timeout_s: f64,
         fingers: Option<Vec<usize>>,

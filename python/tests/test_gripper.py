@@ -35,6 +35,17 @@ def test_a_grasp_of_the_tennis_ball() -> None:
     assert g.closed
 
 
+def test_an_auto_grasp_finds_its_own_force() -> None:
+    # The default config's plain gels: the grasp closes to the preload and settles there
+    # (without markers the reflex tightens only on the contact's motion: docs/control.md).
+    with gelgrip.Gripper(clock="virtual", scene="tennis-ball") as g:
+        g.next_set(timeout=30.0)
+        result = g.grasp(target_force_n="auto")
+        assert result["grasped"] is True, result
+        settled = result["settled_force_n"]
+        assert settled is not None and 0.0 < settled < 1.5, result
+
+
 def test_a_slow_reader_is_told_what_it_missed() -> None:
     with gelgrip.Gripper(clock="virtual", scene="tennis-ball", queue=2) as g:
         g.next_set(timeout=30.0)
@@ -58,6 +69,8 @@ def test_bad_requests_and_a_closed_gripper() -> None:
     g = gelgrip.Gripper(clock="virtual", scene="tennis-ball")
     with pytest.raises(ValueError, match="target_force_n"):
         g.grasp(target_force_n=-1.0)
+    with pytest.raises(ValueError, match="target_force_n"):
+        g.grasp(target_force_n="Auto")  # type: ignore[arg-type]
     g.close()
     for call in (g.release, g.stop, g.estop, lambda: g.grasp(), lambda: g.start_grasp()):
         with pytest.raises(gelgrip.GripperError, match="closed"):

@@ -30,7 +30,8 @@ async function command(path, body) {
 // the goal's progress (phase and force per finger) and its end.
 let graspId = null;
 $("grasp").onclick = async () => {
-  const goal = await command("/api/grasps", { target_force_n: parseFloat($("force").value) });
+  const force = $("auto-force").checked ? "auto" : parseFloat($("force").value);
+  const goal = await command("/api/grasps", { target_force_n: force });
   if (goal) graspId = goal.id;
 };
 

@@ -12,7 +12,7 @@ use axum::response::{IntoResponse, Response};
 use serde::{Deserialize, Serialize};
 use serde_json::json;
 
-use gelgrip_controller::grasp::GraspRequest;
+use gelgrip_controller::grasp::{GraspRequest, TargetForce};
 use gelgrip_controller::grasp_goals::GoalStatus;
 use gelgrip_controller::gripper::GripperHandle;
 
@@ -29,7 +29,8 @@ pub const DEFAULT_SPEED_DEG_S: f64 = 15.0;
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct GraspBody {
-    target_force_n: f64,
+    /// N per finger, or `"auto"`.
+    target_force_n: TargetForce,
     speed_deg_s: Option<f64>,
     current_limit_ma: Option<f64>,
     fingers: Option<Vec<String>>,
@@ -69,13 +70,14 @@ fn grasp_request(
             format!("timeout_s = {timeout_s}: expected (0, {MAX_TIMEOUT_S}] s"),
         ));
     }
+    let (target_force_n, auto_target) = handle.target(b.target_force_n);
     let request = GraspRequest {
-        target_force_n: b.target_force_n,
+        target_force_n,
         speed_deg_s: b.speed_deg_s.unwrap_or(DEFAULT_SPEED_DEG_S),
         current_limit_ma: b.current_limit_ma.unwrap_or(s.current_limit_ma),
         fingers,
         timeout_s,
-        auto_target: false,
+        auto_target,
     };
     Ok((handle, request))
 }

@@ -1,8 +1,11 @@
 //! What a grasp's force is: a fixed force per finger, or `auto` (the grasp finds its own,
-//! `docs/control.md`, "Slip reflex"). `--target-force` and the benches read it from text.
+//! `docs/control.md`, "Slip reflex"). `--target-force` and the benches read it from text;
+//! the HTTP API from JSON, as a number of N or the string `"auto"`.
 
 use std::fmt;
 use std::str::FromStr;
+
+use serde::de::{self, Deserializer, Visitor};
 
 /// A grasp's force per finger.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -63,9 +66,57 @@ impl FromStr for TargetForce {
     }
 }
 
+/// A number (N, checked later against the grasp limits, as a fixed force is everywhere)
+/// or the string `"auto"`.
+impl<'de> serde::Deserialize<'de> for TargetForce {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct Force;
+        impl Visitor<'_> for Force {
+            type Value = TargetForce;
+            fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                f.write_str("a force in N or \"auto\"")
+            }
+            fn visit_f64<E: de::Error>(self, v: f64) -> Result<TargetForce, E> {
+                Ok(TargetForce::Newtons(v))
+            }
+            fn visit_i64<E: de::Error>(self, v: i64) -> Result<TargetForce, E> {
+                Ok(TargetForce::Newtons(v as f64))
+            }
+            fn visit_u64<E: de::Error>(self, v: u64) -> Result<TargetForce, E> {
+                Ok(TargetForce::Newtons(v as f64))
+            }
+            fn visit_str<E: de::Error>(self, v: &str) -> Result<TargetForce, E> {
+                if v == "auto" {
+                    Ok(TargetForce::Auto)
+                } else {
+                    Err(E::invalid_value(de::Unexpected::Str(v), &self))
+                }
+            }
+        }
+        d.deserialize_any(Force)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn serde_gives_a_number_or_auto() {
+        #[derive(serde::Deserialize)]
+        struct Body {
+            f: TargetForce,
+        }
+        let read = |v: &str| toml::from_str::<Body>(&format!("f = {v}")).map(|b| b.f);
+        assert_eq!(read("2.5").ok(), Some(TargetForce::Newtons(2.5)));
+        assert_eq!(read("2").ok(), Some(TargetForce::Newtons(2.0)));
+        assert_eq!(read("-1").ok(), Some(TargetForce::Newtons(-1.0)));
+        assert_eq!(read("\"auto\"").ok(), Some(TargetForce::Auto));
+        for bad in ["\"Auto\"", "\"1.5\"", "true", "[1]"] {
+            let e = read(bad).expect_err(bad).to_string();
+            assert!(e.contains("a force in N or \"auto\""), "{bad}: {e}");
+        }
+    }
 
     #[test]
     fn auto_and_forces_read_and_print_back() {

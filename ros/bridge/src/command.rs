@@ -21,7 +21,7 @@ use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, sync_channel};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use gelgrip_controller::grasp::{GraspRequest, Phase};
+use gelgrip_controller::grasp::{GraspRequest, Phase, TargetForce};
 use gelgrip_controller::grasp_goals::{GoalState, GraspGoals};
 use gelgrip_controller::gripper::GripperHandle;
 use gelgrip_controller::runtime::ports::{Observer, ObserverError};
@@ -334,28 +334,39 @@ impl Worker {
         if self.goals.iter().any(|g| g.info.goal_id == request.goal_id) {
             return refuse(&id, "its goal id is already in use".into());
         }
-        let goal = match check_goal(&request, self.max_opening_rad()) {
+        let mut goal = match check_goal(&request, self.max_opening_rad()) {
             Ok(g) => g,
             Err(why) => return refuse(&id, why),
         };
         let Some(handle) = &self.setup.gripper else {
             return refuse(&id, "this run has no grasp API".into());
         };
+        let force = if goal.auto {
+            TargetForce::Auto
+        } else {
+            TargetForce::Newtons(goal.max_effort_n)
+        };
+        let (target_force_n, auto_target) = handle.target(force);
+        goal.max_effort_n = target_force_n;
         let grasp = GraspRequest {
-            target_force_n: goal.max_effort_n,
+            target_force_n,
             speed_deg_s: SPEED_DEG_S,
             current_limit_ma: self.setup.current_limit_ma,
             fingers: (0..self.setup.range_deg.len()).collect(),
             timeout_s: TIMEOUT_S,
-            auto_target: false,
+            auto_target,
         };
         let grasp_id = match self.store.start(handle, grasp) {
             Ok(n) => n,
             Err(e) => return refuse(&id, e.to_string()),
         };
         tracing::info!(
-            "ROS 2: goal {id} accepted as grasp {grasp_id}: {} N per finger{}",
-            goal.max_effort_n,
+            "ROS 2: goal {id} accepted as grasp {grasp_id}: {}{}",
+            if goal.auto {
+                format!("auto, from {} N per finger", goal.max_effort_n)
+            } else {
+                format!("{} N per finger", goal.max_effort_n)
+            },
             if goal.position_rad > CLOSE_POSITION_RAD {
                 format!(", stopping at an opening of {:.3} rad", goal.position_rad)
             } else {

@@ -16,17 +16,26 @@ pub const CLOSE_POSITION_RAD: f64 = 0.01;
 pub struct GoalRequest {
     /// The opening to stop at when no contact is met, rad (0: close until contact).
     pub position_rad: f64,
-    /// The force per finger to regulate to, N.
+    /// The force per finger to regulate to, N (under `auto`, where the fingers close to:
+    /// `[grasp] preload_n`).
     pub max_effort_n: f64,
+    /// `command.max_effort` was 0: the grasp finds its own force (`auto`).
+    pub auto: bool,
 }
+
+/// The `command.max_effort` that asks for `auto`: the grasp closes to `[grasp] preload_n`
+/// and its slip reflex finds the force (docs/ros.md).
+pub const AUTO_EFFORT: f64 = 0.0;
 
 /// Check a `SendGoal` request: the effort a finite force above 0 N (its upper bound is the
 /// grasp API's), the position a finite opening within the fingers' travel.
 pub fn check_goal(request: &SendGoalRequest, max_opening_rad: f64) -> Result<GoalRequest, String> {
     let effort = request.max_effort;
-    if !(effort.is_finite() && effort > 0.0) {
+    let auto = effort == AUTO_EFFORT;
+    if !(auto || effort.is_finite() && effort > 0.0) {
         return Err(format!(
-            "command.max_effort = {effort}: expected a finite force above 0 N per finger"
+            "command.max_effort = {effort}: expected a finite force above 0 N per finger, \
+             or 0 for auto"
         ));
     }
     let position = request.position;
@@ -39,6 +48,7 @@ pub fn check_goal(request: &SendGoalRequest, max_opening_rad: f64) -> Result<Goa
     Ok(GoalRequest {
         position_rad: position,
         max_effort_n: effort,
+        auto,
     })
 }
 

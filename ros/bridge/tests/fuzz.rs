@@ -50,8 +50,9 @@ fn a_goal_is_accepted_exactly_when_its_effort_and_opening_are_in_range() {
                 position,
                 max_effort,
             };
-            let ok = max_effort.is_finite()
-                && max_effort > 0.0
+            // 0 (either sign) asks for auto.
+            let auto = max_effort == 0.0;
+            let ok = (auto || max_effort.is_finite() && max_effort > 0.0)
                 && position.is_finite()
                 && (0.0..=max_opening).contains(&position);
             match check_goal(&request, max_opening) {
@@ -59,6 +60,7 @@ fn a_goal_is_accepted_exactly_when_its_effort_and_opening_are_in_range() {
                     assert!(ok, "{request:?} accepted");
                     assert_eq!(goal.position_rad.to_bits(), position.to_bits());
                     assert_eq!(goal.max_effort_n.to_bits(), max_effort.to_bits());
+                    assert_eq!(goal.auto, auto);
                 }
                 Err(why) => {
                     assert!(!ok, "{request:?} refused: {why}");

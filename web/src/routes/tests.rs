@@ -257,6 +257,11 @@ async fn bad_grasp_requests_are_400_with_a_message() {
         (r#"{"target_force_n": -1}"#, "target_force_n"),
         (r#"{"target_force_n": 1, "timeout_s": 1e9}"#, "timeout_s"),
         (r#"{"target_force_n": 1, "bogus": 1}"#, "unknown field"),
+        (
+            r#"{"target_force_n": "Auto"}"#,
+            r#"a force in N or \"auto\""#,
+        ),
+        (r#"{"target_force_n": true}"#, r#"a force in N or \"auto\""#),
     ] {
         let (status, reply, _) = send(app(s.clone()), post("/api/grasp", body)).await;
         assert_eq!(status, StatusCode::BAD_REQUEST, "{body}");
@@ -402,6 +407,21 @@ async fn off_loopback_every_route_needs_the_token_or_the_login_cookie() {
         .body(Body::empty())
         .expect("request");
     assert_eq!(send(app(s), bearer).await.0, StatusCode::OK);
+}
+
+#[tokio::test]
+async fn an_auto_grasp_closes_to_the_preload_and_finds_its_own_force() {
+    let (s, mut service) = state();
+    let (status, body, _) = send(
+        app(s.clone()),
+        post("/api/grasps", r#"{"target_force_n": "auto"}"#),
+    )
+    .await;
+    assert_eq!(status, StatusCode::ACCEPTED, "{}", text(&body));
+    service.apply_commands(&[0.0; 3]);
+    let preload_n = gelgrip_controller::grasp::GraspSettings::default().preload_n;
+    let targets = service.controller().expect("a grasp").targets_n();
+    assert!(targets.iter().all(|t| *t == preload_n), "{targets:?}");
 }
 
 #[tokio::test]

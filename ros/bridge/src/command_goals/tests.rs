@@ -14,11 +14,13 @@ fn request(position: f64, effort: f64) -> SendGoalRequest {
 
 #[test]
 fn goals_with_bad_numbers_are_refused_with_the_field() {
-    assert!(check_goal(&request(0.0, 5.0), 1.0).is_ok());
+    assert!(check_goal(&request(0.0, 5.0), 1.0).is_ok_and(|g| !g.auto));
+    // 0 asks for auto.
+    assert!(check_goal(&request(0.0, AUTO_EFFORT), 1.0).is_ok_and(|g| g.auto));
     for (p, e, field) in [
         (0.0, f64::NAN, "max_effort"),
         (0.0, -1.0, "max_effort"),
-        (0.0, 0.0, "max_effort"),
+        (0.0, -1e-9, "max_effort"),
         (0.0, f64::INFINITY, "max_effort"),
         (f64::NAN, 5.0, "position"),
         (-0.1, 5.0, "position"),
