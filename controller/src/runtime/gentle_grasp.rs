@@ -100,6 +100,9 @@ pub struct GentleGrasp {
     hold_s: f64,
     time_to_stable_s: Option<f64>,
     hold_slip_mm: Option<f64>,
+    /// The object's slip when the grasp became stable, mm: the hold test counts from
+    /// here, so a slide (or a drop) during the lift or the hold counts too.
+    slip_at_stable_mm: Option<f64>,
     /// Set when another client's command ended the task.
     interrupt_reason: Option<GraspReason>,
 }
@@ -172,6 +175,7 @@ impl GentleGrasp {
             hold_s: options.hold_s,
             time_to_stable_s: None,
             hold_slip_mm: None,
+            slip_at_stable_mm: None,
             interrupt_reason: None,
         })
     }
@@ -248,6 +252,7 @@ impl GentleGrasp {
                     let stable = outcome.reason.is_stable();
                     if stable {
                         self.time_to_stable_s = Some(t_s - start);
+                        self.slip_at_stable_mm = self.slip_mm();
                     }
                     self.outcome = Some(outcome);
                     if stable && self.target_force.is_auto() && self.begin_lift(t_s) {
@@ -397,7 +402,7 @@ impl GentleGrasp {
     /// After a stable grasp, with a ground truth: let the object go and pull it (the hold
     /// test); otherwise the task ends (returns the end reason).
     fn begin_hold_test(&mut self, stable: bool, t_s: f64) -> Option<EndReason> {
-        let slip0 = self.slip_mm();
+        let slip0 = self.slip_at_stable_mm.or_else(|| self.slip_mm());
         match (stable, self.plant.truth_mut(), slip0) {
             (true, Some(truth), Some(slip0)) => {
                 truth.pull_object(HOLD_TEST_FACTOR, HOLD_TEST_RISE_S);
