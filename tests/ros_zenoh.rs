@@ -236,7 +236,9 @@ fn a_simulated_gripper_is_seen_on_the_ros_graph() {
     let port = free_port();
     let cfg = config(&dir, "ros.toml", port, "/gelgrip", "");
     let listener = Listener::start(port);
-    let run_json = report(run(&cfg, "6", &[]));
+    // 5 s: the tennis ball scene's table drops at 6 s, and a 6 s run on the real clock
+    // sometimes saw the ball leave the palm in its last set.
+    let run_json = report(run(&cfg, "5", &[]));
     let summary = listener.finish();
 
     // The graph: one node, and one publisher token per topic, with the key's type and hash.
