@@ -255,7 +255,7 @@ fn a_simulated_gripper_is_seen_on_the_ros_graph() {
     );
     let session = nodes[0].split('/').nth(2).expect("session id");
     let publishers: Vec<&&str> = tokens.iter().filter(|t| t.contains("/MP/")).collect();
-    assert_eq!(publishers.len(), 3 + 3 * SENSORS.len(), "{publishers:#?}");
+    assert_eq!(publishers.len(), 4 + 3 * SENSORS.len(), "{publishers:#?}");
     let keyed = topics(&summary, "gelgrip");
     assert_eq!(keyed.len(), publishers.len(), "every topic published");
     for (name, v) in &keyed {
@@ -318,6 +318,25 @@ fn a_simulated_gripper_is_seen_on_the_ros_graph() {
         "the ball rests on the palm: {palm}"
     );
     assert!(palm["area_m2"].as_f64().expect("area") > 1e-6);
+    // One slip message per gated set too: a plain gel cannot tell, so every state is
+    // UNKNOWN (0) with a stick ratio of 1.
+    let slip = topic(&summary, "gelgrip", "tactile/slip");
+    assert_eq!(slip["count"], contacts["count"]);
+    assert_eq!(
+        slip["last"]["sensor"],
+        contacts["last"]["contacts"]
+            .as_array()
+            .map(|cs| { cs.iter().map(|c| c["sensor"].clone()).collect::<Vec<_>>() })
+            .map(Value::from)
+            .unwrap_or_default()
+    );
+    // (uint8[] arrives hex-encoded, as image data does.)
+    assert_eq!(slip["last"]["state"], "00".repeat(SENSORS.len()));
+    assert_eq!(
+        slip["last"]["stick_ratio"],
+        serde_json::json!(vec![1.0; SENSORS.len()])
+    );
+    assert_eq!(slip["last"]["grasp_state"], 0);
     for s in SENSORS {
         let w = topic(&summary, "gelgrip", &format!("tactile/{s}/wrench"));
         assert_eq!(w["count"], contacts["count"], "{s}");
@@ -718,7 +737,10 @@ fn a_plain_runs_export_holds_joint_states_at_the_servo_read_rate() {
 fn an_mcap_export_reads_back_with_every_message_decoding() {
     let dir = common::scratch("ros-mcap");
     let rec = dir.join("rec");
+    // On the marker gels, so the export's tactile/slip carries states the gels can tell.
     let out = common::virtual_run(&[
+        "--config",
+        &format!("{ROOT}/configs/gelgripper-sim-markers.toml"),
         "--scene",
         &format!("{ROOT}/configs/scenes/tennis-ball.toml"),
         "--task",
@@ -737,7 +759,7 @@ fn an_mcap_export_reads_back_with_every_message_decoding() {
     assert_eq!(summary["profile"], "ros2");
     assert_eq!(summary["errors"], serde_json::json!([]));
     let topics = summary["topics"].as_object().expect("topics");
-    assert_eq!(topics.len(), 3 + 3 * SENSORS.len(), "{topics:#?}");
+    assert_eq!(topics.len(), 4 + 3 * SENSORS.len(), "{topics:#?}");
     for (name, t) in topics {
         assert_eq!(t["count"], t["decoded"], "{name}");
         assert_eq!(t["encoding"], "cdr");
@@ -748,6 +770,16 @@ fn an_mcap_export_reads_back_with_every_message_decoding() {
         .as_u64()
         .expect("count");
     assert_eq!(contacts, sets, "one contacts message per recorded set");
+    let slip = &topics["/gelgrip/tactile/slip"];
+    assert_eq!(slip["count"], contacts, "one slip message per recorded set");
+    assert_eq!(slip["schema"], "gelgrip_msgs/msg/TactileSlip");
+    // The fingers' gels held the ball for seconds: they read a state (NONE, INCIPIENT or
+    // GROSS), not only UNKNOWN (0).
+    let known: u64 = ["1", "2", "3"]
+        .iter()
+        .filter_map(|k| slip["slip_states"][k].as_u64())
+        .sum();
+    assert!(known > sets, "{slip}");
     let joints = &topics["/gelgrip/joint_states"];
     let span_s = (joints["last_log_ns"].as_u64().expect("t")
         - joints["first_log_ns"].as_u64().expect("t")) as f64

@@ -2,8 +2,10 @@
 tests/ros_zenoh.rs: every message must decode. Prints one JSON object:
 {"profile": ..., "topics": {TOPIC: {"schema": NAME, "encoding": ..., "count": N,
  "decoded": N, "first_log_ns": T, "last_log_ns": T, "log_equals_stamp": bool,
- "full_velocity": N}}, "errors": [...]}, where `full_velocity` counts the messages with a
-`velocity` field as long as their `position` (JointState)."""
+ "full_velocity": N, "slip_states": {CODE: N}}}, "errors": [...]}, where `full_velocity`
+counts the messages with a `velocity` field as long as their `position` (JointState) and
+`slip_states` counts each sensor's slip state over the messages with a `grasp_state`
+(TactileSlip)."""
 
 import json
 import sys
@@ -21,7 +23,7 @@ with open(sys.argv[1], "rb") as f:
             channel.topic,
             {"schema": schema.name, "encoding": channel.message_encoding, "count": 0,
              "decoded": 0, "first_log_ns": message.log_time, "last_log_ns": 0,
-             "log_equals_stamp": True, "full_velocity": 0},
+             "log_equals_stamp": True, "full_velocity": 0, "slip_states": {}},
         )
         t["count"] += 1
         t["last_log_ns"] = message.log_time
@@ -32,6 +34,10 @@ with open(sys.argv[1], "rb") as f:
         velocity = getattr(decoded, "velocity", None)
         if velocity is not None and len(velocity) == len(decoded.position) > 0:
             t["full_velocity"] += 1
+        if hasattr(decoded, "grasp_state"):
+            for code in decoded.state:
+                key = str(int(code))
+                t["slip_states"][key] = t["slip_states"].get(key, 0) + 1
         stamp = decoded.header.stamp
         if stamp.sec * 1_000_000_000 + stamp.nanosec != message.log_time:
             t["log_equals_stamp"] = False

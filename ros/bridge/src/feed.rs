@@ -4,12 +4,12 @@
 //! rates. Rates are kept on the sets' capture times, so a replay decimates as the run did.
 
 use gelgrip_controller::actuator::XM430_W350;
-use gelgrip_controller::fusion::SensorReading;
+use gelgrip_controller::fusion::{SensorReading, SlipState};
 use gelgrip_controller::runtime::report::DepthWindow;
 use gelgrip_ros_wire::catalog;
 use gelgrip_ros_wire::msgs::{
     CompressedImage, DepthImage, DiagnosticArray, DiagnosticStatus, Header, JointState, Level,
-    TactileContact, TactileContacts, Time, WrenchStamped,
+    SlipCode, TactileContact, TactileContacts, TactileSlip, Time, WrenchStamped,
 };
 use gelgrip_ros_wire::names::{NameError, Reliability, qualify, ros_name};
 use gelgrip_ros_wire::{Message, MsgType};
@@ -69,8 +69,9 @@ pub struct DiagnosticsInput {
 const TOPIC_JOINTS: usize = 0;
 const TOPIC_DIAGNOSTICS: usize = 1;
 const TOPIC_CONTACTS: usize = 2;
+const TOPIC_SLIP: usize = 3;
 /// Per sensor: image, depth, wrench, from this index on.
-const FIRST_SENSOR_TOPIC: usize = 3;
+const FIRST_SENSOR_TOPIC: usize = 4;
 
 /// Turns gelgrip's data into the topics' samples, keeping each topic's rate.
 #[derive(Debug)]
@@ -129,6 +130,11 @@ impl Feed {
             Topic {
                 name: qualify(ns, "tactile/contacts"),
                 ty: &catalog::TACTILE_CONTACTS,
+                reliability: Reliability::Reliable,
+            },
+            Topic {
+                name: qualify(ns, "tactile/slip"),
+                ty: &catalog::TACTILE_SLIP,
                 reliability: Reliability::Reliable,
             },
         ];
@@ -274,7 +280,7 @@ impl Feed {
         })
     }
 
-    /// A sensed set's wrenches (one per sensor with a reading) and contacts.
+    /// A sensed set's wrenches (one per sensor with a reading), contacts and slip.
     pub fn readings(&self, stamp: Time, readings: &[Option<SensorReading>], out: &mut Vec<Sample>) {
         let mut contacts = Vec::with_capacity(self.sensors.len());
         for (i, name) in self.sensors.iter().enumerate() {
@@ -293,17 +299,21 @@ impl Feed {
             }
             contacts.push(contact(name, r));
         }
-        let msg = TactileContacts {
-            header: Header {
-                stamp,
-                frame_id: String::new(),
-            },
-            contacts,
+        let header = Header {
+            stamp,
+            frame_id: String::new(),
         };
+        let slip = slip(&self.sensors, readings, header.clone());
+        let msg = TactileContacts { header, contacts };
         out.push(Sample {
             topic: TOPIC_CONTACTS,
             stamp,
             cdr: msg.to_cdr(),
+        });
+        out.push(Sample {
+            topic: TOPIC_SLIP,
+            stamp,
+            cdr: slip.to_cdr(),
         });
     }
 
@@ -445,9 +455,46 @@ fn contact(name: &str, r: Option<SensorReading>) -> TactileContact {
     }
 }
 
+/// `tactile/slip` of one set: each sensor's slip (unknown where its reading is missing or
+/// cannot tell), and the grasp's, the most advanced state of any sensor's.
+fn slip(sensors: &[String], readings: &[Option<SensorReading>], header: Header) -> TactileSlip {
+    let mut msg = TactileSlip {
+        header,
+        ..TactileSlip::default()
+    };
+    for (i, name) in sensors.iter().enumerate() {
+        let known = readings.get(i).copied().flatten().and_then(|r| r.slip);
+        let (state, stick_ratio, shear_m) = match known {
+            Some(s) => (
+                slip_code(s.state),
+                s.stick_ratio,
+                [s.shear_mm[0] * 1e-3, s.shear_mm[1] * 1e-3, 0.0],
+            ),
+            None => (SlipCode::Unknown, 1.0, [0.0; 3]),
+        };
+        msg.sensor.push(name.clone());
+        msg.state.push(state);
+        msg.stick_ratio.push(stick_ratio);
+        msg.shear_m.push(shear_m);
+        if state as u8 > msg.grasp_state as u8 {
+            msg.grasp_state = state;
+        }
+    }
+    msg
+}
+
+fn slip_code(state: SlipState) -> SlipCode {
+    match state {
+        SlipState::None => SlipCode::None,
+        SlipState::Incipient => SlipCode::Incipient,
+        SlipState::Gross => SlipCode::Gross,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use gelgrip_controller::fusion::SensorSlip;
 
     fn feed(image_rate_hz: f64) -> Feed {
         let config = RosConfig {
@@ -465,7 +512,8 @@ mod tests {
         assert!(names.contains(&"/gelgrip/tactile/f1_tip/image/compressed"));
         assert!(names.contains(&"/gelgrip/tactile/palm/wrench"));
         assert!(names.contains(&"/gelgrip/tactile/contacts"));
-        assert_eq!(names.len(), 3 + 2 * 3);
+        assert!(names.contains(&"/gelgrip/tactile/slip"));
+        assert_eq!(names.len(), 4 + 2 * 3);
     }
 
     #[test]
@@ -539,5 +587,50 @@ mod tests {
         assert!((c.volume_m3 - 4e-9).abs() < 1e-18);
         assert_eq!(c.centroid_m, [1e-3, -2e-3, 0.0]);
         assert!(!contact("palm", None).in_contact);
+    }
+
+    #[test]
+    fn slip_is_per_sensor_in_si_units_and_the_grasp_takes_the_worst() {
+        let reading = |slip| SensorReading {
+            in_contact: true,
+            slip,
+            ..SensorReading::default()
+        };
+        let incipient = SensorSlip {
+            shear_mm: [0.25, -0.5],
+            stick_ratio: 0.5,
+            state: SlipState::Incipient,
+        };
+        let names = ["f1_tip".to_string(), "f1_base".into(), "palm".into()];
+        let readings = [
+            Some(reading(Some(SensorSlip::default()))),
+            Some(reading(Some(incipient))),
+            Some(reading(None)),
+        ];
+        let m = slip(&names, &readings, Header::default());
+        assert_eq!(m.sensor, names);
+        assert_eq!(
+            m.state,
+            [SlipCode::None, SlipCode::Incipient, SlipCode::Unknown]
+        );
+        assert_eq!(m.stick_ratio, [0.0, 0.5, 1.0]);
+        assert_eq!(m.shear_m[1], [2.5e-4, -5e-4, 0.0]);
+        assert_eq!(m.grasp_state, SlipCode::Incipient);
+        // A missing reading is unknown; with none known the grasp is unknown.
+        let none = slip(&names[..1], &[None], Header::default());
+        assert_eq!(
+            (none.state[0], none.grasp_state),
+            (SlipCode::Unknown, SlipCode::Unknown)
+        );
+    }
+
+    #[test]
+    fn every_sensed_set_carries_a_slip_message() {
+        let f = feed(10.0);
+        let mut out = Vec::new();
+        f.readings(Time::default(), &[None, None], &mut out);
+        let slip: Vec<_> = out.iter().filter(|s| s.topic == TOPIC_SLIP).collect();
+        assert_eq!(slip.len(), 1);
+        assert_eq!(f.topics()[TOPIC_SLIP].name, "/gelgrip/tactile/slip");
     }
 }

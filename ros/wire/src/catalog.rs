@@ -193,13 +193,50 @@ pub static TACTILE_CONTACTS: MsgType = MsgType {
     constants: &[],
 };
 
+/// `gelgrip_msgs/msg/TactileSlip` (`ros/gelgrip_msgs/msg/TactileSlip.msg`): every sensor's
+/// slip of one set, in parallel arrays as `JointState` has them, and the grasp's.
+pub static TACTILE_SLIP: MsgType = MsgType {
+    name: "gelgrip_msgs/msg/TactileSlip",
+    fields: &[
+        one("header", T::Msg(&HEADER)),
+        seq("sensor", T::String),
+        seq("state", T::Uint8),
+        seq("stick_ratio", T::Float64),
+        seq("shear", T::Msg(&VECTOR3)),
+        one("grasp_state", T::Uint8),
+    ],
+    constants: &[
+        Constant {
+            ty: T::Uint8,
+            name: "UNKNOWN",
+            value: "0",
+        },
+        Constant {
+            ty: T::Uint8,
+            name: "NONE",
+            value: "1",
+        },
+        Constant {
+            ty: T::Uint8,
+            name: "INCIPIENT",
+            value: "2",
+        },
+        Constant {
+            ty: T::Uint8,
+            name: "GROSS",
+            value: "3",
+        },
+    ],
+};
+
 /// The types gelgrip publishes, one per topic kind.
-pub static PUBLISHED: [&MsgType; 6] = [
+pub static PUBLISHED: [&MsgType; 7] = [
     &JOINT_STATE,
     &COMPRESSED_IMAGE,
     &IMAGE,
     &WRENCH_STAMPED,
     &TACTILE_CONTACTS,
+    &TACTILE_SLIP,
     &DIAGNOSTIC_ARRAY,
 ];
 
@@ -211,8 +248,10 @@ mod tests {
     fn the_package_files_are_these_definitions() {
         let contact = include_str!("../../gelgrip_msgs/msg/TactileContact.msg");
         let contacts = include_str!("../../gelgrip_msgs/msg/TactileContacts.msg");
+        let slip = include_str!("../../gelgrip_msgs/msg/TactileSlip.msg");
         assert_eq!(TACTILE_CONTACT.msg_text(), contact);
         assert_eq!(TACTILE_CONTACTS.msg_text(), contacts);
+        assert_eq!(TACTILE_SLIP.msg_text(), slip);
     }
 
     #[test]

@@ -243,6 +243,60 @@ impl Message for TactileContacts {
     }
 }
 
+/// `gelgrip_msgs/msg/TactileSlip`'s states (its `UNKNOWN`, `NONE`, `INCIPIENT`, `GROSS`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SlipCode {
+    /// The sensor cannot tell (a plain gel, no marker dots under the contact, no reading).
+    #[default]
+    Unknown = 0,
+    /// Sticking.
+    None = 1,
+    /// Its rim slides, its centre sticks.
+    Incipient = 2,
+    /// It slides.
+    Gross = 3,
+}
+
+/// `gelgrip_msgs/msg/TactileSlip`: every sensor's slip of one set, in parallel arrays (one
+/// entry per sensor, in layout order), and the grasp's (the most advanced state).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct TactileSlip {
+    /// Header.
+    pub header: Header,
+    /// The sensors' ROS names.
+    pub sensor: Vec<String>,
+    /// Each sensor's state.
+    pub state: Vec<SlipCode>,
+    /// Each sensor's estimated stick ratio c/a (1 where the state is unknown).
+    pub stick_ratio: Vec<f64>,
+    /// Each sensor's shear, the mean shift of the gel's dots in the contact, in the
+    /// sensor's frame (x, y, z), m (0 where the state is unknown).
+    pub shear_m: Vec<[f64; 3]>,
+    /// The grasp's state.
+    pub grasp_state: SlipCode,
+}
+
+impl Message for TactileSlip {
+    fn msg_type() -> &'static MsgType {
+        &catalog::TACTILE_SLIP
+    }
+    fn write(&self, w: &mut CdrWriter) {
+        self.header.write(w);
+        w.string_seq(&self.sensor);
+        let codes: Vec<u8> = self.state.iter().map(|s| *s as u8).collect();
+        w.bytes(&codes);
+        w.f64_seq(&self.stick_ratio);
+        w.len(self.shear_m.len());
+        for v in self.shear_m.iter().flatten() {
+            w.f64(*v);
+        }
+        w.u8(self.grasp_state as u8);
+    }
+    fn size_hint(&self) -> usize {
+        64 + self.sensor.len() * 56
+    }
+}
+
 /// `diagnostic_msgs/msg/DiagnosticStatus` levels.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Level {

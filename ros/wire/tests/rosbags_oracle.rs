@@ -12,7 +12,7 @@ use std::process::{Command, Stdio};
 use gelgrip_ros_wire::Message;
 use gelgrip_ros_wire::msgs::{
     CompressedImage, DepthImage, DiagnosticArray, DiagnosticStatus, Header, JointState, Level,
-    TactileContact, TactileContacts, Time, WrenchStamped,
+    SlipCode, TactileContact, TactileContacts, TactileSlip, Time, WrenchStamped,
 };
 use serde_json::{Value, json};
 
@@ -89,6 +89,19 @@ fn cases() -> Vec<Value> {
                "centroid": {"x": c.centroid_m[0], "y": c.centroid_m[1], "z": c.centroid_m[2]},
                "volume_m3": c.volume_m3, "force_n": c.force_n})
     };
+    let slip = TactileSlip {
+        header: h.clone(),
+        sensor: vec!["f1_tip".into(), "f1_base".into(), "palm".into()],
+        state: vec![SlipCode::Incipient, SlipCode::None, SlipCode::Unknown],
+        stick_ratio: vec![0.625, 1.0, 1.0],
+        shear_m: vec![[1.5e-4, -2.5e-5, 0.0], [0.0; 3], [0.0; 3]],
+        grasp_state: SlipCode::Incipient,
+    };
+    let slip_values = json!({"header": header_json(&h), "sensor": slip.sensor,
+        "state": [2, 1, 0], "stick_ratio": slip.stick_ratio,
+        "shear": slip.shear_m.iter().map(|v| json!({"x": v[0], "y": v[1], "z": v[2]}))
+            .collect::<Vec<_>>(),
+        "grasp_state": 2});
     let diagnostics = DiagnosticArray {
         header: h.clone(),
         status: vec![
@@ -138,6 +151,7 @@ fn cases() -> Vec<Value> {
             json!({"header": header_json(&h),
                    "contacts": contacts.contacts.iter().map(contact_json).collect::<Vec<_>>()}),
         ),
+        case(&slip, slip_values),
         case(
             &diagnostics,
             json!({"header": header_json(&h),
