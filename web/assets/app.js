@@ -93,7 +93,8 @@ function build(s) {
     div.id = "sensor-" + id;
     div.innerHTML =
       `<h3>${id}</h3><div class="views">` +
-      `<a href="/api/sensors/${encodeURIComponent(id)}/stream.mjpg" title="MJPEG stream"><img alt="${id} camera" class="camera"></a>` +
+      `<a href="/api/sensors/${encodeURIComponent(id)}/stream.mjpg" title="MJPEG stream" class="camera-view"><img alt="${id} camera" class="camera">` +
+      `<svg class="shear" viewBox="-1 -0.75 2 1.5" aria-label="${id} shear"><line x1="0" y1="0" x2="0" y2="0"></line><circle r="0.04"></circle></svg></a>` +
       `<img alt="${id} depth" class="depth">` +
       `<img alt="${id} contact" class="contact"></div>` +
       `<div class="values"></div>`;
@@ -133,6 +134,27 @@ setInterval(refreshImages, 500);
 
 const fmt = (v, d = 2) => (v === null || v === undefined ? "-" : Number(v).toFixed(d));
 
+// The shear arrow's length at the view's edge, mm (the gel's dots move a few tenths of a
+// millimetre before the contact slides).
+const SHEAR_FULL_MM = 0.5;
+
+// A sensor's shear as an arrow from the view's centre (x right, y down, as the image's
+// axes), coloured by its slip state; hidden while its slip is unknown (a plain gel, or no
+// dots under the contact).
+function showShear(div, slip) {
+  const svg = div.querySelector("svg.shear");
+  svg.dataset.state = slip ? slip.state : "unknown";
+  const line = svg.querySelector("line");
+  const [x, y] = slip ? slip.shear_mm.map((v) => Math.max(-1, Math.min(1, v / SHEAR_FULL_MM))) : [0, 0];
+  line.setAttribute("x2", String(x));
+  line.setAttribute("y2", String(y * 0.75));
+}
+
+// One sensor's slip for its values line.
+const slipText = (slip) => (slip
+  ? ` · slip ${slip.state} (stick ${fmt(slip.stick_ratio)}, shear ${fmt(Math.hypot(...slip.shear_mm), 3)} mm)`
+  : " · slip unknown");
+
 function render(s) {
   state = s;
   if (!built || $("hand").children.length !== s.sensors.length) build(s);
@@ -151,16 +173,22 @@ function render(s) {
     div.classList.toggle("excluded", sensor.excluded);
     div.querySelector(".values").textContent = sensor.excluded
       ? "excluded from the sets: out of sync (its finger carries on with its other sensors, or holds)"
-      : `${fmt(sensor.force_n)} N · ${fmt(sensor.area_mm2, 1)} mm² · ${fmt(sensor.max_depth_mm, 3)} mm · ${fmt(sensor.deformation_mm3, 1)} mm³ · age ${fmt(sensor.frame_age_ms, 1)} ms`;
+      : `${fmt(sensor.force_n)} N · ${fmt(sensor.area_mm2, 1)} mm² · ${fmt(sensor.max_depth_mm, 3)} mm · ${fmt(sensor.deformation_mm3, 1)} mm³ · age ${fmt(sensor.frame_age_ms, 1)} ms` +
+        (sensor.in_contact ? slipText(sensor.slip) : "");
+    showShear(div, sensor.slip);
   }
   const maxForce = Math.max(1, ...s.fingers.map((f) => Math.max(f.force_n, f.target_force_n)));
   $("fingers").innerHTML =
-    "<tr><th>finger</th><th>phase</th><th>force N</th><th>target N</th><th></th></tr>" +
+    "<tr><th>finger</th><th>phase</th><th>force N</th><th>target N</th><th>slip</th><th></th></tr>" +
     s.fingers.map((f) =>
       `<tr id="finger-${f.id}"><td>${f.id}</td><td class="phase">${f.phase}</td><td>${fmt(f.force_n)}</td><td>${fmt(f.target_force_n)}</td>` +
+      `<td class="slip" data-state="${f.slip_state ?? "unknown"}">${f.slip_state ?? "unknown"}</td>` +
       `<td><span class="bar" style="width:${(100 * f.force_n) / maxForce}px"></span>` +
       `<span class="bar target" style="width:${(100 * Math.max(0, f.target_force_n - f.force_n)) / maxForce}px"></span></td></tr>`
     ).join("");
+  $("grasp-state").textContent = `slip ${s.slip_state ?? "unknown"}` +
+    (s.settled_force_n === null || s.settled_force_n === undefined ? "" : ` · settled ${fmt(s.settled_force_n)} N per finger`);
+  $("grasp-state").dataset.state = s.slip_state ?? "unknown";
   $("servos").innerHTML =
     "<tr><th>finger</th><th>position °</th><th>current mA</th><th>temp °C</th><th>errors</th></tr>" +
     s.servos.map((v) =>

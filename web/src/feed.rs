@@ -18,7 +18,7 @@ use gelgrip_controller::runtime::report::{GripperReport, SetReport};
 use tokio::sync::mpsc;
 
 use crate::live::{
-    DepthImage, ExcludedView, FingerView, SensorView, ServoView, SyncView, TaskView,
+    DepthImage, ExcludedView, FingerView, SensorView, ServoView, SlipView, SyncView, TaskView,
 };
 use crate::{AppState, Live, Snapshot};
 
@@ -169,6 +169,11 @@ impl Dashboard {
             }),
             tasks_available: self.tasks_available.clone(),
             sim: self.sim.lock().ok().and_then(|s| s.clone()),
+            slip_state: gripper
+                .and_then(|g| g.fused)
+                .and_then(|f| f.slip())
+                .map(|s| s.state.as_str()),
+            settled_force_n: gripper.and_then(|g| g.settled_force_n),
         });
         let now_us = report.now_us;
         let due = self
@@ -199,6 +204,7 @@ impl Dashboard {
                     deformation_mm3: r.map_or(0.0, |r| r.volume_mm3),
                     frame_age_ms: self.frame_ages_ms.get(i).copied().flatten(),
                     excluded: report.gate.excluded.iter().any(|e| e.sensor == i),
+                    slip: r.and_then(|r| r.slip).map(SlipView::from),
                 }
             })
             .collect()
@@ -209,11 +215,17 @@ impl Dashboard {
         g.fingers
             .iter()
             .zip(&self.finger_ids)
-            .map(|(f, id)| FingerView {
+            .enumerate()
+            .map(|(i, (f, id))| FingerView {
                 id: id.clone(),
                 phase: phase_name(f.phase).to_string(),
                 force_n: f.force_n,
                 target_force_n: f.target_force_n,
+                slip_state: g
+                    .fused
+                    .and_then(|s| s.fingers.get(i))
+                    .and_then(|c| c.slip)
+                    .map(|s| s.state.as_str()),
             })
             .collect()
     }

@@ -11,6 +11,7 @@ use bytes::Bytes;
 use serde::Serialize;
 use tokio::sync::watch;
 
+use gelgrip_controller::fusion::SensorSlip;
 use gelgrip_controller::gate::ReasonCounts;
 pub use gelgrip_controller::runtime::control::{SensorFaultView, SimView};
 
@@ -38,6 +39,31 @@ pub struct SensorView {
     pub frame_age_ms: Option<f64>,
     /// The gate has left it out of the sets (it kept failing the window).
     pub excluded: bool,
+    /// Its contact's slip, as its marker gel shows it (`None`: unknown: a plain gel, no
+    /// dots under the contact, or no reading).
+    pub slip: Option<SlipView>,
+}
+
+/// One contact's slip (docs/slip.md).
+#[derive(Debug, Clone, Copy, Default, Serialize, PartialEq)]
+pub struct SlipView {
+    /// `none`, `incipient` or `gross`.
+    pub state: &'static str,
+    /// Estimated stick ratio c/a (1: all sticks).
+    pub stick_ratio: f64,
+    /// Mean shift of the gel's dots in the contact, `[x, y]` mm (image axes: x right,
+    /// y down).
+    pub shear_mm: [f64; 2],
+}
+
+impl From<SensorSlip> for SlipView {
+    fn from(s: SensorSlip) -> Self {
+        Self {
+            state: s.state.as_str(),
+            stick_ratio: s.stick_ratio,
+            shear_mm: s.shear_mm,
+        }
+    }
 }
 
 /// One finger.
@@ -52,6 +78,8 @@ pub struct FingerView {
     pub force_n: f64,
     /// Force target, N (0 when none).
     pub target_force_n: f64,
+    /// Its slip: that of its sensor slipping most (`None`: none of its sensors can tell).
+    pub slip_state: Option<&'static str>,
 }
 
 /// One servo.
@@ -141,6 +169,11 @@ pub struct Snapshot {
     pub tasks_available: Vec<String>,
     /// The simulator's controls (`None` on hardware).
     pub sim: Option<SimView>,
+    /// The grasp's slip: that of its finger (or palm) slipping most (`None`: no contact's
+    /// slip is known).
+    pub slip_state: Option<&'static str>,
+    /// Under `--target-force auto`, the force the grasp has found, N per finger.
+    pub settled_force_n: Option<f64>,
 }
 
 /// A depth map for the images.

@@ -234,6 +234,11 @@ impl CommandedGripper {
         }
     }
 
+    /// Under `auto`, the force the API's grasp has found, N per finger.
+    pub fn settled_force_n(&self) -> Option<f64> {
+        self.service.controller().and_then(|c| c.settled_force_n())
+    }
+
     /// Each finger's phase, force and target (before any command: open, 0, 0).
     pub fn fingers(&self) -> Vec<(Phase, f64, f64)> {
         if let Some(script) = &self.script {

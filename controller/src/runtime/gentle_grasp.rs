@@ -452,6 +452,15 @@ impl GentleGrasp {
             .map_or_else(Vec::new, |c| c.finger_states())
     }
 
+    /// Under `auto`, the force the grasp settled on (the lift's, once it is measured), or
+    /// the one it is finding; `None` for a fixed target.
+    pub fn settled_force_n(&self) -> Option<f64> {
+        self.outcome
+            .as_ref()
+            .and_then(|o| o.settled_force_n)
+            .or_else(|| self.service.controller().and_then(|c| c.settled_force_n()))
+    }
+
     /// The stage now (`grasp`, `lift`, `hold`, `hold_test`, `done`).
     pub fn stage_label(&self) -> &'static str {
         match self.stage {

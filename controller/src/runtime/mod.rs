@@ -548,6 +548,7 @@ impl Runtime {
                     .collect(),
                 goals: last.goals.as_ref(),
                 task: d.status(),
+                settled_force_n: d.settled_force_n(),
                 latencies: last.latency.latencies(),
                 step,
                 controller_events: &events,

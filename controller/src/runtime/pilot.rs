@@ -158,6 +158,15 @@ impl Pilot {
         }
     }
 
+    /// Under `auto`, the force the grasp has found, N per finger (`None`: a fixed target,
+    /// or no finger holds yet).
+    pub fn settled_force_n(&self) -> Option<f64> {
+        match self {
+            Self::GentleGrasp(t) => t.settled_force_n(),
+            Self::Commanded { gripper, .. } => gripper.settled_force_n(),
+        }
+    }
+
     /// The task for the page (the running or last script's; none before any).
     pub fn status(&self) -> Option<TaskStatus> {
         match self {

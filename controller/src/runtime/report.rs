@@ -166,6 +166,9 @@ pub struct GripperReport<'a> {
     pub goals: Option<&'a (Option<u32>, Vec<FingerGoal>)>,
     /// The task, if any.
     pub task: Option<TaskStatus>,
+    /// Under `--target-force auto`, the force the grasp has found, N per finger (`None`
+    /// for a fixed target, or before the fingers hold).
+    pub settled_force_n: Option<f64>,
     /// The loop's latency figures so far.
     pub latencies: Latencies,
     /// What the pilot did with this set (a row of the task log).
