@@ -32,6 +32,10 @@ pub const FILES: EmbeddedFiles = EmbeddedFiles(&[
         include_str!("../configs/tasks/pick-and-release.toml"),
     ),
     (
+        "tasks/auto-pick-and-release.toml",
+        include_str!("../configs/tasks/auto-pick-and-release.toml"),
+    ),
+    (
         "scenes/egg.toml",
         include_str!("../configs/scenes/egg.toml"),
     ),
@@ -58,7 +62,7 @@ pub const FILES: EmbeddedFiles = EmbeddedFiles(&[
 ]);
 
 /// Names of the embedded task scripts (`tasks/NAME.toml`).
-pub const TASKS: &[&str] = &["pick-and-release", "screwdriver"];
+pub const TASKS: &[&str] = &["auto-pick-and-release", "pick-and-release", "screwdriver"];
 
 /// Names of the embedded scenes (`scenes/NAME.toml`).
 pub const SCENES: &[&str] = &[

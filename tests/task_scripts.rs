@@ -139,6 +139,46 @@ fn a_bolt_that_never_seats_times_the_tighten_stage_out() {
     assert!(event_s(&r, "bolt_tight").is_none());
 }
 
+/// A script that asks for `force_n = "auto"` (issue 44): on marker gels the fingers close
+/// to the preload, the reflex finds the force through the table's drop, the stages' force
+/// conditions compare against that settled force, and the report carries it with a null
+/// target.
+#[test]
+fn an_auto_script_finds_its_force_and_its_conditions_compare_against_it() {
+    let out = common::virtual_run(&[
+        "--config",
+        "configs/gelgripper-sim-markers.toml",
+        "--duration",
+        "40",
+        "--scene",
+        "configs/scenes/tennis-ball.toml",
+        "--task",
+        "auto-pick-and-release",
+    ])
+    .output()
+    .expect("gelgrip runs");
+    let r = common::report(&out, 0);
+    assert_eq!(r["grasped"], true, "completed: {r}");
+    assert!(r["target_force_n"].is_null(), "{r}");
+    let settled_n = r["settled_force_n"].as_f64().expect("a settled force");
+    // Above the 0.3 N preload (the ball's weight came on at 6 s), below a fixed 1.5 N.
+    assert!((0.3..1.5).contains(&settled_n), "{settled_n} N");
+    let s = stages(&r);
+    let names: Vec<&str> = s.iter().map(|(n, _, _)| n.as_str()).collect();
+    assert_eq!(names, ["close", "hold", "release"], "{s:?}");
+    assert!(s.iter().all(|(_, _, exit)| exit == "exit"), "{s:?}");
+    let reasons: Vec<&str> = r["stages"]
+        .as_array()
+        .expect("stages")
+        .iter()
+        .filter_map(|st| st["reason"].as_str())
+        .collect();
+    assert!(reasons[0].contains("force_n ≥ settled"), "{reasons:?}");
+    // The hold outlived the table (it drops 6 s in): the reflex kept the ball.
+    let hold_end_s = r["stages"][1]["end_s"].as_f64().expect("hold end");
+    assert!(hold_end_s > 6.0 + 3.0, "{hold_end_s}");
+}
+
 #[test]
 fn a_malformed_script_is_a_usage_error_naming_the_file_and_stage() {
     let dir = std::env::temp_dir().join(format!("gelgrip-badtask-{}", std::process::id()));
@@ -172,7 +212,7 @@ fn a_malformed_script_is_a_usage_error_naming_the_file_and_stage() {
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
-        err.contains("tasks: gentle-grasp, pick-and-release, screwdriver"),
+        err.contains("tasks: gentle-grasp, auto-pick-and-release, pick-and-release, screwdriver"),
         "{err}"
     );
     let _ = std::fs::remove_dir_all(&dir);

@@ -558,6 +558,11 @@ impl GraspController {
                 .all(|c| c.moved_at_s.is_none_or(|t| now - t >= stable_s))
     }
 
+    /// Whether the grasp finds its own force (`auto`).
+    pub fn auto_target(&self) -> bool {
+        self.request.auto_target
+    }
+
     /// Under `auto`, the force the grasp has found: the mean target of the fingers holding
     /// the object, N (`None` for a fixed target, or with no finger holding).
     pub fn settled_force_n(&self) -> Option<f64> {

@@ -234,8 +234,12 @@ impl CommandedGripper {
         }
     }
 
-    /// Under `auto`, the force the API's grasp has found, N per finger.
+    /// Under `auto`, the force the running script's or the API's grasp has found, N per
+    /// finger.
     pub fn settled_force_n(&self) -> Option<f64> {
+        if let Some(script) = &self.script {
+            return script.settled_force_n();
+        }
         self.service.controller().and_then(|c| c.settled_force_n())
     }
 

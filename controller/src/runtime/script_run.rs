@@ -20,6 +20,8 @@ pub struct ScriptRun {
     start_s: Option<f64>,
     peak_force_n: f64,
     true_peak_force_n: Option<f64>,
+    /// The last settled force of its `auto` fingers, N (kept once they let go).
+    settled_force_n: Option<f64>,
 }
 
 impl ScriptRun {
@@ -46,7 +48,13 @@ impl ScriptRun {
             start_s: None,
             peak_force_n: 0.0,
             true_peak_force_n: None,
+            settled_force_n: None,
         }
+    }
+
+    /// Under `auto`, the force its fingers found (the last, once they let go), N.
+    pub fn settled_force_n(&self) -> Option<f64> {
+        self.settled_force_n
     }
 
     /// The script's name.
@@ -68,6 +76,7 @@ impl ScriptRun {
         let mut sensed = plant.sense(sensing, set, now_us)?;
         let stage = self.runner.stage_name().unwrap_or("start").to_string();
         let goals = self.runner.step(t_s, &sensed.fused, plant.states());
+        self.settled_force_n = self.runner.settled_force_n().or(self.settled_force_n);
         if let Some(now) = self.runner.stage_name()
             && now != stage
         {
@@ -176,8 +185,10 @@ impl ScriptRun {
             peak_force_n: self.peak_force_n,
             hold_test_peak_force_n: None,
             true_peak_force_n: self.true_peak_force_n,
-            target_force_n: Some(self.runner.max_target_force_n()),
-            settled_force_n: None,
+            // Null when every force the script asks for is `auto`.
+            target_force_n: Some(self.runner.max_target_force_n())
+                .filter(|n| *n > 0.0 || !self.runner.has_auto_target()),
+            settled_force_n: self.settled_force_n,
             time_to_stable_s: None,
             loop_latency_ms_p50: None,
             loop_latency_ms_p99: None,

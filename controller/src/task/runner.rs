@@ -10,7 +10,7 @@ use serde::Serialize;
 
 use crate::actuator::{FingerGoal, ServoState};
 use crate::fusion::FusedSet;
-use crate::grasp::{GraspController, GraspRequest, Phase, Tuning};
+use crate::grasp::{GraspController, GraspRequest, Phase, TargetForce, Tuning};
 use crate::layout::HandLayout;
 
 use super::script::{Branch, Combine, Condition, FingerCommand, FingerTarget, Source, TaskScript};
@@ -207,10 +207,44 @@ impl TaskRunner {
             .iter()
             .flat_map(|s| s.fingers.iter().flatten())
             .filter_map(|c| match c.target {
-                FingerTarget::Force { force_n, .. } => Some(force_n),
+                FingerTarget::Force { force, .. } => force.newtons(),
                 _ => None,
             })
             .fold(0.0, f64::max)
+    }
+
+    /// The settled force of `source`'s finger's `auto` grasp, less and plus the stable
+    /// band, N.
+    fn settled_range_n(&self, source: Source) -> Option<(f64, f64)> {
+        let f = self.map.finger_of(source)?;
+        let Drive::Force(c) = self.drives.get(f)? else {
+            return None;
+        };
+        let band = self.tuning.stable_band;
+        c.settled_force_n()
+            .map(|n| (n * (1.0 - band), n * (1.0 + band)))
+    }
+
+    /// Under `auto`, the mean settled force of the fingers whose grasp found one, N.
+    pub fn settled_force_n(&self) -> Option<f64> {
+        let found: Vec<f64> = self
+            .drives
+            .iter()
+            .filter_map(|d| match d {
+                Drive::Force(c) => c.settled_force_n(),
+                Drive::Fixed(_) => None,
+            })
+            .collect();
+        (!found.is_empty()).then(|| found.iter().sum::<f64>() / found.len() as f64)
+    }
+
+    /// Whether a stage asks a finger for `force_n = "auto"`.
+    pub fn has_auto_target(&self) -> bool {
+        self.script
+            .stages
+            .iter()
+            .flat_map(|s| s.fingers.iter().flatten())
+            .any(|c| matches!(c.target, FingerTarget::Force { force, .. } if force.is_auto()))
     }
 
     /// The goals in force.
@@ -286,18 +320,15 @@ impl TaskRunner {
                 current_ma,
             } => fixed(position_deg, cap(current_ma)),
             FingerTarget::Current { current_ma } => fixed(self.close_deg[f], cap(Some(current_ma))),
-            FingerTarget::Force {
-                force_n,
-                current_ma,
-            } => {
+            FingerTarget::Force { force, current_ma } => {
                 let ctl = GraspController::new(
                     GraspRequest {
-                        target_force_n: force_n,
+                        target_force_n: force.newtons().unwrap_or(self.tuning.grasp.preload_n),
                         speed_deg_s: cmd.speed_deg_s,
                         current_limit_ma: cap(current_ma),
                         fingers: vec![f],
                         timeout_s: f64::INFINITY,
-                        auto_target: false,
+                        auto_target: force.is_auto(),
                     },
                     self.tuning.clone(),
                     self.close_deg.clone(),
@@ -312,7 +343,16 @@ impl TaskRunner {
         let stage = self.script.stages[index].clone();
         for (f, cmd) in stage.fingers.iter().enumerate() {
             if let Some(cmd) = cmd {
-                let keep = matches!((&self.drives[f], cmd.target), (Drive::Force(c), FingerTarget::Force { force_n, .. }) if c.targets_n().get(f) == Some(&force_n));
+                let keep = match (&self.drives[f], cmd.target) {
+                    (Drive::Force(c), FingerTarget::Force { force, .. }) => match force {
+                        // An auto finger keeps the force its reflex has found.
+                        TargetForce::Auto => c.auto_target(),
+                        TargetForce::Newtons(n) => {
+                            !c.auto_target() && c.targets_n().get(f) == Some(&n)
+                        }
+                    },
+                    _ => false,
+                };
                 if !keep {
                     self.drives[f] = self.command(f, *cmd);
                 }
@@ -398,7 +438,12 @@ impl TaskRunner {
         let now: Vec<Option<SourceSignals>> = self
             .tracked
             .iter()
-            .map(|s| self.map.read(set, *s))
+            .map(|s| {
+                self.map.read(set, *s).map(|r| SourceSignals {
+                    settled_range_n: self.settled_range_n(*s),
+                    ..r
+                })
+            })
             .collect();
         self.history.push(
             t_s,

@@ -8,11 +8,14 @@ use serde::Deserialize;
 use thiserror::Error;
 
 use crate::actuator::XM430_W350;
+use crate::grasp::TargetForce;
 use crate::grasp::limits::{GraspLimits, number};
 use crate::layout::HandLayout;
 
 mod condition;
-use condition::{condition, finger_ids, finger_index};
+mod target;
+use condition::{ForceBound, condition, finger_ids, finger_index};
+use target::{RawTarget, speed, target};
 
 /// Longest stage timeout a script may ask for, s.
 pub const MAX_TIMEOUT_S: f64 = 3600.0;
@@ -80,11 +83,12 @@ pub enum Branch {
 pub enum FingerTarget {
     /// Back to the open position.
     Open,
-    /// Close and regulate the finger's fused force to this, N, under a current cap (mA;
+    /// Close and regulate the finger's fused force to this, N, or (`auto`) close to
+    /// `[grasp] preload_n` and let the slip reflex find the force, under a current cap (mA;
     /// `None` = the configured limit).
     Force {
-        /// Target force, N.
-        force_n: f64,
+        /// Target force.
+        force: TargetForce,
         /// Current cap, mA.
         current_ma: Option<f64>,
     },
@@ -134,6 +138,12 @@ pub enum Test {
     ForceMin(f64),
     /// Force at most this, N.
     ForceMax(f64),
+    /// Force at least the settled force of the source's finger's `auto` grasp (less its
+    /// stable band); fails while that finger has none.
+    ForceMinSettled,
+    /// Force at most the settled force of the source's finger's `auto` grasp (plus its
+    /// stable band); fails while that finger has none.
+    ForceMaxSettled,
     /// Contact area changed by this share of its value at the stage's start, percent:
     /// positive = grew by at least, negative = shrank by at least.
     AreaChangePct(f64),
@@ -234,17 +244,6 @@ struct RawStage {
 }
 
 #[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawTarget {
-    #[serde(default)]
-    open: bool,
-    force_n: Option<f64>,
-    position_deg: Option<f64>,
-    current_ma: Option<f64>,
-    speed_deg_s: Option<f64>,
-}
-
-#[derive(Deserialize)]
 #[serde(untagged)]
 enum OneOrMany {
     One(String),
@@ -267,8 +266,8 @@ struct RawCondition {
     finger: Option<OneOrMany>,
     contact: Option<bool>,
     depth_mm_min: Option<f64>,
-    force_n_min: Option<f64>,
-    force_n_max: Option<f64>,
+    force_n_min: Option<ForceBound>,
+    force_n_max: Option<ForceBound>,
     area_change_pct: Option<f64>,
     rise_mm3_min: Option<f64>,
     slope_mm3_per_s_min: Option<f64>,
@@ -566,86 +565,6 @@ fn stage(
         on_timeout: branch(check, "on_timeout", s.on_timeout, names, Branch::Abort)?,
         fail_if,
         on_fail: branch(check, "on_fail", s.on_fail, names, Branch::Abort)?,
-    })
-}
-
-/// A speed in [0.1 deg/s, the servo's no-load speed].
-fn speed(
-    check: &StageCheck,
-    field: &str,
-    v: f64,
-    limits: &GraspLimits,
-) -> Result<f64, ScriptError> {
-    check.hardware(
-        field,
-        v,
-        (0.1, limits.max_speed_deg_s()),
-        ("a speed", "deg/s"),
-        || limits.speed_reason(),
-    )
-}
-
-fn target(
-    check: &StageCheck,
-    (finger, id): (usize, &str),
-    raw: RawTarget,
-    range_deg: f64,
-    (current_limit_ma, limits): (f64, &GraspLimits),
-    default_speed: f64,
-) -> Result<FingerCommand, ScriptError> {
-    let field = |name: &str| format!("fingers.{id}.{name}");
-    let kinds = [raw.open, raw.force_n.is_some(), raw.position_deg.is_some()]
-        .iter()
-        .filter(|k| **k)
-        .count();
-    let current_only = kinds == 0 && raw.current_ma.is_some();
-    if kinds > 1 || (kinds == 0 && !current_only) {
-        return Err(check.err(
-            format!("fingers.{id}"),
-            "must set exactly one of open = true, force_n, position_deg or current_ma \
-             (current_ma may also cap force_n or position_deg)",
-        ));
-    }
-    if raw.open && raw.current_ma.is_some() {
-        return Err(check.err(field("current_ma"), "cannot go with open = true"));
-    }
-    let current = raw
-        .current_ma
-        .map(|c| check.range(&field("current_ma"), c, 0.0, current_limit_ma))
-        .transpose()?;
-    let speed_deg_s = speed(
-        check,
-        &field("speed_deg_s"),
-        raw.speed_deg_s.unwrap_or(default_speed),
-        limits,
-    )?;
-    let target = if raw.open {
-        FingerTarget::Open
-    } else if let Some(f) = raw.force_n {
-        let cap_ma = current.unwrap_or(current_limit_ma);
-        FingerTarget::Force {
-            force_n: check.hardware(
-                &field("force_n"),
-                f,
-                (0.01, limits.max_force_n(&[finger], cap_ma)),
-                ("a force", "N"),
-                || limits.force_reason(&[finger], cap_ma),
-            )?,
-            current_ma: current,
-        }
-    } else if let Some(p) = raw.position_deg {
-        FingerTarget::Position {
-            position_deg: check.range(&field("position_deg"), p, 0.0, range_deg)?,
-            current_ma: current,
-        }
-    } else {
-        FingerTarget::Current {
-            current_ma: current.unwrap_or(0.0),
-        }
-    };
-    Ok(FingerCommand {
-        target,
-        speed_deg_s,
     })
 }
 

@@ -22,6 +22,9 @@ pub struct SourceSignals {
     pub area_mm2: f64,
     /// Deformation signal (indentation volume), mm³.
     pub deformation_mm3: f64,
+    /// The settled force of the source's finger's `auto` grasp, less and plus the grasp's
+    /// stable band, N (`None`: a palm, a fixed target, or no force found yet).
+    pub settled_range_n: Option<(f64, f64)>,
 }
 
 /// Which sensors make up each finger and the palm.
@@ -46,6 +49,15 @@ impl SourceMap {
         Self {
             finger_sensors,
             palm_sensors,
+        }
+    }
+
+    /// The finger `source` belongs to (`None`: the palm, or a sensor on none).
+    pub fn finger_of(&self, source: Source) -> Option<usize> {
+        match source {
+            Source::Finger(f) => Some(f),
+            Source::Sensor(s) => self.finger_sensors.iter().position(|ss| ss.contains(&s)),
+            Source::Palm => None,
         }
     }
 
@@ -75,6 +87,7 @@ impl SourceMap {
                     force_n: finite(r.force_n),
                     area_mm2: finite(r.area_mm2),
                     deformation_mm3: finite(r.volume_mm3),
+                    settled_range_n: None,
                 })
             }
             Source::Finger(_) | Source::Palm => {
@@ -91,6 +104,7 @@ impl SourceMap {
                     force_n: finite(fused.force_n),
                     area_mm2: finite(fused.area_mm2),
                     deformation_mm3: deformation(self.sensors_of(source))?,
+                    settled_range_n: None,
                 })
             }
         }
@@ -211,6 +225,8 @@ pub fn passes(
         Test::DepthMin(d) => now.depth_mm >= d,
         Test::ForceMin(f) => now.force_n >= f,
         Test::ForceMax(f) => now.force_n <= f,
+        Test::ForceMinSettled => now.settled_range_n.is_some_and(|(lo, _)| now.force_n >= lo),
+        Test::ForceMaxSettled => now.settled_range_n.is_some_and(|(_, hi)| now.force_n <= hi),
         Test::AreaChangePct(p) => start.is_some_and(|s| {
             let change = 100.0 * (now.area_mm2 - s.area_mm2) / s.area_mm2.max(1.0);
             if p > 0.0 { change >= p } else { change <= p }

@@ -6,7 +6,7 @@ use super::script::{Branch, FingerTarget, ScriptError, Source, TaskScript, Test}
 use super::signals::{History, slope_per_s};
 use crate::actuator::ServoState;
 use crate::fusion::{SensorReading, fuse};
-use crate::grasp::{Phase, Tuning};
+use crate::grasp::{Phase, TargetForce, Tuning};
 use crate::layout::HandLayout;
 
 fn layout() -> HandLayout {
@@ -57,6 +57,46 @@ fn err_text(text: &str) -> String {
 }
 
 #[test]
+fn auto_forces_and_settled_bounds_parse_and_bad_words_are_refused() {
+    let s = parse(include_str!(
+        "../../../configs/tasks/auto-pick-and-release.toml"
+    ))
+    .expect("valid");
+    assert!(matches!(
+        s.stages[0].fingers[0].map(|c| c.target),
+        Some(FingerTarget::Force {
+            force: TargetForce::Auto,
+            current_ma: None
+        })
+    ));
+    assert_eq!(
+        s.stages[0].exit[0].tests,
+        [Test::Contact(true), Test::ForceMinSettled]
+    );
+    assert!(s.stages[0].exit[0].label.contains("force_n ≥ settled"));
+    let max = TWO_STAGES.replace("force_n_max = 0.1", "force_n_max = \"settled\"");
+    assert_eq!(
+        parse(&max).expect("valid").stages[2].exit[0].tests,
+        [Test::ForceMaxSettled]
+    );
+    let e = err_text(&TWO_STAGES.replace("force_n_max = 0.1", "force_n_max = \"most\""));
+    assert!(
+        e.contains("stage `recover`")
+            && e.contains("`exit[0].force_n_max`")
+            && e.contains("= \"most\": expected a force in N or \"settled\""),
+        "{e}"
+    );
+    let e = err_text(&TWO_STAGES.replace("{ force_n = 2.0 }", "{ force_n = \"Auto\" }"));
+    assert!(e.contains("force_n") && e.contains("\"auto\""), "{e}");
+    // A number beside "auto" is still bounded by what the finger can press.
+    let e = err_text(&TWO_STAGES.replace("{ force_n = 2.0 }", "{ force_n = -1.0 }"));
+    assert!(
+        e.contains("fingers.f1.force_n") && e.contains("expected a force"),
+        "{e}"
+    );
+}
+
+#[test]
 fn a_valid_script_parses_with_its_defaults() {
     let s = parse(TWO_STAGES).expect("valid");
     assert_eq!(s.stages.len(), 3);
@@ -67,7 +107,7 @@ fn a_valid_script_parses_with_its_defaults() {
     assert_eq!(s.stages[2].next, Branch::Abort);
     assert!(matches!(
         s.stages[0].fingers[0].map(|c| c.target),
-        Some(FingerTarget::Force { force_n, current_ma: None }) if force_n == 2.0
+        Some(FingerTarget::Force { force: TargetForce::Newtons(n), current_ma: None }) if n == 2.0
     ));
     assert_eq!(s.stages[0].fingers[1], None, "unnamed fingers keep theirs");
     assert_eq!(s.stages[0].exit[0].sources, vec![Source::Sensor(1)]);

@@ -7,6 +7,26 @@ use super::{
 };
 use crate::layout::HandLayout;
 
+/// A force bound as written: a number of N, or a word (`"settled"`: the force the
+/// finger's `auto` grasp has found).
+#[derive(Debug, Clone, serde::Deserialize)]
+#[serde(untagged)]
+pub(in crate::task) enum ForceBound {
+    /// N.
+    Newtons(f64),
+    /// A word.
+    Word(String),
+}
+
+impl ForceBound {
+    fn newtons(&self) -> Option<f64> {
+        match self {
+            Self::Newtons(n) => Some(*n),
+            Self::Word(_) => None,
+        }
+    }
+}
+
 /// One bounded test a condition may set: its field, where its value is, its range, the
 /// test it makes and its label.
 struct Bound {
@@ -30,7 +50,7 @@ const BOUNDS: [Bound; 7] = [
     },
     Bound {
         field: "force_n_min",
-        value: |c| c.force_n_min,
+        value: |c| c.force_n_min.as_ref().and_then(ForceBound::newtons),
         min: 0.0,
         max: 1000.0,
         test: Test::ForceMin,
@@ -38,7 +58,7 @@ const BOUNDS: [Bound; 7] = [
     },
     Bound {
         field: "force_n_max",
-        value: |c| c.force_n_max,
+        value: |c| c.force_n_max.as_ref().and_then(ForceBound::newtons),
         min: 0.0,
         max: 1000.0,
         test: Test::ForceMax,
@@ -152,6 +172,25 @@ pub(super) fn condition(
             let v = check.range(&f(bound.field), v, bound.min, bound.max)?;
             tests.push((bound.test)(v));
             label.push(format!("{} {v}", bound.label));
+        }
+    }
+    let settled = [
+        ("force_n_min", &c.force_n_min, Test::ForceMinSettled, "≥"),
+        ("force_n_max", &c.force_n_max, Test::ForceMaxSettled, "≤"),
+    ];
+    for (name, bound, test, sign) in settled {
+        if let Some(ForceBound::Word(w)) = bound {
+            if w != "settled" {
+                return Err(check.err(
+                    f(name),
+                    format!(
+                        "= \"{w}\": expected a force in N or \"settled\" (the force the \
+                         finger's auto grasp has found)"
+                    ),
+                ));
+            }
+            tests.push(test);
+            label.push(format!("force_n {sign} settled"));
         }
     }
     if tests.is_empty() {
