@@ -408,14 +408,10 @@ fn slip_columns_in_the_task_log(log: &Path) {
     );
 }
 
-/// `run --target-force auto` on the marker config: the tennis ball is grasped at the
-/// preload, lifted (the task log's `lift` stage) while the reflex finds the force its
-/// weight needs, and held through the hold test at a settled force below today's fixed
-/// 1.5 N; `target_force_n` is null.
-#[test]
-fn an_auto_grasp_finds_the_force_the_tennis_ball_needs_and_holds_it() {
-    let log = Path::new(env!("CARGO_TARGET_TMPDIR")).join("markers-auto-log.csv");
-    let report = json(&common::gelgrip_cached(&[
+/// The report of a gentle grasp at `--target-force auto` of `scene` on the marker config,
+/// its task log written to `log`.
+fn auto_grasp(scene: &str, log: &Path) -> serde_json::Value {
+    json(&common::gelgrip_cached(&[
         "run",
         "--log",
         log.to_str().expect("a UTF-8 path"),
@@ -428,10 +424,20 @@ fn an_auto_grasp_finds_the_force_the_tennis_ball_needs_and_holds_it() {
         "--target-force",
         "auto",
         "--scene",
-        "configs/scenes/tennis-ball.toml",
+        scene,
         "--headless",
         "--json",
-    ]));
+    ]))
+}
+
+/// `run --target-force auto` on the marker config: the tennis ball is grasped at the
+/// preload, lifted (the task log's `lift` stage) while the reflex finds the force its
+/// weight needs, and held through the hold test at a settled force below today's fixed
+/// 1.5 N; `target_force_n` is null.
+#[test]
+fn an_auto_grasp_finds_the_force_the_tennis_ball_needs_and_holds_it() {
+    let log = Path::new(env!("CARGO_TARGET_TMPDIR")).join("markers-auto-log.csv");
+    let report = auto_grasp("configs/scenes/tennis-ball.toml", &log);
     assert_eq!(report["grasped"], true, "{report}");
     assert_eq!(report["reason"], "stable", "{report}");
     assert_eq!(report["crushed"], false, "{report}");
@@ -455,4 +461,25 @@ fn an_auto_grasp_finds_the_force_the_tennis_ball_needs_and_holds_it() {
     for s in ["grasp", "lift", "hold_test"] {
         assert!(stages.contains(&s), "no {s} stage: {header:?}");
     }
+}
+
+/// A ball heavier than `[grasp] max_force_n` can hold at its friction (1 kg, μ 0.3: a grip
+/// of 33 N against 4 N per finger): the auto grasp feels the slide, the ball goes faster
+/// than the reflex tightens, and the grasp ends `slipping` with the fingers holding where
+/// they are, not closing on toward their targets on nothing.
+#[test]
+fn an_auto_grasp_that_cannot_hold_ends_slipping_with_the_fingers_holding() {
+    let log = Path::new(env!("CARGO_TARGET_TMPDIR")).join("markers-heavy-log.csv");
+    let report = auto_grasp("tests/configs/heavy-ball.toml", &log);
+    assert_eq!(report["grasped"], false, "{report}");
+    assert_eq!(report["reason"], "slipping", "{report}");
+    assert_eq!(report["crushed"], false, "{report}");
+    let peak_n = report["true_peak_force_n"]
+        .as_f64()
+        .expect("true_peak_force_n");
+    assert!(peak_n <= 4.0, "never beyond max_force_n: {report}");
+    // The run ended within a second or two of the table's drop (6 s), not at the task's
+    // timeout with the fingers closing on.
+    let t_s = report["elapsed_s"].as_f64().expect("elapsed_s");
+    assert!(t_s < 9.0, "{report}");
 }

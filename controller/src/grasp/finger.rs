@@ -7,6 +7,10 @@ use super::{FingerStatus, Phase, RateScaling, SlipReference, Tuning, finite_or, 
 use crate::actuator::ServoState;
 use crate::fusion::{FusedContact, SensorSlip, SlipState};
 
+/// Sets in a row without contact after which a held finger that felt slip has lost its
+/// object (three, as a squeeze that feels nothing is given).
+const LOST_SETS: u32 = 3;
+
 /// What one control step knows beside the finger, the same for every finger.
 pub(super) struct StepContext<'a> {
     /// The step's time, s.
@@ -130,6 +134,10 @@ pub(super) struct FingerCtl {
     slide_stop: reflex::SlideStop,
     /// Since when the grasp has slid with the target at its most, s.
     gross_since_s: Option<f64>,
+    /// When the grasp last felt slip (incipient or gross) while this finger held, s.
+    slip_felt_at_s: Option<f64>,
+    /// Sets in a row this held finger has felt no contact.
+    lost_sets: u32,
     /// The grasp slid and the most force allowed did not stop it: the finger holds.
     pub(super) slipping: bool,
     stable_since_s: Option<f64>,
@@ -173,6 +181,8 @@ impl FingerCtl {
             least: reflex::LeastTrack::default(),
             slide_stop: reflex::SlideStop::default(),
             gross_since_s: None,
+            slip_felt_at_s: None,
+            lost_sets: 0,
             slipping: false,
             stable_since_s: None,
             stall_ref: None,
@@ -235,6 +245,7 @@ impl FingerCtl {
                 self.slip_seen = 0;
             }
             Transition::Slipping { present_deg } => {
+                self.phase = Phase::Hold;
                 self.slipping = true;
                 self.goal_deg = present_deg;
             }
@@ -263,6 +274,8 @@ impl FingerCtl {
         self.least = reflex::LeastTrack::default();
         self.slide_stop = reflex::SlideStop::default();
         self.gross_since_s = None;
+        self.slip_felt_at_s = None;
+        self.lost_sets = 0;
     }
 
     /// One step of this finger on its fused contact (`None`: no new set, the goals stay).
@@ -424,6 +437,11 @@ impl FingerCtl {
         if self.phase == Phase::Squeeze {
             self.contact_sets = 3;
         }
+        let watching = self.phase == Phase::Squeeze
+            || (self.status == FingerStatus::ContactClosing && k.settled);
+        if t.grasp.reflex && watching && self.lost_to_a_slide(k, now, fused) {
+            return;
+        }
         let force_n = self.force_n;
         let mut e = self.target_n - force_n;
         // Slow set rates: a held finger moves only when its half-second average leaves
@@ -502,6 +520,32 @@ impl FingerCtl {
         } else {
             self.stable_since_s = None;
         }
+    }
+
+    /// A squeezing or held finger whose contact is gone for [`LOST_SETS`] sets in a row
+    /// within [`GIVE_UP_S`] of the grasp feeling slip has lost the object to a slide faster
+    /// than the reflex: the grasp ends `slipping`, the finger holding where it is (closing
+    /// on toward its target, it would squeeze blindly on nothing).
+    fn lost_to_a_slide(
+        &mut self,
+        k: &StepContext<'_>,
+        now: &FingerInput<'_>,
+        fused: &FusedContact,
+    ) -> bool {
+        if k.grasp_slip.is_some_and(|s| s.state != SlipState::None) {
+            self.slip_felt_at_s = Some(k.t_s);
+        }
+        self.lost_sets = if fused.contact { 0 } else { self.lost_sets + 1 };
+        let felt = self
+            .slip_felt_at_s
+            .is_some_and(|t0| k.t_s - t0 <= GIVE_UP_S);
+        if self.lost_sets >= LOST_SETS && felt {
+            self.enter(Transition::Slipping {
+                present_deg: now.present_deg,
+            });
+            return true;
+        }
+        false
     }
 
     /// Once the whole grasp holds, on a set whose slip is known: the target follows the

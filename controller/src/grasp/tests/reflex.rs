@@ -240,3 +240,59 @@ fn an_auto_grasp_closes_to_the_preload_and_settles_at_the_least_that_holds_with_
     let (fixed, _) = held(1.0, Tuning::default());
     assert_eq!(fixed.outcome().and_then(|o| o.settled_force_n), None);
 }
+
+/// The object slides out faster than the reflex can tighten: once the fingers feel slip
+/// and then nothing for three sets, the grasp ends `slipping` with every finger holding
+/// where it is, never closing on toward its target on nothing.
+#[test]
+fn an_object_lost_to_a_slide_ends_slipping_without_squeezing_on_nothing() {
+    let (mut ctl, mut f) = held(1.0, Tuning::default());
+    let dt = 1.0 / RATE_HZ;
+    let t0 = ctl.last_s.expect("stepped") + dt;
+    let mut goals = ctl.goals();
+    // A load the grip feels as incipient slip, for a few sets.
+    let load_n = 0.6 * FRICTION * 3.0;
+    for k in 0..5 {
+        let set = loaded_set(&f, load_n);
+        assert!(
+            set.fingers[0]
+                .slip
+                .is_some_and(|s| s.state == SlipState::Incipient)
+        );
+        let states: Vec<ServoState> = f.iter().zip(&goals).map(|(x, g)| x.state(g)).collect();
+        goals = ctl.step(t0 + k as f64 * dt, Some(&set), &states).goals;
+    }
+    assert!(ctl.outcome().is_some_and(|o| o.grasped));
+    // Gone: no contact on any finger.
+    let mut gone = toy_set(&f);
+    for c in &mut gone.fingers {
+        *c = FusedContact::default();
+    }
+    for k in 5..9 {
+        let states: Vec<ServoState> = f.iter().zip(&goals).map(|(x, g)| x.state(g)).collect();
+        goals = ctl.step(t0 + k as f64 * dt, Some(&gone), &states).goals;
+        for (x, g) in f.iter_mut().zip(&goals) {
+            x.step(g, dt);
+        }
+    }
+    let outcome = ctl.outcome().expect("ended");
+    assert_eq!(outcome.reason, GraspReason::Slipping, "{outcome:?}");
+    for (finger, goal) in f.iter().zip(ctl.goals()) {
+        assert_eq!(goal.position_deg, finger.position_deg, "holds where it is");
+    }
+    // Without slip felt first, losing the contact is not a slide (the area rule's case).
+    let (mut calm, mut g) = held(1.0, Tuning::default());
+    let t1 = calm.last_s.expect("stepped") + dt;
+    let mut goals = calm.goals();
+    for k in 0..6 {
+        let states: Vec<ServoState> = g.iter().zip(&goals).map(|(x, g)| x.state(g)).collect();
+        goals = calm.step(t1 + k as f64 * dt, Some(&gone), &states).goals;
+        for (x, goal) in g.iter_mut().zip(&goals) {
+            x.step(goal, dt);
+        }
+    }
+    assert_ne!(
+        calm.outcome().map(|o| o.reason),
+        Some(GraspReason::Slipping)
+    );
+}
