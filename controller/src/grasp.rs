@@ -335,6 +335,11 @@ struct RateScaling {
 /// set to set, as a slow hub's can, is mostly cancelled).
 const MAX_FORCE_WEIGHT: f64 = 0.5;
 
+/// An `auto` grasp whose fingers have all held this long has settled even while its reflex
+/// still moves a target (a detector flickering between `none` and `incipient` on a contact
+/// that holds keeps nudging it), s: the grasp's outcome comes, and the reflex goes on.
+pub const AUTO_SETTLE_MAX_S: f64 = 3.0;
+
 fn finite_or(v: f64, default: f64) -> f64 {
     if v.is_finite() { v } else { default }
 }
@@ -450,6 +455,7 @@ impl GraspController {
             speed_deg_s: finite_or(self.request.speed_deg_s, 0.0).max(0.0) * rate.gain_scale,
             rate,
             settled: self.settled(),
+            auto_target: self.request.auto_target,
             grasp_slip: set.and_then(|s| self.grasp_slip(s)),
             tuning: &self.tuning,
         };
@@ -541,7 +547,8 @@ impl GraspController {
 
     /// A grasp that finds its own force has settled once every finger has held for
     /// `stable_s` with its reflex moving none of their targets by more than the stable band
-    /// for as long (a fixed target: at once).
+    /// for as long, or for [`AUTO_SETTLE_MAX_S`] whatever the reflex does (a fixed target:
+    /// at once).
     fn auto_settled(&self) -> bool {
         if !self.request.auto_target {
             return true;
@@ -550,6 +557,9 @@ impl GraspController {
             return false;
         };
         let stable_s = self.tuning.stable_s;
+        if now - since >= AUTO_SETTLE_MAX_S {
+            return true;
+        }
         now - since >= stable_s
             && self
                 .fingers

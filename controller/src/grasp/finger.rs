@@ -11,6 +11,10 @@ use crate::fusion::{FusedContact, SensorSlip, SlipState};
 /// object (three, as a squeeze that feels nothing is given).
 const LOST_SETS: u32 = 3;
 
+/// Under `auto`, a squeeze that felt no slip for this long and then feels it goes to the
+/// reflex, s.
+const QUIET_BEFORE_LOAD_S: f64 = 0.5;
+
 /// What one control step knows beside the finger, the same for every finger.
 pub(super) struct StepContext<'a> {
     /// The step's time, s.
@@ -25,6 +29,8 @@ pub(super) struct StepContext<'a> {
     pub(super) speed_deg_s: f64,
     /// Every active finger held before this step.
     pub(super) settled: bool,
+    /// The grasp finds its own force (`auto`): its squeeze's target is the preload.
+    pub(super) auto_target: bool,
     /// The slip of the contact slipping most over the grasp's fingers and the palm (`None`:
     /// no contact's slip is known; the reflex then watches contact motion).
     pub(super) grasp_slip: Option<SensorSlip>,
@@ -134,6 +140,11 @@ pub(super) struct FingerCtl {
     slide_stop: reflex::SlideStop,
     /// Since when the grasp has slid with the target at its most, s.
     gross_since_s: Option<f64>,
+    /// Since when the squeeze has felt no slip (known `none`), s.
+    quiet_since_s: Option<f64>,
+    /// The squeeze felt no slip for `QUIET_BEFORE_LOAD_S`: a load felt after that came
+    /// after the touch.
+    quiet_seen: bool,
     /// When the grasp last felt slip (incipient or gross) while this finger held, s.
     slip_felt_at_s: Option<f64>,
     /// Sets in a row this held finger has felt no contact.
@@ -181,6 +192,8 @@ impl FingerCtl {
             least: reflex::LeastTrack::default(),
             slide_stop: reflex::SlideStop::default(),
             gross_since_s: None,
+            quiet_since_s: None,
+            quiet_seen: false,
             slip_felt_at_s: None,
             lost_sets: 0,
             slipping: false,
@@ -209,6 +222,8 @@ impl FingerCtl {
                 self.contact_since_s = Some(t_s);
                 self.contact_sets = 0;
                 self.current_ma = cap_ma.min(self.current_ma);
+                self.quiet_since_s = None;
+                self.quiet_seen = false;
             }
             Transition::LostTouch => {
                 self.phase = Phase::Approach;
@@ -476,7 +491,7 @@ impl FingerCtl {
             self.cap_ref = None;
         }
         if self.phase == Phase::Squeeze {
-            self.settle(k, in_band);
+            self.end_squeeze(k, fused, in_band);
         } else if self.status == FingerStatus::ContactClosing && k.settled && t.grasp.reflex {
             match k.grasp_slip {
                 Some(slip) => self.slip_reflex(k, now, &slip),
@@ -508,6 +523,29 @@ impl FingerCtl {
         // on to the current cap.
         let lead = (t.squeeze_deg_per_n * e_ctl).clamp(-t.squeeze_lead_deg, t.squeeze_lead_deg);
         self.goal_deg = (now.present_deg + lead).min(now.close_deg.max(now.present_deg));
+    }
+
+    /// Where a squeeze ends: in the stable band for `Tuning::stable_s` it holds. Under
+    /// `auto` the squeeze's target is only the preload, and slip felt under a load that
+    /// came after the touch (a table dropping away, the arm lifting: the squeeze felt none
+    /// for [`QUIET_BEFORE_LOAD_S`] first) hands the finger to the reflex at once, rather
+    /// than after a squeeze that may not settle before the object has gone. A load there
+    /// from the touch on is the squeeze's to settle first: the reflex raising a target that
+    /// the force still lags would overshoot.
+    fn end_squeeze(&mut self, k: &StepContext<'_>, fused: &FusedContact, in_band: bool) {
+        let slip = k.grasp_slip.map(|s| s.state);
+        if slip == Some(SlipState::None) {
+            let t0 = *self.quiet_since_s.get_or_insert(k.t_s);
+            self.quiet_seen |= k.t_s - t0 >= QUIET_BEFORE_LOAD_S;
+        } else {
+            self.quiet_since_s = None;
+        }
+        let loaded = slip.is_some_and(|s| s != SlipState::None);
+        if k.auto_target && fused.contact && loaded && self.quiet_seen {
+            self.enter(Transition::Stable);
+        } else {
+            self.settle(k, in_band);
+        }
     }
 
     /// A squeeze that stays in the stable band for `Tuning::stable_s` holds.
