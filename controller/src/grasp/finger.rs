@@ -650,6 +650,8 @@ impl FingerCtl {
                 _ => false,
             };
         self.slip_seen = if area_drop || shifted {
+            // What a plain gel feels of a slide (for `lost_to_a_slide`).
+            self.slip_felt_at_s = Some(k.t_s);
             self.slip_seen + 1
         } else {
             0
