@@ -637,7 +637,7 @@ fn two_grippers_share_a_router_in_their_own_namespaces() {
     let summary = listener.finish();
     for (ns, r) in [("left", &left), ("right", &right)] {
         let t = topics(&summary, ns);
-        assert_eq!(t.len(), 3 + 3 * SENSORS.len(), "{ns}");
+        assert_eq!(t.len(), 4 + 3 * SENSORS.len(), "{ns}");
         let sets = r["sets"].as_u64().expect("sets");
         let joints = topic(&summary, ns, "joint_states");
         let contacts = topic(&summary, ns, "tactile/contacts")["count"]
@@ -669,7 +669,7 @@ fn two_grippers_share_a_router_in_their_own_namespaces() {
                     .is_some_and(|t| t.contains(&format!("/%{ns}/gelgrip")))
             })
             .collect();
-        assert_eq!(mine.len(), 1 + 3 + 3 * SENSORS.len(), "{ns}");
+        assert_eq!(mine.len(), 1 + 4 + 3 * SENSORS.len(), "{ns}");
         // A publisher token of one namespace names only its own topics.
         assert!(mine.iter().all(|t| {
             let t = t.as_str().unwrap_or_default();
