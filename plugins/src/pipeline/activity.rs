@@ -7,6 +7,12 @@ use crate::contact::BLOCK_PX;
 use crate::halves::{first_half, run_halves, worth_splitting};
 use crate::poisson::Solver;
 
+/// Blocks (Chebyshev distance) within which another active block makes an active block
+/// part of a contact. At five times the nominal camera noise a contact's rim shows as a
+/// broken ring of active blocks, with gaps of a block (measured on the tennis ball's
+/// grasp), so 1 would drop parts of the rim.
+pub(super) const LONE_BLOCK_RADIUS: usize = 2;
+
 // A band's column sums hold BLOCK_PX rows of 8-bit values.
 const _: () = assert!(BLOCK_PX * 255 <= u16::MAX as usize);
 
@@ -94,12 +100,29 @@ impl SensorPipeline {
         }
     }
 
-    /// Bounding box `(x, y, w, h)` of active blocks plus the margin, rounded up.
+    /// Bounding box `(x, y, w, h)` of active blocks plus the margin, rounded up. Where
+    /// some active block has another within [`LONE_BLOCK_RADIUS`] blocks (a contact), an
+    /// active block with none that near is noise and left out: one just over the threshold
+    /// far from the contact would otherwise stretch the window over the whole frame, and
+    /// the depth's zero level with it (measured: the toy corn's middle phalanx read 80 →
+    /// 235 mm² in such sets). Where every active block is alone, they all count (a contact
+    /// as small as a block).
     pub(super) fn active_window(&self, threshold: f32) -> Option<(usize, usize, usize, usize)> {
         let bw = self.width.div_ceil(BLOCK_PX);
+        let bh = self.blocks.len().checked_div(bw).unwrap_or(0);
+        let active = |k: usize| self.blocks.get(k).is_some_and(|a| *a > threshold);
+        const R: usize = LONE_BLOCK_RADIUS;
+        let near_another = |k: usize| {
+            let (bx, by) = (k % bw, k / bw);
+            (by.saturating_sub(R)..(by + R + 1).min(bh)).any(|ny| {
+                (bx.saturating_sub(R)..(bx + R + 1).min(bw))
+                    .any(|nx| (nx, ny) != (bx, by) && active(ny * bw + nx))
+            })
+        };
+        let clustered = (0..self.blocks.len()).any(|k| active(k) && near_another(k));
         let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
-        for (k, a) in self.blocks.iter().enumerate() {
-            if *a > threshold {
+        for k in 0..self.blocks.len() {
+            if active(k) && (!clustered || near_another(k)) {
                 let (bx, by) = (k % bw, k / bw);
                 x0 = x0.min(bx * BLOCK_PX);
                 y0 = y0.min(by * BLOCK_PX);

@@ -370,3 +370,39 @@ fn block_activity_is_the_mean_difference_per_block() {
         }
     }
 }
+
+/// The depth window covers a contact's blocks and the active blocks near them, not a lone
+/// block of noise far away; where every active block is alone, all of them.
+#[test]
+fn a_lone_active_block_far_from_a_contact_does_not_stretch_the_window() {
+    let (w, h) = (320, 240);
+    let mut p = pipeline(w, h, Some(Solver::Dct));
+    let bw = w / BLOCK_PX;
+    let mut window_of = |active: &[(usize, usize)]| {
+        p.blocks.fill(0.0);
+        for (bx, by) in active {
+            p.blocks[by * bw + bx] = 2.0;
+        }
+        p.active_window(1.0).expect("a window")
+    };
+    let contact: Vec<(usize, usize)> = (20..23)
+        .flat_map(|bx| (20..23).map(move |by| (bx, by)))
+        .collect();
+    let alone = window_of(&contact);
+    let with = |extra: (usize, usize)| {
+        let mut blocks = contact.clone();
+        blocks.push(extra);
+        blocks
+    };
+    // A block in the far corner: noise, the window is the contact's.
+    assert_eq!(window_of(&with((0, 0))), alone);
+    // A block two blocks from the contact (a broken rim): part of it.
+    let (x, _, ww, _) = window_of(&with((24, 21)));
+    assert!(x + ww >= 25 * BLOCK_PX, "{x} + {ww}");
+    // One block further: noise again.
+    assert_eq!(window_of(&with((25, 21))), alone);
+    // Only lone blocks: every one counts (the whole frame here).
+    assert_eq!(window_of(&[(0, 0), (39, 29)]), (0, 0, w, h));
+    let (x0, y0, _, _) = alone;
+    assert!(x0 <= 20 * BLOCK_PX - WINDOW_MARGIN_PX && y0 <= 20 * BLOCK_PX - WINDOW_MARGIN_PX);
+}
