@@ -272,7 +272,16 @@ async fn an_auto_grasp_on_marker_gels_shows_slip_and_its_settled_force() {
     })
     .await;
     assert!(result.contains("\"grasped\":true"), "{result}");
-    assert!(result.contains("\"settled_force_n\":0."), "{result}");
+    // The ball needs less than today's fixed 1.5 N (it settled at 0.36 N here, at 1.24 N in
+    // a clean-clone CI run with a benchmark beside it: on the real clock the table's drop
+    // can come during the squeeze, and the grip relaxes slowly).
+    let settled_result_n = result
+        .split("\"settled_force_n\":")
+        .nth(1)
+        .and_then(|t| t.split([',', '}']).next())
+        .and_then(|n| n.parse::<f64>().ok())
+        .unwrap_or_else(|| panic!("a settled force in {result}"));
+    assert!((0.25..1.5).contains(&settled_result_n), "{result}");
     let grasp = wait_for(Duration::from_secs(10), "the settled force", || async {
         let t = text(&client, "#grasp-state").await;
         t.contains("settled").then_some(t)
