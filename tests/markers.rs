@@ -302,6 +302,9 @@ fn bench_slip_with_the_reflex_keeps_the_ball_with_little_more_than_the_least_gri
     );
     let final_grip = num("final_grip_n");
     assert!(final_grip >= least && final_grip <= 1.5 * least, "{r}");
+    // The palm's part is a part of it.
+    let palm = num("final_palm_n");
+    assert!((0.0..=final_grip).contains(&palm), "{r}");
     assert_eq!(report["summary"]["dropped"], 0, "{report}");
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -594,6 +594,17 @@ impl World {
         self.contacts.iter().map(|c| c.load.force_n.max(0.0)).sum()
     }
 
+    /// The total normal force of the contacts on the palm's sensors now, N: a grip the
+    /// fingers do not set (an object placed on the palm presses it however they grip).
+    pub fn palm_grip_n(&self) -> f64 {
+        self.contacts
+            .iter()
+            .zip(&self.mounts)
+            .filter(|(_, m)| matches!(m, Mount::Palm(_)))
+            .map(|(c, _)| c.load.force_n.max(0.0))
+            .sum()
+    }
+
     /// Replace the held object's tangential load (`[object.load]`; its `start_s` counts
     /// from the scene's start). Nothing without an object.
     pub fn set_object_load(&mut self, load: Option<LoadSpec>) {

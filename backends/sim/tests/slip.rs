@@ -79,3 +79,26 @@ fn a_growing_pull_makes_the_ball_slide_after_its_contacts_slip() {
     assert!(slid, "the ball slid with every contact sliding");
     assert!(sheared, "the loaded pads' gel moved");
 }
+
+/// The screwdriver rests on the palm and the fingers close on it: the palm's part of the
+/// grip is the palm sensor's contact force alone, a part of the whole; with the fingers
+/// open it is all of it.
+#[test]
+fn the_palm_s_part_of_the_grip_is_its_contact_s_force() {
+    let layout = layout();
+    let text = include_str!("../../../configs/scenes/screwdriver.toml");
+    let scene = SceneSpec::from_toml("screwdriver.toml", text, &layout).expect("scene");
+    let mut world = World::new(&layout, Some(scene));
+    world.advance_to(0);
+    world.close_fingers(300.0);
+    world.advance_to(2_000_000);
+    let palm: f64 = (0..world.sensors())
+        .filter(|&s| layout.sensors[s].id.to_string() == "palm")
+        .filter_map(|s| world.contact(s))
+        .map(|c| c.load.force_n.max(0.0))
+        .sum();
+    let (grip, palm_part) = (world.grip_n(), world.palm_grip_n());
+    assert!(palm > 0.0, "the screwdriver presses the palm");
+    assert_eq!(palm_part, palm);
+    assert!(palm_part < grip, "{palm_part} of {grip}");
+}

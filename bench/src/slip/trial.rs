@@ -104,6 +104,9 @@ pub struct SlipRow {
     pub dropped: bool,
     /// The true total normal force of the contacts at the end, N.
     pub final_grip_n: f64,
+    /// The part of `final_grip_n` on the palm's sensor, N: what the placement presses,
+    /// which the fingers' grip does not set.
+    pub final_palm_n: f64,
     /// The least total normal force that would have held the final load: the pull at the
     /// last set, over μ, N.
     pub least_grip_n: f64,
@@ -161,6 +164,7 @@ impl TrialStart {
                 || w.grip_n() <= 0.0
                 || truth.motion_mm >= super::reflex::DROP_MM,
             final_grip_n: w.grip_n(),
+            final_palm_n: w.palm_grip_n(),
             least_grip_n: pull_n / self.friction,
         }
     }
