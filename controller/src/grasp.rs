@@ -43,6 +43,7 @@ mod finger;
 pub mod limits;
 pub mod reflex;
 pub mod settings;
+pub mod stiffness;
 pub mod target_force;
 use finger::{FingerCtl, FingerInput, StepContext, Transition};
 pub use limits::{GraspLimits, MAX_TIMEOUT_S};

@@ -3,6 +3,7 @@
 //! with the [`Transition`] that says what the change resets).
 
 use super::reflex::{self, GIVE_UP_S};
+use super::stiffness::StiffnessTrack;
 use super::{FingerStatus, Phase, RateScaling, SlipReference, Tuning, finite_or, median3};
 use crate::actuator::ServoState;
 use crate::fusion::{FusedContact, SensorSlip, SlipState};
@@ -138,6 +139,9 @@ pub(super) struct FingerCtl {
     least: reflex::LeastTrack,
     /// The force at which the last slide stopped (a floor of the reflex's aim).
     slide_stop: reflex::SlideStop,
+    /// The contact's stiffness, from the finger's motion since the touch (the force
+    /// loop's step).
+    stiffness: StiffnessTrack,
     /// Since when the grasp has slid with the target at its most, s.
     gross_since_s: Option<f64>,
     /// Since when the squeeze has felt no slip (known `none`), s.
@@ -191,6 +195,7 @@ impl FingerCtl {
             reflex_at_s: None,
             least: reflex::LeastTrack::default(),
             slide_stop: reflex::SlideStop::default(),
+            stiffness: StiffnessTrack::default(),
             gross_since_s: None,
             quiet_since_s: None,
             quiet_seen: false,
@@ -224,6 +229,7 @@ impl FingerCtl {
                 self.current_ma = cap_ma.min(self.current_ma);
                 self.quiet_since_s = None;
                 self.quiet_seen = false;
+                self.stiffness = StiffnessTrack::default();
             }
             Transition::LostTouch => {
                 self.phase = Phase::Approach;
@@ -319,6 +325,9 @@ impl FingerCtl {
             return;
         }
         self.filter_force(fused.force_n, &k.rate);
+        if matches!(self.phase, Phase::Contact | Phase::Squeeze | Phase::Hold) {
+            self.stiffness.observe(now.present_deg, fused.force_n);
+        }
         match self.phase {
             Phase::Approach | Phase::Contact => self.approach(k, now, &fused),
             Phase::Squeeze if !fused.contact && self.peak_n < 0.05 * self.target_n => {
@@ -521,7 +530,8 @@ impl FingerCtl {
         // The goal creeps by the force error: in current-based position mode the servo
         // holds a goal it has reached, so the force stops at the target instead of running
         // on to the current cap.
-        let lead = (t.squeeze_deg_per_n * e_ctl).clamp(-t.squeeze_lead_deg, t.squeeze_lead_deg);
+        let deg_per_n = self.stiffness.deg_per_n(t.squeeze_deg_per_n);
+        let lead = (deg_per_n * e_ctl).clamp(-t.squeeze_lead_deg, t.squeeze_lead_deg);
         self.goal_deg = (now.present_deg + lead).min(now.close_deg.max(now.present_deg));
     }
 

@@ -45,15 +45,20 @@ impl ToyFinger {
     }
 
     pub(crate) fn fused(&self) -> FusedContact {
-        FusedContact {
-            contact: self.force_n > 0.01,
-            area_mm2: self.force_n * 20.0,
-            max_depth_mm: self.force_n * 0.1,
-            force_n: self.force_n,
-            centroid: (self.force_n > 0.01).then_some((0, 0.0, 0.0)),
-            stale: false,
-            slip: None,
-        }
+        toy_contact(self.force_n)
+    }
+}
+
+/// The fused contact of a toy finger pressing with `force_n`.
+pub(crate) fn toy_contact(force_n: f64) -> FusedContact {
+    FusedContact {
+        contact: force_n > 0.01,
+        area_mm2: force_n * 20.0,
+        max_depth_mm: force_n * 0.1,
+        force_n,
+        centroid: (force_n > 0.01).then_some((0, 0.0, 0.0)),
+        stale: false,
+        slip: None,
     }
 }
 
@@ -397,3 +402,4 @@ fn first_contact_presses_on_with_half_the_approach_margin() {
 }
 
 mod reflex;
+mod stiff;
