@@ -81,8 +81,7 @@ fn a_growing_pull_makes_the_ball_slide_after_its_contacts_slip() {
 }
 
 /// The screwdriver rests on the palm and the fingers close on it: the palm's part of the
-/// grip is the palm sensor's contact force alone, a part of the whole; with the fingers
-/// open it is all of it.
+/// grip is the palm sensor's contact force alone, a part of the whole.
 #[test]
 fn the_palm_s_part_of_the_grip_is_its_contact_s_force() {
     let layout = layout();
