@@ -109,7 +109,9 @@ pub fn run(rig: &dyn Rig, args: BenchLabelArgs) -> anyhow::Result<u8> {
         let (images, truths) = press_ball(&cam, ball_mm, args.presses, &mut rng, &bar)?;
         let refs: Vec<&RgbImage> = images.iter().collect();
         let ball_px = ball_mm / 2.0 / cam.mm_per_px;
-        let labeller = Labeller::new(&background, ball_px).with_dataset_noise(&refs);
+        let labeller = Labeller::new(&background, ball_px)
+            .with_dataset_noise(&refs)
+            .with_dataset_rims(&refs);
         let pressed: Vec<Pressed> = images
             .iter()
             .zip(truths)

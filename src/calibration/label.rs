@@ -112,7 +112,26 @@ pub fn label(request: &LabelRequest) -> crate::Result<LabelReport> {
         })
         .collect();
     let readable: Vec<&RgbImage> = images.iter().filter_map(|(_, i)| i.as_ref().ok()).collect();
-    let labeller = Labeller::new(&background, ball_radius_px).with_dataset_noise(&readable);
+    let labeller = Labeller::new(&background, ball_radius_px)
+        .with_dataset_noise(&readable)
+        .with_dataset_rims(&readable);
+    match labeller.rims() {
+        (true, Some(s)) => tracing::info!(
+            "rims read at the colour's turns: over {} presses they grow with the imprints \
+             (log-log slope {:.2}); a gel whose imprint is wider than its contact",
+            s.presses,
+            s.slope
+        ),
+        (_, Some(s)) => tracing::info!(
+            "rims read where the imprint fades: over {} presses the colour's turns stay put \
+             (log-log slope {:.2} on the imprints'; an LED response, not the contact's rim)",
+            s.presses,
+            s.slope
+        ),
+        (_, None) => {
+            tracing::info!("rims read where the imprint fades (a step, or too few presses to tell)")
+        }
+    }
     let (mut presses, mut rejected) = (Vec::new(), Vec::new());
     for (name, img) in &images {
         let outcome = match img {

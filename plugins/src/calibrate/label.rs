@@ -23,7 +23,10 @@
 //!    by the detector's own box across a circular rim). Where the contact's rim is a step
 //!    (its median ray's jump at least a quarter of the ray's peak: the simulator's gel,
 //!    whose slope jumps to flat at the rim), the fitted steps are the rim; where it is not
-//!    (a real gel's slope runs on past the contact), the falls are;
+//!    (a real gel's slope runs on past the contact), the falls are, or, where the
+//!    dataset's presses show a gel whose surface sinks around the contact (the colour's
+//!    path turns back at the contact's edge, and those turns grow with the imprints from
+//!    press to press, [`Labeller::with_dataset_rims`]), the turns;
 //! 4. a least-squares circle through those rim points (outliers dropped, then refitted),
 //!    and the rays cast again from its centre, [`ITERATIONS`] times. A circle as wide as the
 //!    ball is refused: no press of that ball can make it.
@@ -206,6 +209,11 @@ pub struct Labeller<'a> {
     camera_noise: Option<f64>,
     /// A marker gel's dots, filled in every press before it is read.
     ink: Option<InkFill>,
+    /// Whether the contact's rim, where it is not a step, is where the colour's path turns
+    /// (a gel whose imprint is wider than its contact) rather than where the imprint fades.
+    turn_rims: bool,
+    /// How the colour's turns moved with the imprints over the dataset.
+    rim_slope: Option<RimSlope>,
 }
 
 impl<'a> Labeller<'a> {
@@ -230,6 +238,8 @@ impl<'a> Labeller<'a> {
             ball_radius_px,
             camera_noise: None,
             ink,
+            turn_rims: false,
+            rim_slope: None,
         }
     }
 
@@ -259,6 +269,27 @@ impl<'a> Labeller<'a> {
         self
     }
 
+    /// Read the rims of presses whose rim is not a step where the dataset says they are
+    /// ([`rim_slope`] of `presses`' two readings): at the colour's turns when those move
+    /// with the imprint from press to press, else where the imprint fades (as before this
+    /// is called).
+    pub fn with_dataset_rims(mut self, presses: &[&RgbImage]) -> Self {
+        let pairs: Vec<(f64, f64)> = presses
+            .iter()
+            .filter_map(|p| detect::rim_radii(&self, &self.read(p)))
+            .collect();
+        self.rim_slope = rim_slope(&pairs, self.ball_radius_px);
+        self.turn_rims = self.rim_slope.is_some_and(|s| s.turns_are_rims());
+        self
+    }
+
+    /// Whether rims that are not a step are read at the colour's turns
+    /// ([`Self::with_dataset_rims`]), and the slope that decided it (`None`: not measured,
+    /// or too few presses to tell).
+    pub fn rims(&self) -> (bool, Option<RimSlope>) {
+        (self.turn_rims, self.rim_slope)
+    }
+
     /// The dataset's camera noise, grey levels per channel (`None`: each press's own).
     pub fn camera_noise(&self) -> Option<f64> {
         self.camera_noise
@@ -273,6 +304,78 @@ impl<'a> Labeller<'a> {
     pub fn detect(&self, press: &RgbImage) -> Result<ContactCircle, Rejection> {
         detect::contact(self, &self.read(press))
     }
+}
+
+/// The least presses whose two rim readings decide where a dataset's rims are.
+pub const MIN_RIM_PAIRS: usize = 5;
+/// The imprints' radii must spread by at least this share of the ball's radius (their
+/// standard deviation) for the turns' following them to be measured.
+pub const MIN_IMPRINT_SPREAD: f64 = 0.05;
+/// The turns are the rims when the log-log slope of their radii on the imprints' (the
+/// median of the slopes between every two presses, so that a few misread presses do not
+/// sway it) is at least this: 1 where they grow in proportion (a contact inside a wider
+/// imprint), 0 where they stay put (an LED response turning over at one slope: a ball's
+/// slope is a function of the distance from its centre alone, so that turn is at one
+/// radius in every press).
+pub const TURN_FOLLOWS_SLOPE: f64 = 0.5;
+
+/// How a dataset's colour turns move with its imprints: the median log-log slope of the
+/// turns' radii on the imprints' over `presses` presses.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RimSlope {
+    /// Presses measured.
+    pub presses: usize,
+    /// The slope (1: in proportion; 0: the turns stay put).
+    pub slope: f64,
+}
+
+impl RimSlope {
+    /// Whether the turns are the contact's rims (the slope at least [`TURN_FOLLOWS_SLOPE`]).
+    pub fn turns_are_rims(&self) -> bool {
+        self.slope >= TURN_FOLLOWS_SLOPE
+    }
+}
+
+/// How the colour's turns move with the imprints, from a dataset's presses' `(imprint,
+/// turn)` radii (px; `detect::rim_radii`), over the presses whose turn lies inside the
+/// imprint (no contact is wider than what it leaves); `None` when that cannot be told:
+/// fewer than [`MIN_RIM_PAIRS`] such presses, or imprints that spread by less than
+/// [`MIN_IMPRINT_SPREAD`] of the ball's radius `ball_px`.
+pub fn rim_slope(pairs: &[(f64, f64)], ball_px: f64) -> Option<RimSlope> {
+    let inside: Vec<(f64, f64)> = pairs
+        .iter()
+        .copied()
+        .filter(|(imprint, turn)| *turn > 0.0 && turn < imprint && imprint.is_finite())
+        .collect();
+    if inside.len() < MIN_RIM_PAIRS {
+        return None;
+    }
+    let n = inside.len() as f64;
+    let mean = inside.iter().map(|p| p.0).sum::<f64>() / n;
+    let spread = (inside.iter().map(|p| (p.0 - mean).powi(2)).sum::<f64>() / n).sqrt();
+    if spread
+        .partial_cmp(&(MIN_IMPRINT_SPREAD * ball_px))
+        .is_none_or(std::cmp::Ordering::is_lt)
+    {
+        return None;
+    }
+    let logs: Vec<(f64, f64)> = inside.iter().map(|(a, b)| (a.ln(), b.ln())).collect();
+    let mut slopes: Vec<f64> = logs
+        .iter()
+        .enumerate()
+        .flat_map(|(i, a)| logs[i + 1..].iter().map(move |b| (a, b)))
+        .filter(|(a, b)| (b.0 - a.0).abs() > 1e-9)
+        .map(|(a, b)| (b.1 - a.1) / (b.0 - a.0))
+        .collect();
+    if slopes.is_empty() {
+        return None;
+    }
+    slopes.sort_by(f64::total_cmp);
+    let median = slopes[slopes.len() / 2];
+    Some(RimSlope {
+        presses: inside.len(),
+        slope: median,
+    })
 }
 
 fn same_size(a: &RgbImage, b: &RgbImage) -> bool {

@@ -3,18 +3,37 @@
 
 use crate::image::RgbImage;
 
-use super::field::{Blob, DiffField};
+use super::field::{Blob, DiffField, RimPoints};
 use super::fit;
 use super::{
     BLUR_PX, ContactCircle, ITERATIONS, Labeller, MIN_RADIUS_SHARE, MIN_RAY_SHARE, RAYS, Rejection,
     SATURATED_SHARE, SECOND_BLOB_SHARE, SHALLOW_SNR, same_size,
 };
 
-/// Find the contact circle of `press` with `labeller`'s background, ball and noise.
-pub(super) fn contact(
-    labeller: &Labeller<'_>,
-    press: &RgbImage,
-) -> Result<ContactCircle, Rejection> {
+/// A press's contact located: its field, the threshold and noise unit it was read at, and
+/// its blob.
+struct Located {
+    field: DiffField,
+    threshold: f64,
+    noise_unit: f64,
+    main: Blob,
+}
+
+impl Located {
+    /// Rim points read around `centre` (the imprint's, or the turns', see
+    /// [`DiffField::turn_points`]).
+    fn points(&self, centre: (f64, f64), ball_px: f64, turns: bool) -> RimPoints {
+        let (f, t, u) = (&self.field, self.threshold, self.noise_unit);
+        if turns {
+            f.turn_points(centre, ball_px, RAYS, t, u)
+        } else {
+            f.rim_points(centre, ball_px, RAYS, t, u)
+        }
+    }
+}
+
+/// The field of `press` and its one contact, checked for size, saturation and depth.
+fn locate(labeller: &Labeller<'_>, press: &RgbImage) -> Result<Located, Rejection> {
     let background: &RgbImage = &labeller.background;
     if !same_size(press, background) {
         return Err(Rejection::WrongSize {
@@ -56,7 +75,24 @@ pub(super) fn contact(
             ),
         });
     }
-    let circle = match rim_circle(&field, main.centroid, threshold, unit, ball_px) {
+    Ok(Located {
+        field,
+        threshold,
+        noise_unit: unit,
+        main,
+    })
+}
+
+/// Find the contact circle of `press` with `labeller`'s background, ball, noise and rims.
+pub(super) fn contact(
+    labeller: &Labeller<'_>,
+    press: &RgbImage,
+) -> Result<ContactCircle, Rejection> {
+    let ball_px = labeller.ball_radius_px;
+    let located = locate(labeller, press)?;
+    let main = &located.main;
+    let rim = |centre| located.points(centre, ball_px, false);
+    let (circle, stepped) = match rim_circle(rim, main.centroid) {
         // Rays that run off the image find no rim there.
         Err(Rejection::NotRound { rays_found, .. }) if main.touches_border => {
             return Err(Rejection::CutByBorder {
@@ -67,6 +103,15 @@ pub(super) fn contact(
             });
         }
         found => found?,
+    };
+    // On a gel whose rims are its colour's turns, the contact inside the imprint; the
+    // imprint's circle where no round one is found there (refused if as wide as the ball).
+    let circle = if labeller.turn_rims && !stepped {
+        let centre = (circle.center_x_px, circle.center_y_px);
+        let turns = |c| located.points(c, ball_px, true);
+        rim_circle(turns, centre).map_or(circle, |(inner, _)| inner)
+    } else {
+        circle
     };
     check_circle(&circle, ball_px, press)?;
     // The blob is the blurred signal: it reaches the border when the contact does, or
@@ -83,6 +128,23 @@ pub(super) fn contact(
         });
     }
     Ok(circle)
+}
+
+/// A press's two rim readings where its rim is not a step: the radius of the imprint's
+/// circle (each ray's fall) and of the circle through the colour's turns, px; `None` for a
+/// press that is refused, whose rim is a step, or where either circle is not found.
+pub(super) fn rim_radii(labeller: &Labeller<'_>, press: &RgbImage) -> Option<(f64, f64)> {
+    let ball_px = labeller.ball_radius_px;
+    let located = locate(labeller, press).ok()?;
+    let rim = |centre| located.points(centre, ball_px, false);
+    let (imprint, stepped) = rim_circle(rim, located.main.centroid).ok()?;
+    if stepped {
+        return None;
+    }
+    let centre = (imprint.center_x_px, imprint.center_y_px);
+    let turns = |c| located.points(c, ball_px, true);
+    let (turn, _) = rim_circle(turns, centre).ok()?;
+    Some((imprint.contact_radius_px, turn.contact_radius_px))
 }
 
 /// The blobs above `threshold` as one contact: those within the ball's diameter of the
@@ -123,19 +185,21 @@ fn one_contact(
     Ok(main)
 }
 
-/// The circle through the rim, rays recast from each fit's centre.
+/// The circle through the rim points that `points` reads around a centre, rays recast
+/// from each fit's centre (the first from `centroid`), and whether the last reading's rim
+/// was a step.
 fn rim_circle(
-    field: &DiffField,
+    points: impl Fn((f64, f64)) -> RimPoints,
     centroid: (f64, f64),
-    threshold: f64,
-    noise_unit: f64,
-    ball_px: f64,
-) -> Result<ContactCircle, Rejection> {
+) -> Result<(ContactCircle, bool), Rejection> {
     let (mut cx, mut cy) = centroid;
     let mut r = f64::NAN;
     let mut found = (0, f64::NAN);
+    let mut stepped = false;
     for _ in 0..ITERATIONS {
-        let rim = field.rim_points((cx, cy), ball_px, RAYS, threshold, noise_unit);
+        let reading = points((cx, cy));
+        stepped = reading.stepped;
+        let rim = reading.points;
         let Some(circle) = fit::robust_circle(&rim) else {
             return Err(Rejection::NotRound {
                 rays_found: rim.len(),
@@ -155,7 +219,7 @@ fn rim_circle(
         });
     }
     let score = rays_found as f64 / RAYS as f64 * (-rms_px / (0.05 * r)).exp();
-    Ok(ContactCircle {
+    let circle = ContactCircle {
         center_x_px: cx,
         center_y_px: cy,
         contact_radius_px: r,
@@ -164,7 +228,8 @@ fn rim_circle(
         } else {
             0.0
         },
-    })
+    };
+    Ok((circle, stepped))
 }
 
 /// The circle's size against the ball's and its place against the image's border.

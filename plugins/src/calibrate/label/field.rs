@@ -290,7 +290,7 @@ impl DiffField {
         rays: usize,
         threshold: f64,
         noise_unit: f64,
-    ) -> Vec<(f64, f64)> {
+    ) -> RimPoints {
         let steps = (ball_px * RAY_REACH / RAY_STEP_PX).ceil() as usize;
         let blur = edge::BoxBlur::new(self.blur_px);
         let readings: Vec<((f64, f64), RimReading)> = (0..rays)
@@ -306,7 +306,7 @@ impl DiffField {
             .map(|(_, r)| r.step.map_or(0.0, |st| (st.jump / r.peak) as f32))
             .collect();
         let stepped = !shares.is_empty() && median(std::mem::take(&mut shares)) >= STEP_SHARE;
-        readings
+        let points = readings
             .into_iter()
             .map(|((c, s), r)| {
                 let rho = match r.step {
@@ -315,7 +315,42 @@ impl DiffField {
                 };
                 (cx + rho * c, cy + rho * s)
             })
-            .collect()
+            .collect();
+        RimPoints { points, stepped }
+    }
+
+    /// The contact's rim read where the colour's path turns: on `rays` rays from `centre`
+    /// out to the ball's radius `ball_px`, each whose signal rises above `threshold`, the
+    /// sharpest turn of the lit colour's path ([`colour_turn`]). Where the gel's surface
+    /// follows the ball inside the contact and sinks back to level outside it (a gel with
+    /// a skirt, whose visible imprint is wider than the contact), its slope is steepest at
+    /// the contact's rim: the colour moves one way with the slope on the way there and
+    /// turns back after it. An LED response that brightens with the slope and darkens
+    /// again past some slope turns the path too, at one distance from the centre whatever
+    /// the press; which of the two a dataset's turns are, the dataset says
+    /// (`Labeller::with_dataset_rims`).
+    pub fn turn_points(
+        &self,
+        (cx, cy): (f64, f64),
+        ball_px: f64,
+        rays: usize,
+        threshold: f64,
+        noise_unit: f64,
+    ) -> RimPoints {
+        let steps = (ball_px / RAY_STEP_PX).floor() as usize;
+        let reach = ((TURN_REACH * ball_px / RAY_STEP_PX).round() as usize).max(1);
+        let points = (0..rays)
+            .filter_map(|k| {
+                let (s, c) = (std::f64::consts::TAU * k as f64 / rays as f64).sin_cos();
+                let ray = self.cast((cx, cy), (c, s), steps, threshold)?;
+                let rho = colour_turn(&ray.colours, reach, STEP_SNR * noise_unit)?;
+                Some((cx + rho * c, cy + rho * s))
+            })
+            .collect();
+        RimPoints {
+            points,
+            stepped: false,
+        }
     }
 
     /// The ray from `centre` in direction `dir`, every [`RAY_STEP_PX`] for `steps` steps
@@ -429,6 +464,16 @@ const STEP_SNR: f64 = 8.0;
 /// share there has 0.29). A quarter lies between, with room either side.
 const STEP_SHARE: f64 = 0.25;
 
+/// A contact's rim points, one per ray that found it, and whether the rim is a step (the
+/// fitted steps are the points) or not.
+#[derive(Debug, Clone)]
+pub struct RimPoints {
+    /// The points, px.
+    pub points: Vec<(f64, f64)>,
+    /// Whether the contact's rim is a step.
+    pub stepped: bool,
+}
+
 /// One ray's samples.
 #[derive(Debug, Clone)]
 struct Ray {
@@ -474,7 +519,14 @@ fn colour_step(colours: &[[f64; 3]], from: usize, to: usize) -> Option<(f64, f64
             ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
         })
         .collect();
-    let (top_j, top) = change
+    let (at, top) = peak_centroid(&change)?;
+    Some(((at + from as f64) * RAY_STEP_PX, top))
+}
+
+/// The largest of `values` (above 0) and the centroid of the run of values around it that
+/// stay above half of it, in `values`' indices; `None` when none is above 0.
+fn peak_centroid(values: &[f64]) -> Option<(f64, f64)> {
+    let (top_j, top) = values
         .iter()
         .copied()
         .enumerate()
@@ -488,15 +540,54 @@ fn colour_step(colours: &[[f64; 3]], from: usize, to: usize) -> Option<(f64, f64
     let half = 0.5 * top;
     let first = (0..=top_j)
         .rev()
-        .take_while(|&j| change[j] >= half)
+        .take_while(|&j| values[j] >= half)
         .last()?;
-    let last = (top_j..change.len())
-        .take_while(|&j| change[j] >= half)
+    let last = (top_j..values.len())
+        .take_while(|&j| values[j] >= half)
         .last()?;
     let (sum, weighted) = (first..=last).fold((0.0, 0.0), |(s, w), j| {
-        (s + change[j], w + change[j] * (j + from) as f64)
+        (s + values[j], w + values[j] * j as f64)
     });
-    Some((weighted / sum * RAY_STEP_PX, top))
+    Some((weighted / sum, top))
+}
+
+/// How far either side of a point a colour path's turn is measured, in units of the
+/// ball's radius.
+const TURN_REACH: f64 = 0.1;
+
+/// Where the colour path `colours` (sampled every [`RAY_STEP_PX`]) turns most sharply: at
+/// each sample, the colour's moves over `reach` samples before it (u) and after it (v),
+/// scored |u||v| − u·v (0 on a straight path, 2|u||v| where it runs back the way it came,
+/// so a turn counts as much as the moves either side of it are large); the centroid of
+/// the score where it is above half its largest, px from the path's start. `None` when
+/// no turn's moves reach `least_move` (grey levels) each, or its score `least_move`²
+/// (a straight path's is nothing but rounding).
+pub(super) fn colour_turn(colours: &[[f64; 3]], reach: usize, least_move: f64) -> Option<f64> {
+    if colours.len() <= 2 * reach {
+        return None;
+    }
+    let moved = |a: [f64; 3], b: [f64; 3]| [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+    let norm = |u: [f64; 3]| (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]).sqrt();
+    let scores: Vec<f64> = (reach..colours.len() - reach)
+        .map(|i| {
+            let u = moved(colours[i - reach], colours[i]);
+            let v = moved(colours[i], colours[i + reach]);
+            let (nu, nv) = (norm(u), norm(v));
+            if nu < least_move || nv < least_move {
+                return 0.0;
+            }
+            nu * nv - (u[0] * v[0] + u[1] * v[1] + u[2] * v[2])
+        })
+        .collect();
+    let (at, top) = peak_centroid(&scores)?;
+    // Not a turn when under the least score, or when the least move is not a number.
+    if top
+        .partial_cmp(&(least_move * least_move))
+        .is_none_or(std::cmp::Ordering::is_lt)
+    {
+        return None;
+    }
+    Some((at + reach as f64) * RAY_STEP_PX)
 }
 
 /// Per pixel, what the difference of channel `c` is multiplied by to read as at a pixel of

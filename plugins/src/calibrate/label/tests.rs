@@ -163,7 +163,15 @@ fn real_mini_presses_are_labelled_near_the_authors_labels() {
         .map(|l| RgbImage::read_png(&dir.join(&l.file)).expect("press"))
         .collect();
     let refs: Vec<&RgbImage> = images.iter().collect();
-    let labeller = Labeller::new(&bg, MINI_BALL_RADIUS_PX).with_dataset_noise(&refs);
+    let labeller = Labeller::new(&bg, MINI_BALL_RADIUS_PX)
+        .with_dataset_noise(&refs)
+        .with_dataset_rims(&refs);
+    // The Mini's colour turns at one distance from the centre whatever the press (its LEDs'
+    // response turning over, not the contact's rim): its rims are read where the imprint
+    // fades (measured: log-log slope 0.01 over 22 presses).
+    let (turns, slope) = labeller.rims();
+    eprintln!("rims: turns {turns}, {slope:?}");
+    assert!(!turns && slope.is_some_and(|s| s.presses >= 20 && s.slope.abs() < 0.2));
     let found: Vec<Result<ContactCircle, Rejection>> =
         images.iter().map(|img| labeller.detect(img)).collect();
     eprintln!(
@@ -394,4 +402,68 @@ fn bad_presses_are_rejected_with_their_reason() {
             "{r}"
         );
     }
+}
+
+/// A dataset's turns are its rims when they grow with the imprints (in proportion: slope 1,
+/// a few misread presses notwithstanding), not when they stay put (slope 0, as the Mini's
+/// LED response); too few presses, imprints all of one size, or readings that are not
+/// finite tell nothing, and never a NaN.
+#[test]
+fn the_turns_are_the_rims_only_where_they_grow_with_the_imprint() {
+    let ball = 60.0;
+    let imprints: Vec<f64> = (0..12).map(|k| 20.0 + 3.0 * k as f64).collect();
+    let mut skirt: Vec<(f64, f64)> = imprints.iter().map(|a| (*a, 0.55 * a)).collect();
+    // Two misread presses: a turn outside its imprint (dropped) and one far inside.
+    skirt[3].1 = 1.3 * skirt[3].0;
+    skirt[7].1 = 8.0;
+    let s = field_rim_slope(&skirt, ball);
+    assert!(s.turns_are_rims() && (s.slope - 1.0).abs() < 0.1, "{s:?}");
+    let response: Vec<(f64, f64)> = imprints
+        .iter()
+        .enumerate()
+        .map(|(k, a)| (*a, 11.0 + 0.3 * ((k * 7) % 5) as f64))
+        .collect();
+    let s = field_rim_slope(&response, ball);
+    assert!(!s.turns_are_rims() && s.slope.abs() < 0.1, "{s:?}");
+    // Too few presses; imprints of one size; nothing finite.
+    assert_eq!(rim_slope(&skirt[..4], ball), None);
+    let same: Vec<(f64, f64)> = (0..12).map(|k| (30.0, 10.0 + k as f64)).collect();
+    assert_eq!(rim_slope(&same, ball), None);
+    let bad = [
+        (f64::NAN, 3.0),
+        (f64::INFINITY, 2.0),
+        (0.0, 0.0),
+        (-5.0, -2.0),
+        (4.0, f64::NAN),
+    ];
+    assert_eq!(rim_slope(&bad.repeat(4), ball), None);
+}
+
+fn field_rim_slope(pairs: &[(f64, f64)], ball_px: f64) -> RimSlope {
+    let s = rim_slope(pairs, ball_px).expect("a slope");
+    assert!(s.slope.is_finite());
+    s
+}
+
+/// A colour path that runs out one way and comes back turns where it comes back (the
+/// centroid of the turn's score, to a sample); a straight path, or moves within the
+/// noise, have no turn; a path shorter than the reach has none either.
+#[test]
+fn a_colour_path_turns_where_it_runs_back() {
+    // Every half pixel: out along red for 10 px, then back along red and green.
+    let path: Vec<[f64; 3]> = (0..60usize)
+        .map(|i| {
+            let out = (i.min(20)) as f64 * 3.0;
+            let back = i.saturating_sub(20) as f64 * 2.0;
+            [out - back, 0.5 * back, 0.0]
+        })
+        .collect();
+    let at = field::colour_turn(&path, 4, 5.0).expect("a turn");
+    assert!((at - 10.0).abs() <= 0.5, "{at}");
+    let straight: Vec<[f64; 3]> = (0..60).map(|i| [i as f64, 2.0 * i as f64, 0.0]).collect();
+    assert_eq!(field::colour_turn(&straight, 4, 5.0), None);
+    assert_eq!(field::colour_turn(&path, 4, 1e6), None);
+    assert_eq!(field::colour_turn(&path[..8], 4, 5.0), None);
+    let nan: Vec<[f64; 3]> = path.iter().map(|_| [f64::NAN; 3]).collect();
+    assert_eq!(field::colour_turn(&nan, 4, 5.0), None);
 }
