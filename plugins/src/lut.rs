@@ -508,5 +508,6 @@ mod tests {
         std::fs::write(&path, b"not a model").expect("write");
         let err = LutModel::load(&path).expect_err("garbage");
         assert!(err.to_string().contains("m.safetensors"), "{err}");
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }

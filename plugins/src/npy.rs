@@ -160,5 +160,6 @@ mod tests {
         assert!(err.to_string().contains("H x W x 2"), "{err}");
         std::fs::write(&path, b"\x93NUMPY garbage").expect("write");
         assert!(read(&path).is_err());
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }

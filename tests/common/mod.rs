@@ -158,6 +158,10 @@ impl Drop for ServoEmulator {
             let _ = self.child.kill();
             let _ = self.child.wait();
         }
+        // The link's scratch directory (one per emulator and test process).
+        if let Some(dir) = self.link.parent() {
+            let _ = std::fs::remove_dir_all(dir);
+        }
     }
 }
 

@@ -9,10 +9,32 @@ use gelgrip_record::reader::{Recording, Summary, read_records};
 use gelgrip_record::writer::{FsyncPolicy, HeaderInfo, Recorder, RecorderOptions, segment_name};
 use proptest::prelude::*;
 
-fn dir(name: &str) -> PathBuf {
+/// A test's scratch directory, removed when the test is done with it.
+struct Scratch(PathBuf);
+
+impl std::ops::Deref for Scratch {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl AsRef<Path> for Scratch {
+    fn as_ref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+fn dir(name: &str) -> Scratch {
     let d = std::env::temp_dir().join(format!("gelgrip-rec-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
-    d
+    Scratch(d)
 }
 
 fn header() -> HeaderInfo {
