@@ -63,12 +63,14 @@ pub fn gelgrip(args: &[&str]) -> Output {
         .expect("the gelgrip binary runs")
 }
 
-/// Stdout of a successful run; fails the test with the exit code and stderr otherwise.
+/// Stdout of a successful run; fails the test with the exit code, stdout (a report, say
+/// which check failed) and stderr otherwise.
 pub fn ok(out: &Output) -> String {
     assert!(
         out.status.success(),
-        "exit {:?}\nstderr: {}",
+        "exit {:?}\nstdout: {}\nstderr: {}",
         out.status.code(),
+        String::from_utf8_lossy(&out.stdout),
         String::from_utf8_lossy(&out.stderr)
     );
     String::from_utf8_lossy(&out.stdout).into_owned()
