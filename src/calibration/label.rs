@@ -115,20 +115,20 @@ pub fn label(request: &LabelRequest) -> crate::Result<LabelReport> {
     let labeller = Labeller::new(&background, ball_radius_px)
         .with_dataset_noise(&readable)
         .with_dataset_rims(&readable);
-    match labeller.rims() {
-        (true, Some(s)) => tracing::info!(
+    match labeller.rim_slope() {
+        Some(s) if s.turns_are_rims() => tracing::info!(
             "rims read at the colour's turns: over {} presses they grow with the imprints \
              (log-log slope {:.2}); a gel whose imprint is wider than its contact",
             s.presses,
             s.slope
         ),
-        (_, Some(s)) => tracing::info!(
+        Some(s) => tracing::info!(
             "rims read where the imprint fades: over {} presses the colour's turns stay put \
              (log-log slope {:.2} on the imprints'; an LED response, not the contact's rim)",
             s.presses,
             s.slope
         ),
-        (_, None) => {
+        None => {
             tracing::info!("rims read where the imprint fades (a step, or too few presses to tell)")
         }
     }

@@ -209,10 +209,8 @@ pub struct Labeller<'a> {
     camera_noise: Option<f64>,
     /// A marker gel's dots, filled in every press before it is read.
     ink: Option<InkFill>,
-    /// Whether the contact's rim, where it is not a step, is where the colour's path turns
-    /// (a gel whose imprint is wider than its contact) rather than where the imprint fades.
-    turn_rims: bool,
-    /// How the colour's turns moved with the imprints over the dataset.
+    /// How the colour's turns moved with the imprints over the dataset: where they grow
+    /// with them ([`RimSlope::turns_are_rims`]), rims that are not a step are read there.
     rim_slope: Option<RimSlope>,
 }
 
@@ -238,7 +236,6 @@ impl<'a> Labeller<'a> {
             ball_radius_px,
             camera_noise: None,
             ink,
-            turn_rims: false,
             rim_slope: None,
         }
     }
@@ -279,15 +276,18 @@ impl<'a> Labeller<'a> {
             .filter_map(|p| detect::rim_radii(&self, &self.read(p)))
             .collect();
         self.rim_slope = rim_slope(&pairs, self.ball_radius_px);
-        self.turn_rims = self.rim_slope.is_some_and(|s| s.turns_are_rims());
         self
     }
 
-    /// Whether rims that are not a step are read at the colour's turns
-    /// ([`Self::with_dataset_rims`]), and the slope that decided it (`None`: not measured,
-    /// or too few presses to tell).
-    pub fn rims(&self) -> (bool, Option<RimSlope>) {
-        (self.turn_rims, self.rim_slope)
+    /// How the dataset's colour turns moved with its imprints ([`Self::with_dataset_rims`];
+    /// `None`: not measured, or too few presses to tell).
+    pub fn rim_slope(&self) -> Option<RimSlope> {
+        self.rim_slope
+    }
+
+    /// Whether rims that are not a step are read at the colour's turns.
+    fn turn_rims(&self) -> bool {
+        self.rim_slope.is_some_and(|s| s.turns_are_rims())
     }
 
     /// The dataset's camera noise, grey levels per channel (`None`: each press's own).

@@ -106,7 +106,7 @@ pub(super) fn contact(
     };
     // On a gel whose rims are its colour's turns, the contact inside the imprint; the
     // imprint's circle where no round one is found there (refused if as wide as the ball).
-    let circle = if labeller.turn_rims && !stepped {
+    let circle = if labeller.turn_rims() && !stepped {
         let centre = (circle.center_x_px, circle.center_y_px);
         let turns = |c| located.points(c, ball_px, true);
         rim_circle(turns, centre).map_or(circle, |(inner, _)| inner)
