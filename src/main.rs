@@ -51,7 +51,37 @@ async fn run_bench(command: BenchCommand) -> anyhow::Result<u8> {
     }
 }
 
+/// Cap glibc's malloc arenas at one per CPU (at least 2), unless the user set
+/// `MALLOC_ARENA_MAX` or `GLIBC_TUNABLES` themselves. By default glibc gives each thread that
+/// allocates while another holds an arena a new one, up to 8 per CPU, and each arena keeps
+/// the high-water mark of what its threads held: over a long run the pipeline's, the
+/// runtime's and the HTTP server's threads spread over ever more arenas and the resident
+/// memory climbs in steps long after the run's own buffers are full (the virtual soak's
+/// last quarter 2.3–4.5% over its first; with the cap 0.4–1.5%, docs/architecture.md,
+/// "Memory over a long run"). Called first thing, before any other thread exists.
+#[cfg(all(target_os = "linux", target_env = "gnu"))]
+#[allow(unsafe_code)]
+fn cap_malloc_arenas() {
+    if std::env::var_os("MALLOC_ARENA_MAX").is_some()
+        || std::env::var_os("GLIBC_TUNABLES").is_some()
+    {
+        return;
+    }
+    let cpus = std::thread::available_parallelism().map_or(2, std::num::NonZeroUsize::get);
+    let arenas = libc::c_int::try_from(cpus.max(2)).unwrap_or(libc::c_int::MAX);
+    // SAFETY: `mallopt` only sets a tunable of the allocator, takes no pointers, and is
+    // called before this process starts any thread; a value it refuses leaves glibc's
+    // default in place (its return value, 0, says so and is not needed).
+    unsafe {
+        libc::mallopt(libc::M_ARENA_MAX, arenas);
+    }
+}
+
+#[cfg(not(all(target_os = "linux", target_env = "gnu")))]
+fn cap_malloc_arenas() {}
+
 fn main() -> ExitCode {
+    cap_malloc_arenas();
     let cli = Cli::parse();
     init_logging();
     // One pool worker per CPU, each on its own: the last frame's halves start at once.
