@@ -4,10 +4,9 @@
 //! `input = relative` that difference relative to the reference ([`relative_key`]), or, with
 //! `input = raw`, the raw colour (0…255), cut into `bins` bins per channel. Training
 //! gives each bin the value that minimises the training loss over the labelled gradients
-//! that fall in it ([`fit`]: the median under `l1`, the mean under `l2`). Empty bins take
-//! the value of the nearest filled bin (multi-source breadth-first fill over the
-//! 6-neighbour grid), so every colour maps to a gradient. Lookup is one table read per
-//! pixel.
+//! that fall in it ([`fit`]: the median under `l1`, the mean under `l2`). Empty bins take the value of the
+//! nearest filled bin (multi-source breadth-first fill over the 6-neighbour grid), so every
+//! colour maps to a gradient. Lookup is one table read per pixel.
 //!
 //! A LUT may also be split into spatial tiles (`tiles = "tx,ty"`): one colour table per
 //! tile, interpolated bilinearly between tile centres. Trained LUTs have one tile; an MLP

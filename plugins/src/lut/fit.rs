@@ -36,9 +36,7 @@ pub(super) fn fit_bins(
     }
 }
 
-/// The minimiser of `loss` over `v` (finite values, at least one; reordered). The trainer
-/// keeps running sums for `l2` instead of its samples ([`super::LutTrainer`]), so the mean
-/// here serves a caller that kept the samples.
+/// The minimiser of `loss` over `v` (finite values, at least one; reordered).
 fn bin_value(loss: Loss, v: &mut [f32]) -> f32 {
     match loss {
         Loss::L2 => mean(v),
