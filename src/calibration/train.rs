@@ -8,7 +8,7 @@ use serde::Serialize;
 use gelgrip_plugins::calibrate::{self, EvalReport};
 use gelgrip_plugins::dataset::PressDataset;
 use gelgrip_plugins::gradient::{GradientModel, MlpMode};
-use gelgrip_plugins::lut::{DEFAULT_BINS, Input, LutModel, LutSpec};
+use gelgrip_plugins::lut::{DEFAULT_BINS, Input, LutModel};
 use gelgrip_plugins::mlp::MlpModel;
 use gelgrip_plugins::mlp::train::{
     DEFAULT_EPOCHS, DEFAULT_LEARNING_RATE, DEFAULT_PATIENCE, InputNorm, Loss, TrainOptions,
@@ -52,8 +52,7 @@ pub struct TrainRequest {
     pub patience: usize,
     /// MLP seed.
     pub seed: u64,
-    /// The training loss: the MLP's, and what a LUT's bins minimise (`l1`: each bin's
-    /// median; `l2`: its mean).
+    /// MLP training loss.
     pub loss: Loss,
     /// MLP input scaling.
     pub input_norm: InputNorm,
@@ -95,7 +94,7 @@ pub struct TrainReport {
     pub epochs: Option<usize>,
     /// LUT blur radius, px.
     pub blur_px: Option<usize>,
-    /// The training loss (a LUT's: what its bins minimise).
+    /// MLP: the training loss.
     pub loss: Option<&'static str>,
     /// MLP: the input scaling.
     pub input_norm: Option<&'static str>,
@@ -269,7 +268,7 @@ fn report(
         parameters: fitted.parameters,
         epochs: mlp.then_some(request.epochs),
         blur_px: fitted.blur_px,
-        loss: Some(request.loss.as_str()),
+        loss: mlp.then(|| request.loss.as_str()),
         input_norm: mlp.then(|| request.input_norm.as_str()),
         train_presses: train.presses,
         test_presses: test.presses,
@@ -287,23 +286,18 @@ fn report(
 /// A LUT on the training rows, through the box blur asked for or the one the presses'
 /// noise calls for.
 fn train_lut(request: &TrainRequest, ds: &PressDataset, split: usize) -> crate::Result<Fitted> {
-    let spec = LutSpec {
-        input: request.input,
-        bins: request.bins,
-        loss: request.loss,
-    };
+    let input = request.input;
     eprintln!(
-        "training lut ({} input, {} bins, {} loss) on {} presses, testing on {}",
-        spec.input.as_str(),
-        spec.bins,
-        spec.loss.as_str(),
+        "training lut ({} input, {} bins) on {} presses, testing on {}",
+        input.as_str(),
+        request.bins,
         split,
         ds.presses.len() - split
     );
     let blur_px = match request.blur_px {
         Some(r) => r,
         None => {
-            let choice = calibrate::blur_choice(&[ds], spec)?;
+            let choice = calibrate::blur_choice(&[ds], input, request.bins)?;
             eprintln!(
                 "pixel noise {:.1} grey levels (RMS, away from the contact)",
                 choice.noise
@@ -323,7 +317,7 @@ fn train_lut(request: &TrainRequest, ds: &PressDataset, split: usize) -> crate::
         }
     };
     eprintln!("frames read through a box blur of radius {blur_px} px");
-    let lut = calibrate::train_lut_blurred(&[ds], spec, blur_px)?;
+    let lut = calibrate::train_lut_blurred(&[ds], input, request.bins, blur_px)?;
     Ok(Fitted {
         model: TrainedModel::Lut(lut),
         hidden: None,

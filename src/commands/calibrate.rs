@@ -290,7 +290,7 @@ pub struct CollectArgs {
     pub headless: bool,
 }
 
-/// Training losses (the MLP's; a LUT's bins minimise them too).
+/// MLP training losses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum LossKind {
     /// Mean absolute error.
@@ -373,9 +373,7 @@ pub struct TrainArgs {
     /// MLP: seed of initialisation, shuffling and dropout.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Training loss. MLP: what it minimises (early stopping watches the validation L1 loss
-    /// whatever it is). LUT: each bin's value over the gradients that fall in it: `l1` their
-    /// median, `l2` their mean (the classic GelSight table), `huber` between.
+    /// MLP: training loss (early stopping watches the validation L1 loss whatever it is).
     #[arg(long, value_enum, default_value = "l1")]
     pub loss: LossKind,
     /// MLP: input scaling: `fixed` (colour / 128, position / size) or `standard` (each input
