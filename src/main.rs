@@ -57,7 +57,7 @@ async fn run_bench(command: BenchCommand) -> anyhow::Result<u8> {
 /// the high-water mark of what its threads held: over a long run the pipeline's, the
 /// runtime's and the HTTP server's threads spread over ever more arenas and the resident
 /// memory climbs in steps long after the run's own buffers are full (the virtual soak's
-/// last quarter 2.3–4.5% over its first; with the cap 0.4–1.5%, docs/architecture.md,
+/// last quarter 2.3–4.5% over its first; with the cap 0.1–1.3%, docs/architecture.md,
 /// "Memory over a long run"). Called first thing, before any other thread exists.
 #[cfg(all(target_os = "linux", target_env = "gnu"))]
 #[allow(unsafe_code)]
