@@ -20,7 +20,7 @@ use gelgrip_plugins::config::PipelineConfig;
 use gelgrip_plugins::dataset::PressDataset;
 use gelgrip_plugins::gradient::{GradientModel, MlpMode};
 use gelgrip_plugins::lut::Input;
-use gelgrip_plugins::lut::LutModel;
+use gelgrip_plugins::lut::{LutModel, LutSpec};
 use gelgrip_plugins::pipeline::{SensorPipeline, StageChoice};
 use gelgrip_plugins::sensing::{REFERENCE_FRAMES, Tactile};
 
@@ -154,11 +154,10 @@ fn sensor_model(
     }
     let refs: Vec<&PressDataset> = datasets.iter().collect();
     let model = calibration_input(&refs).and_then(|input| {
-        Ok(calibrate::train_lut_on(
-            &refs,
-            input,
-            gelgrip_plugins::lut::DEFAULT_BINS,
-        )?)
+        // The table of bin means the recipe has always used (`calibrate train`'s LUT
+        // takes bin medians; with these, every simulated run's figures stand as measured).
+        let spec = LutSpec::means(input, gelgrip_plugins::lut::DEFAULT_BINS);
+        Ok(calibrate::train_lut_on(&refs, spec)?)
     });
     // The images are read while training; the temporary datasets go afterwards.
     for ds in &datasets {

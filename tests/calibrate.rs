@@ -5,7 +5,37 @@ mod common;
 use std::path::Path;
 
 use common::{gelgrip, json, ok, s, scratch};
+use gelgrip::{tactile, wiring};
+use gelgrip_plugins::config::PipelineConfig;
 use gelgrip_plugins::npy;
+use gelgrip_plugins::pipeline::Needs;
+
+/// A run's pipelines with `model` on every sensor of the simulated hand read none of 150
+/// untouched frames (noise and JPEG only) as contact, on f1.tip, whose presses trained it,
+/// and on the palm. A table of bin medians failed this on every sensor (docs/calibration.md,
+/// "Bin values").
+fn untouched_frames_read_no_contact(dir: &Path, model: &Path) {
+    let layout = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/layouts/three-finger.toml");
+    let config_file = dir.join("everyone.toml");
+    let text = format!(
+        "version = 1\nlayout = {:?}\n[hub]\ntransport = \"sim\"\n[pipeline]\nmodel = {:?}\n",
+        s(&layout),
+        s(model)
+    );
+    std::fs::write(&config_file, text).expect("config");
+    let config = wiring::load_config(Some(&config_file), &wiring::registry()).expect("config");
+    let stages = PipelineConfig::from_section(&config.pipeline, &config.layout).expect("stages");
+    for index in [0, config.layout.sensors.len() - 1] {
+        let (mut pipe, cam) = tactile::sensor_pipeline(&config, &stages, index).expect("pipeline");
+        let frames = cam.untouched_frames(100, 150).expect("frames");
+        let contacts: Vec<_> = frames
+            .iter()
+            .map(|f| pipe.process(f, Needs::DEPTH).expect("processed"))
+            .filter(|c| c.in_contact)
+            .collect();
+        assert!(contacts.is_empty(), "sensor {index}: {contacts:?}");
+    }
+}
 
 #[test]
 fn collect_train_eval_round_trip() {
@@ -97,6 +127,30 @@ fn collect_train_eval_round_trip() {
         .as_f64()
         .expect("held-out sphere median");
     assert!((held_out - 3.0).abs() < 0.3, "{trained}");
+    // A LUT's bins take the loss's value: the Huber estimate by default, the mean with
+    // `l2`; the same presses give another table.
+    assert_eq!(trained["loss"], "huber", "{trained}");
+    let means = json(&gelgrip(&[
+        "calibrate",
+        "train",
+        "--data",
+        s(&data),
+        "--model",
+        "lut",
+        "--loss",
+        "l2",
+        "--out",
+        s(&dir.join("lut-means.safetensors")),
+        "--json",
+    ]));
+    assert_eq!(means["loss"], "l2", "{means}");
+    let table = |f: &str| std::fs::read(dir.join(f)).expect("model file");
+    assert_ne!(
+        table("lut2.safetensors"),
+        table("lut-means.safetensors"),
+        "the Huber and the mean tables are the same"
+    );
+    untouched_frames_read_no_contact(&dir, &dir.join("lut2.safetensors"));
 
     // `bench pipeline --model-file`: every sensor runs the file's model, and nothing is
     // collected or trained for it.

@@ -25,7 +25,7 @@ use serde::Serialize;
 use gelgrip_plugins::calibrate::{self, EvalReport};
 use gelgrip_plugins::dataset::PressDataset;
 use gelgrip_plugins::gradient::{GradientModel, MlpMode};
-use gelgrip_plugins::lut::{DEFAULT_BINS, Input};
+use gelgrip_plugins::lut::{DEFAULT_BINS, Input, LutSpec};
 use gelgrip_plugins::mlp::MlpModel;
 use gelgrip_plugins::mlp::train::TrainOptions;
 use gelgrip_plugins::mlp::transfer::{Fit, transfer};
@@ -142,7 +142,7 @@ pub fn run(rig: &dyn Rig, args: BenchCalibrationArgs) -> anyhow::Result<u8> {
                 train(ds, Input::Diff, &ids[i])?,
             )
         };
-        let lut = calibrate::train_lut(ds, Input::Diff, DEFAULT_BINS)?;
+        let lut = calibrate::train_lut(ds, LutSpec::means(Input::Diff, DEFAULT_BINS))?;
         let mut models = vec![
             GradientModel::lut(lut),
             GradientModel::mlp(raw, MlpMode::Dense)?,
@@ -324,7 +324,7 @@ fn realistic_rows(
     let ds = sim_presses(&cam, &sim, presses, dir)?;
     let test = calibrate::split_index(ds.presses.len())..ds.presses.len();
     let started = std::time::Instant::now();
-    let lut = calibrate::train_lut(&ds, Input::Diff, DEFAULT_BINS)?;
+    let lut = calibrate::train_lut(&ds, LutSpec::means(Input::Diff, DEFAULT_BINS))?;
     let lut_s = started.elapsed().as_secs_f64();
     eprintln!("training the realistic-optics mlp on {id}");
     let started = std::time::Instant::now();

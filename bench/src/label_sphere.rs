@@ -19,7 +19,7 @@ use gelgrip_plugins::calibrate::{self, sphere};
 use gelgrip_plugins::dataset::{DatasetInfo, Press, PressDataset};
 use gelgrip_plugins::gradient::GradientModel;
 use gelgrip_plugins::image::RgbImage;
-use gelgrip_plugins::lut::{DEFAULT_BINS, Input};
+use gelgrip_plugins::lut::LutSpec;
 use gelgrip_plugins::poisson::Solver;
 
 /// A held-out press counts when its sphere radius is within this share of the ball's.
@@ -121,7 +121,7 @@ fn held_out_radii(ds: &PressDataset) -> anyhow::Result<Vec<Option<f64>>> {
             .chain(held.iter().copied())
             .map(|i| ds.presses[i].clone())
             .collect();
-        let lut = calibrate::train_lut(&fold, Input::Diff, DEFAULT_BINS)?;
+        let lut = calibrate::train_lut(&fold, LutSpec::calibrate_default())?;
         let model = GradientModel::lut(lut);
         let eval = calibrate::evaluate(&model, &fold, n - test..n, Some(Solver::Dst))?;
         for (i, e) in held.iter().zip(eval.per_press) {

@@ -7,7 +7,7 @@ use std::path::Path;
 
 use gelgrip_controller::config::AppConfig;
 use gelgrip_plugins::calibrate;
-use gelgrip_plugins::lut::{DEFAULT_BINS, Input, LutModel};
+use gelgrip_plugins::lut::{DEFAULT_BINS, Input, LutModel, LutSpec};
 use gelgrip_plugins::mlp::MlpModel;
 use gelgrip_plugins::mlp::train::TrainOptions;
 use gelgrip_plugins::mlp::transfer::{Fit, transfer};
@@ -91,7 +91,7 @@ pub fn calibrate_hand(
             ..sim.clone()
         };
         let dataset = sim_presses(&cam, &presses_sim, presses, &dir.join(&id))?;
-        let lut = calibrate::train_lut(&dataset, Input::Diff, DEFAULT_BINS)?;
+        let lut = calibrate::train_lut(&dataset, LutSpec::means(Input::Diff, DEFAULT_BINS))?;
         let source = out.first().and_then(|s| s.mlp.as_ref());
         let model = match (plan, source) {
             (MlpPlan::None, _) => None,

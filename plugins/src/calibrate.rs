@@ -12,7 +12,7 @@ pub mod window;
 
 use crate::dataset::{DatasetError, PressDataset, PressTruth};
 use crate::gradient::{GradientModel, background_key, frame_key};
-use crate::lut::{Input, LutModel, LutTrainer};
+use crate::lut::{Input, LutModel, LutSpec, LutTrainer};
 use crate::mlp::train::{EpochReport, Samples, TrainOptions, ValidationSummary};
 use crate::mlp::transfer::PressPixels;
 use crate::mlp::{MlpError, MlpModel};
@@ -127,8 +127,8 @@ fn labelled_pixels(truth: &PressTruth, w: usize, h: usize) -> Vec<(usize, f32, f
 /// Train a LUT on the dataset's training rows (every row but the held-out last 10%).
 /// Background pixels are added with zero gradient, one in five of the contact pixels' count,
 /// so that the no-contact colours map to zero.
-pub fn train_lut(ds: &PressDataset, input: Input, bins: usize) -> Result<LutModel, CalibrateError> {
-    train_lut_on(&[ds], input, bins)
+pub fn train_lut(ds: &PressDataset, spec: LutSpec) -> Result<LutModel, CalibrateError> {
+    train_lut_on(&[ds], spec)
 }
 
 /// Train one LUT on the training rows of several datasets of the same sensor (for example
@@ -139,13 +139,9 @@ pub fn train_lut(ds: &PressDataset, input: Input, bins: usize) -> Result<LutMode
 /// blur whose radius is chosen on the data ([`choose_blur`], [`best_blur`]): a table read
 /// through heavy pixel noise learns gradients shrunk toward zero, and a blur too wide
 /// smears the contact's rim.
-pub fn train_lut_on(
-    datasets: &[&PressDataset],
-    input: Input,
-    bins: usize,
-) -> Result<LutModel, CalibrateError> {
-    let choice = blur_choice(datasets, input, bins)?;
-    Ok(train_lut_blurred(datasets, input, bins, choice.blur_px)?)
+pub fn train_lut_on(datasets: &[&PressDataset], spec: LutSpec) -> Result<LutModel, CalibrateError> {
+    let choice = blur_choice(datasets, spec)?;
+    Ok(train_lut_blurred(datasets, spec, choice.blur_px)?)
 }
 
 /// How a LUT's blur was chosen: the presses' measured noise, the radius sweep (empty when
@@ -164,12 +160,11 @@ pub struct BlurChoice {
 /// [`BLUR_ABOVE_NOISE`], else [`best_blur`] of [`choose_blur`]'s sweep.
 pub fn blur_choice(
     datasets: &[&PressDataset],
-    input: Input,
-    bins: usize,
+    spec: LutSpec,
 ) -> Result<BlurChoice, CalibrateError> {
     let noise = pixel_noise(datasets)?;
     let sweep = if noise > BLUR_ABOVE_NOISE {
-        choose_blur(datasets, input, bins)?
+        choose_blur(datasets, spec)?
     } else {
         Vec::new()
     };
@@ -222,8 +217,7 @@ pub const BLUR_CANDIDATES_PX: [usize; 7] = [0, 1, 2, 3, 4, 6, 8];
 /// the other 20% (the held-out test rows are not touched).
 pub fn choose_blur(
     datasets: &[&PressDataset],
-    input: Input,
-    bins: usize,
+    spec: LutSpec,
 ) -> Result<Vec<(usize, f64)>, CalibrateError> {
     let (w, h) = same_size(datasets)?;
     // With fewer than two training rows there is nothing to validate on: every radius
@@ -238,7 +232,7 @@ pub fn choose_blur(
     };
     let mut sweep = Vec::new();
     for r in BLUR_CANDIDATES_PX {
-        let lut = GradientModel::lut(train_rows(datasets, &fit_rows, input, bins, r, (w, h))?);
+        let lut = GradientModel::lut(train_rows(datasets, &fit_rows, spec, r, (w, h))?);
         let (mut sum, mut pixels) = (0.0, 0usize);
         for ds in datasets {
             let rows = fit_rows(ds).end..split_index(ds.presses.len());
@@ -282,24 +276,23 @@ pub fn best_blur(sweep: &[(usize, f64)]) -> usize {
 /// [`train_lut_on`] with a given blur radius, px, on every training row.
 pub fn train_lut_blurred(
     datasets: &[&PressDataset],
-    input: Input,
-    bins: usize,
+    spec: LutSpec,
     blur_px: usize,
 ) -> Result<LutModel, DatasetError> {
     let size = same_size(datasets)?;
     let all = |ds: &PressDataset| 0..split_index(ds.presses.len());
-    train_rows(datasets, &all, input, bins, blur_px, size)
+    train_rows(datasets, &all, spec, blur_px, size)
 }
 
 fn train_rows(
     datasets: &[&PressDataset],
     rows: &dyn Fn(&PressDataset) -> std::ops::Range<usize>,
-    input: Input,
-    bins: usize,
+    spec: LutSpec,
     blur_px: usize,
     (w, h): (usize, usize),
 ) -> Result<LutModel, DatasetError> {
-    let mut trainer = LutTrainer::new(input, bins);
+    let input = spec.input;
+    let mut trainer = LutTrainer::for_spec(spec);
     for ds in datasets {
         let r = ds.ball_radius_px();
         let background = ds.background.blurred(blur_px);

@@ -234,7 +234,7 @@ def train(
     learning_rate: float = 5e-3,
     patience: int = 20,
     seed: int = 1,
-    loss: str = "l1",
+    loss: Optional[str] = None,
     input_norm: str = "standard",
 ) -> Model: ...
 def evaluate(model: Model, data_dir: str, solver: Optional[str] = "dst") -> EvalReport: ...

@@ -85,7 +85,7 @@ fn within_f(what: &str, v: f64, lo: f64, hi: f64) -> PyResult<f64> {
 /// MLP's epochs when stderr is a terminal.
 #[pyfunction]
 #[pyo3(signature = (data_dir, model="lut", *, input="diff", bins=64, blur_px=None, hidden=32,
-    epochs=80, dropout=0.0, learning_rate=5e-3, patience=20, seed=1, loss="l1",
+    epochs=80, dropout=0.0, learning_rate=5e-3, patience=20, seed=1, loss=None,
     input_norm="standard"))]
 #[allow(clippy::too_many_arguments)]
 pub fn train(
@@ -101,7 +101,7 @@ pub fn train(
     learning_rate: f64,
     patience: i64,
     seed: u64,
-    loss: &str,
+    loss: Option<&str>,
     input_norm: &str,
 ) -> PyResult<Model> {
     errors::require_dir(&data_dir, "data_dir")?;
@@ -125,11 +125,15 @@ pub fn train(
         learning_rate: within_f("learning_rate", learning_rate, 1e-6, 1.0)?,
         patience: within("patience", patience, 0, 100_000)?,
         seed,
-        loss: one_of(
-            "loss",
-            loss,
-            &[("l1", Loss::L1), ("l2", Loss::L2), ("huber", Loss::Huber)],
-        )?,
+        loss: loss
+            .map(|l| {
+                one_of(
+                    "loss",
+                    l,
+                    &[("l1", Loss::L1), ("l2", Loss::L2), ("huber", Loss::Huber)],
+                )
+            })
+            .transpose()?,
         input_norm: one_of(
             "input_norm",
             input_norm,

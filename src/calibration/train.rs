@@ -8,7 +8,7 @@ use serde::Serialize;
 use gelgrip_plugins::calibrate::{self, EvalReport};
 use gelgrip_plugins::dataset::PressDataset;
 use gelgrip_plugins::gradient::{GradientModel, MlpMode};
-use gelgrip_plugins::lut::{DEFAULT_BINS, Input, LutModel};
+use gelgrip_plugins::lut::{DEFAULT_BINS, Input, LutModel, LutSpec};
 use gelgrip_plugins::mlp::MlpModel;
 use gelgrip_plugins::mlp::train::{
     DEFAULT_EPOCHS, DEFAULT_LEARNING_RATE, DEFAULT_PATIENCE, InputNorm, Loss, TrainOptions,
@@ -52,8 +52,10 @@ pub struct TrainRequest {
     pub patience: usize,
     /// MLP seed.
     pub seed: u64,
-    /// MLP training loss.
-    pub loss: Loss,
+    /// The training loss: the MLP's, and what a LUT's bins minimise (`l1`: each bin's
+    /// median; `l2`: its mean; `huber`: between). `None`: the model's default
+    /// ([`TrainRequest::loss`]).
+    pub loss: Option<Loss>,
     /// MLP input scaling.
     pub input_norm: InputNorm,
 }
@@ -73,9 +75,18 @@ impl TrainRequest {
             learning_rate: DEFAULT_LEARNING_RATE,
             patience: DEFAULT_PATIENCE,
             seed: 1,
-            loss: Loss::L1,
+            loss: None,
             input_norm: InputNorm::Standard,
         }
+    }
+
+    /// The loss trained with: the one asked for, else the model's default, `l1` for an MLP
+    /// and `huber` for a LUT ([`LutSpec::calibrate_default`] says why).
+    pub fn loss(&self) -> Loss {
+        self.loss.unwrap_or(match self.model {
+            ModelChoice::Mlp => Loss::L1,
+            ModelChoice::Lut => LutSpec::calibrate_default().loss,
+        })
     }
 }
 
@@ -94,7 +105,7 @@ pub struct TrainReport {
     pub epochs: Option<usize>,
     /// LUT blur radius, px.
     pub blur_px: Option<usize>,
-    /// MLP: the training loss.
+    /// The training loss (a LUT's: what its bins minimise).
     pub loss: Option<&'static str>,
     /// MLP: the input scaling.
     pub input_norm: Option<&'static str>,
@@ -268,7 +279,7 @@ fn report(
         parameters: fitted.parameters,
         epochs: mlp.then_some(request.epochs),
         blur_px: fitted.blur_px,
-        loss: mlp.then(|| request.loss.as_str()),
+        loss: Some(request.loss().as_str()),
         input_norm: mlp.then(|| request.input_norm.as_str()),
         train_presses: train.presses,
         test_presses: test.presses,
@@ -286,18 +297,23 @@ fn report(
 /// A LUT on the training rows, through the box blur asked for or the one the presses'
 /// noise calls for.
 fn train_lut(request: &TrainRequest, ds: &PressDataset, split: usize) -> crate::Result<Fitted> {
-    let input = request.input;
+    let spec = LutSpec {
+        input: request.input,
+        bins: request.bins,
+        loss: request.loss(),
+    };
     eprintln!(
-        "training lut ({} input, {} bins) on {} presses, testing on {}",
-        input.as_str(),
-        request.bins,
+        "training lut ({} input, {} bins, {} loss) on {} presses, testing on {}",
+        spec.input.as_str(),
+        spec.bins,
+        spec.loss.as_str(),
         split,
         ds.presses.len() - split
     );
     let blur_px = match request.blur_px {
         Some(r) => r,
         None => {
-            let choice = calibrate::blur_choice(&[ds], input, request.bins)?;
+            let choice = calibrate::blur_choice(&[ds], spec)?;
             eprintln!(
                 "pixel noise {:.1} grey levels (RMS, away from the contact)",
                 choice.noise
@@ -317,7 +333,7 @@ fn train_lut(request: &TrainRequest, ds: &PressDataset, split: usize) -> crate::
         }
     };
     eprintln!("frames read through a box blur of radius {blur_px} px");
-    let lut = calibrate::train_lut_blurred(&[ds], input, request.bins, blur_px)?;
+    let lut = calibrate::train_lut_blurred(&[ds], spec, blur_px)?;
     Ok(Fitted {
         model: TrainedModel::Lut(lut),
         hidden: None,
@@ -337,7 +353,7 @@ fn train_mlp(request: &TrainRequest, ds: &PressDataset) -> crate::Result<Fitted>
         epochs: request.epochs,
         seed: request.seed,
         patience: request.patience,
-        loss: request.loss,
+        loss: request.loss(),
         input_norm: request.input_norm,
         ..TrainOptions::default()
     };

@@ -106,7 +106,7 @@ fn train(args: TrainArgs) -> anyhow::Result<u8> {
         learning_rate: args.learning_rate,
         patience: args.patience as usize,
         seed: args.seed,
-        loss: args.loss.into(),
+        loss: args.loss.map(Into::into),
         input_norm: args.input_norm.into(),
         ..TrainRequest::new(
             args.data.clone(),
@@ -290,7 +290,7 @@ pub struct CollectArgs {
     pub headless: bool,
 }
 
-/// MLP training losses.
+/// Training losses (the MLP's; a LUT's bins minimise them too).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum LossKind {
     /// Mean absolute error.
@@ -373,9 +373,13 @@ pub struct TrainArgs {
     /// MLP: seed of initialisation, shuffling and dropout.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// MLP: training loss (early stopping watches the validation L1 loss whatever it is).
-    #[arg(long, value_enum, default_value = "l1")]
-    pub loss: LossKind,
+    /// Training loss [default: `l1` for an MLP, `huber` for a LUT]. MLP: what it minimises
+    /// (early stopping watches the validation L1 loss whatever it is). LUT: each bin's value
+    /// over the gradients that fall in it: `huber` robust to the few that are not its
+    /// colour's slope, `l2` their mean (the classic GelSight table), `l1` their median
+    /// (docs/calibration.md: its steps make noise read as contact).
+    #[arg(long, value_enum)]
+    pub loss: Option<LossKind>,
     /// MLP: input scaling: `fixed` (colour / 128, position / size) or `standard` (each input
     /// further standardised on the training pixels, folded into the first layer).
     #[arg(long, value_enum, default_value = "standard")]
