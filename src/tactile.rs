@@ -155,7 +155,7 @@ fn sensor_model(
     let refs: Vec<&PressDataset> = datasets.iter().collect();
     let model = calibration_input(&refs).and_then(|input| {
         // The table of bin means the recipe has always used (`calibrate train`'s LUT
-        // takes bin medians; with these, every simulated run's figures stand as measured).
+        // takes Huber estimates; with these, every simulated run's figures stand as measured).
         let spec = LutSpec::means(input, gelgrip_plugins::lut::DEFAULT_BINS);
         Ok(calibrate::train_lut_on(&refs, spec)?)
     });
