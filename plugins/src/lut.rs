@@ -170,7 +170,8 @@ pub struct LutTrainer {
     /// Per bin, the gradients' sums (`l2`: the mean is all it needs).
     sums: Vec<[f64; 2]>,
     counts: Vec<u32>,
-    /// Every sample as (bin, gradient), for the losses whose value is not a running sum.
+    /// Every sample as (bin, gradient), for the losses whose value is not a running sum:
+    /// 12 bytes per labelled pixel (about 1.4 MB for the Mini's 22 training presses).
     samples: Vec<(u32, [f32; 2])>,
 }
 
