@@ -84,7 +84,7 @@ impl TrainRequest {
     /// and `huber` for a LUT ([`LutSpec::calibrate_default`] says why).
     pub fn loss(&self) -> Loss {
         self.loss.unwrap_or(match self.model {
-            ModelChoice::Mlp => Loss::L1,
+            ModelChoice::Mlp => TrainOptions::default().loss,
             ModelChoice::Lut => LutSpec::calibrate_default().loss,
         })
     }
