@@ -99,10 +99,15 @@ fn cache_file(id: &str, cam: &SensorCamera, sim: &SimConfig) -> PathBuf {
     // Everything the calibration depends on is in the key, so a changed camera or recipe
     // never reuses an old model: the unit (its position in the layout draws its optics, so
     // f1.tip of a 16-sensor layout is another unit than the three-finger hand's) and the
-    // pixel size besides the id; realistic optics add their name (nominal keeps its names).
+    // pixel size besides the id; realistic optics add their name and the revision of their
+    // fit (nominal keeps its names).
     let optics = match &sim.optics {
         gelgrip_sim::optics::Optics::Nominal => String::new(),
-        o => format!("-{}", o.name()),
+        o => format!(
+            "-{}-fit{}",
+            o.name(),
+            gelgrip_sim::optics::realistic::FIT_REVISION
+        ),
     };
     cache_dir().join(format!(
         "sim-v{CALIBRATION_VERSION}{optics}-seed{}-unit{}-{id}-{}x{}px-{}mm-q{}-noise{}-lut-{}+{}mm.safetensors",

@@ -16,6 +16,7 @@
 pub mod facet;
 pub mod fit;
 pub mod realistic;
+pub mod response;
 
 use std::sync::Arc;
 

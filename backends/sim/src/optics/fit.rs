@@ -1,7 +1,7 @@
 //! Fitting [`RealisticParams`] to a real sensor's frames, and the statistics the fit and
 //! docs/calibration.md compare: the background's channel means and falloff across the pad
 //! (4×3 tile means), and around the presses the colour response (mean difference from the
-//! background per channel in 8 sectors × 3 rings around each contact centre: two inside
+//! background per channel in 8 sectors × 6 rings around each contact centre: five inside
 //! the contact and the halo around it; the contact's first harmonic: amplitude and the
 //! azimuth it peaks at), and the pixel noise away from them.
 //!
@@ -13,6 +13,7 @@
 //! ([`fit_presses`]); the noise is the real frames' ([`PressStats::noise_rgb`]).
 
 use super::realistic::{BACKGROUND_TERMS, RealisticParams, RealisticShader, background_basis};
+use super::response::{ResponseCurve, model_pixels};
 use crate::gel::BallOnGel;
 use crate::unit::UnitVariation;
 
@@ -49,7 +50,7 @@ pub struct Image<'a> {
 }
 
 impl Image<'_> {
-    fn at(&self, x: usize, y: usize, c: usize) -> f64 {
+    pub(crate) fn at(&self, x: usize, y: usize, c: usize) -> f64 {
         f64::from(self.rgb[(y * self.width_px + x) * 3 + c])
     }
 }
@@ -118,15 +119,17 @@ pub fn background_stats(img: Image<'_>) -> BackgroundStats {
 
 /// Sectors around a contact's centre (sector k is centred on azimuth k × 45°).
 pub const SECTORS: usize = 8;
-/// Rings: inside 0.6 of the contact radius, from there to the rim, and the halo around the
-/// contact out to [`HALO_RING`] of its radius.
-pub const RINGS: usize = 3;
+/// Rings around a contact's centre: [`CONTACT_RINGS`] inside the contact, whose outer
+/// edges are [`RING_EDGES`] (shares of the contact radius: on a ball's cap each ring is a
+/// band of slopes, finest at the rim where the slope climbs fastest), and the halo around
+/// the contact out to [`HALO_RING`] of its radius.
+pub const RINGS: usize = 6;
 /// Rings inside the contact (the first [`CONTACT_RINGS`] × [`SECTORS`] sector means).
-pub const CONTACT_RINGS: usize = 2;
-/// The inner ring's outer edge, share of the contact radius.
-pub const INNER_RING: f64 = 0.6;
+pub const CONTACT_RINGS: usize = RINGS - 1;
+/// Each ring's outer edge, share of the contact radius (the halo's last).
+pub const RING_EDGES: [f64; RINGS] = [0.35, 0.6, 0.8, 0.9, 1.0, 1.5];
 /// The halo ring's outer edge, share of the contact radius.
-pub const HALO_RING: f64 = 1.5;
+pub const HALO_RING: f64 = RING_EDGES[RINGS - 1];
 
 /// The presses' colour response and noise.
 #[derive(Debug, Clone, PartialEq)]
@@ -174,13 +177,10 @@ fn sector_of(dx: f64, dy: f64, r: f64, radius: f64) -> usize {
     let k = (dy.atan2(dx).to_degrees() / 45.0)
         .round()
         .rem_euclid(SECTORS as f64) as usize;
-    let ring = if r < INNER_RING * radius {
-        0
-    } else if r < radius {
-        1
-    } else {
-        2
-    };
+    let ring = RING_EDGES
+        .iter()
+        .position(|edge| r < edge * radius)
+        .unwrap_or(RINGS - 1);
     ring * SECTORS + k % SECTORS
 }
 
@@ -392,13 +392,46 @@ pub struct PressFit {
     pub params: RealisticParams,
     /// The presses' geometry.
     pub geometry: PressGeometry,
+    /// The loss at the end: [`PressFit::rms`] plus, with a response target,
+    /// [`RESPONSE_WEIGHT_GREY`] × [`PressFit::response_rms`].
+    pub loss: f64,
     /// RMS difference of all the sector means (halo included) from the target's, grey
     /// levels.
     pub rms: f64,
     /// The same over the contact's sectors only.
     pub contact_rms: f64,
+    /// RMS difference of the response curve from the target's, slope units (with a
+    /// response target).
+    pub response_rms: Option<f64>,
     /// Coordinate-descent rounds run.
     pub rounds: usize,
+}
+
+/// What [`fit_presses`] matches: the real presses' sector means and, optionally, their
+/// [`ResponseCurve`] (what a table trained on them reads).
+#[derive(Debug, Clone, Copy)]
+pub struct FitTarget<'a> {
+    /// The real presses' colour statistics.
+    pub sectors: &'a PressStats,
+    /// The real presses' response curve, rendered pixels to match it as
+    /// [`crate::optics::response::model_pixels`] gives them.
+    pub response: Option<&'a ResponseCurve>,
+}
+
+/// Grey levels of sector-mean error that weigh as much as one unit of response-curve
+/// error in [`fit_presses`]' loss: a table misreading slopes by 0.1 costs as much as the
+/// colours missing by 10 levels (the sector means' own RMS, about 20 levels, is what the
+/// model's shading cannot reproduce at all: the real gel's tint where it is pressed).
+pub const RESPONSE_WEIGHT_GREY: f64 = 100.0;
+
+/// Whether [`fit_presses`] fits the presses' geometry with the optics.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum GeometryFit {
+    /// Ball, contact share and skirt fitted with the optics (labels that circle an
+    /// imprint of unknown ball).
+    Fitted,
+    /// Held as given (labels found for a known ball, as `calibrate label` does).
+    Held,
 }
 
 /// The fitted values, in [`fit_presses`]'s order.
@@ -458,11 +491,12 @@ pub fn sector_rms(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
 /// Fit the reflectance (and its wrap), shadowing, crosstalk, gamma and the presses'
 /// geometry (ball, contact share, skirt) of `start` so that [`model_sectors`] matches
 /// `target`'s sector means, halo included, at `contacts` (coordinate descent, halving each
-/// step when neither direction helps).
+/// step when neither direction helps). With [`GeometryFit::Held`] the geometry stays as
+/// given (the presses' labels were found for that ball).
 pub fn fit_presses(
     start: &RealisticParams,
-    geometry: &PressGeometry,
-    target: &PressStats,
+    (geometry, geometry_fit): (&PressGeometry, GeometryFit),
+    target: FitTarget<'_>,
     size: (usize, usize),
     contacts: &[Contact],
     max_rounds: usize,
@@ -487,12 +521,22 @@ pub fn fit_presses(
         (0.05, 0.2, 1.0),
         (4.0, 0.0, 80.0),
     ];
+    if geometry_fit == GeometryFit::Held {
+        for i in [12, 14, 15] {
+            steps[i].0 = 0.0;
+        }
+    }
     // The ball is larger than every contact it makes.
     let clamp_ball = |v: &mut [f64; FITTED]| v[12] = v[12].max(v[14] * largest + 1.0);
     let loss = |v: &[f64; FITTED]| {
         let (p, g) = with_values(start, v);
         let m = model_sectors(&p, size, contacts, &g, 2);
-        sector_rms(&m, &target.sectors_rgb)
+        let sectors = sector_rms(&m, &target.sectors.sectors_rgb);
+        sectors
+            + target.response.map_or(0.0, |real| {
+                let model = ResponseCurve::of(&model_pixels(&p, size, contacts, &g, 2));
+                RESPONSE_WEIGHT_GREY * model.rms_from(real)
+            })
     };
     let mut v = fitted_values(start, geometry);
     clamp_ball(&mut v);
@@ -522,11 +566,14 @@ pub fn fit_presses(
     params.led_azimuth_deg = params.led_azimuth_deg.map(|a| a.rem_euclid(360.0));
     let m = model_sectors(&params, size, contacts, &geometry, 2);
     let inside = CONTACT_RINGS * SECTORS;
+    let response = ResponseCurve::of(&model_pixels(&params, size, contacts, &geometry, 2));
     PressFit {
         params,
         geometry,
-        rms: best,
-        contact_rms: sector_rms(&m[..inside], &target.sectors_rgb[..inside]),
+        loss: best,
+        rms: sector_rms(&m, &target.sectors.sectors_rgb),
+        contact_rms: sector_rms(&m[..inside], &target.sectors.sectors_rgb[..inside]),
+        response_rms: target.response.map(|real| response.rms_from(real)),
         rounds,
     }
 }

@@ -81,21 +81,21 @@ pub struct RealisticParams {
 }
 
 /// The parameters fitted to the real GelSight Mini with a sharp-rimmed gel (the presses
-/// rendered as the ball's cap and nothing around it; `optics_fit`'s `fit` from
-/// `optics::fit::MINI_PRESSES`; the side-by-side statistics are in docs/calibration.md).
+/// rendered as the ball's cap and nothing around it, labelled by `calibrate label` for a
+/// 3.68 mm ball, `optics::fit::MINI_PRESSES`): the colours' sector means and the response
+/// curve a table trained on them reads (`optics::response`; `optics_fit`'s `fit` with
+/// `FIT_ELEVATION=25,3`; the side-by-side statistics are in docs/calibration.md).
 pub const MINI: RealisticParams = RealisticParams {
     background: MINI_BACKGROUND,
-    gamma: 1.916,
-    led_azimuth_deg: [87.5, 186.7, 256.8],
-    led_elevation_deg: 8.6,
-    ambient: [0.0777, 0.2281, 0.3484],
-    // The fit took the lobe and the crosstalk to 0 (docs/calibration.md): the Mini's sector
-    // means are explained without them. They stay in the model for other sensors.
-    specular: 0.0,
+    gamma: 1.716,
+    led_azimuth_deg: [88.2, 186.8, 262.6],
+    led_elevation_deg: 15.0,
+    ambient: [0.0902, 0.3406, 0.3773],
+    specular: 0.0053,
     shininess: 10.6,
-    shadow_slope: 1.0,
-    wrap: 0.0,
-    crosstalk: 0.0,
+    shadow_slope: 4.4,
+    wrap: 0.05,
+    crosstalk: 0.0028,
     noise_rgb: [1.59, 1.07, 1.86],
     skirt_mm: 0.0,
 };
@@ -118,6 +118,11 @@ pub const MINI_GEL: RealisticParams = RealisticParams {
     // 54 px of the Mini's 0.0317 mm.
     skirt_mm: 1.712,
 };
+
+/// The revision of the realistic optics' fitted parameters ([`MINI`], [`MINI_GEL`]): part
+/// of a simulated self-calibration's cache key, so a refit never reuses a model calibrated
+/// on the old optics. 2: the refit to the Mini's response curve (2026-11-28).
+pub const FIT_REVISION: u32 = 2;
 
 /// The real Mini background's polynomial (`optics::fit::fit_background`).
 const MINI_BACKGROUND: [[f64; BACKGROUND_TERMS]; 3] = [
