@@ -629,6 +629,16 @@ fn bench_label_reports_every_press() {
             sphere["within_10pct"].as_u64() <= sphere["held_out"].as_u64(),
             "{row}"
         );
+        // Each held-out press's true contact share, in the radii's order: within the
+        // bench's range of 0.3 to 0.95 of the ball's radius.
+        let shares = sphere["contact_shares"].as_array().expect("contact_shares");
+        assert_eq!(shares.len(), radii.len(), "{row}");
+        assert!(
+            shares
+                .iter()
+                .all(|s| s.as_f64().is_some_and(|s| (0.29..0.951).contains(&s))),
+            "{row}"
+        );
     }
     assert_eq!(report["presses"], 6, "{report}");
     let share = report["sphere_within_share"].as_f64().expect("share");

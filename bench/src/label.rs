@@ -28,7 +28,7 @@ use gelgrip_plugins::image::RgbImage;
 use gelgrip_sim::pool::SensorCamera;
 use gelgrip_sim::press_camera::sensor_camera;
 
-use crate::label_sphere::{self, Labelled, SphereCheck};
+use crate::label_sphere::{self, Labelled, SHARE_BANDS, SphereCheck, by_share};
 use crate::progress;
 use crate::rig::Rig;
 
@@ -120,7 +120,7 @@ pub fn run(rig: &dyn Rig, args: BenchLabelArgs) -> anyhow::Result<u8> {
                 found: labeller.detect(img),
             })
             .collect();
-        let labelled = labelled(&images, &pressed);
+        let labelled = labelled(&images, &pressed, ball_px);
         let info = DatasetInfo {
             ball_diameter_mm: ball_mm,
             mm_per_px: cam.mm_per_px,
@@ -154,7 +154,7 @@ pub fn run(rig: &dyn Rig, args: BenchLabelArgs) -> anyhow::Result<u8> {
 }
 
 /// The presses the labeller labelled, with its circles.
-fn labelled<'a>(images: &'a [RgbImage], pressed: &[Pressed]) -> Vec<Labelled<'a>> {
+fn labelled<'a>(images: &'a [RgbImage], pressed: &[Pressed], ball_px: f64) -> Vec<Labelled<'a>> {
     images
         .iter()
         .zip(pressed)
@@ -163,6 +163,7 @@ fn labelled<'a>(images: &'a [RgbImage], pressed: &[Pressed]) -> Vec<Labelled<'a>
             Some(Labelled {
                 image,
                 circle: (c.center_x_px, c.center_y_px, c.contact_radius_px),
+                true_contact_share: p.truth.2 / ball_px,
             })
         })
         .collect()
@@ -289,4 +290,12 @@ fn print_table(r: &Report) {
         r.sphere_held_out,
         r.sphere_within_share * 100.0
     );
+    println!("\nby the true contact radius over the ball's, every ball");
+    println!("| contact share | held out | within 10% | sphere radius error % (median) |");
+    println!("|---|---|---|---|");
+    let checks: Vec<&SphereCheck> = r.rows.iter().map(|row| &row.sphere).collect();
+    for ((lo, hi), (n, within, median)) in SHARE_BANDS.iter().zip(by_share(&checks)) {
+        let median = median.map_or("-".to_string(), |m| format!("{m:+.1}"));
+        println!("| {lo:.2}–{hi:.2} | {n} | {within} | {median} |");
+    }
 }

@@ -38,6 +38,9 @@ pub struct SphereCheck {
     pub radius_mm_median: Option<f64>,
     /// Each held-out press's sphere radius, mm, in press order (`None`: no sphere).
     pub radii_mm: Vec<Option<f64>>,
+    /// Each held-out press's true contact radius as a share of the ball's, in the same
+    /// order.
+    pub contact_shares: Vec<f64>,
 }
 
 /// A labelled press of the bench: its image and the labeller's circle.
@@ -46,6 +49,8 @@ pub struct Labelled<'a> {
     pub image: &'a RgbImage,
     /// Centre x, y and contact radius, px.
     pub circle: (f64, f64, f64),
+    /// The true contact radius as a share of the ball's.
+    pub true_contact_share: f64,
 }
 
 /// The sphere check of one ball's labelled presses against `background`, in a scratch
@@ -58,7 +63,7 @@ pub fn check(
 ) -> anyhow::Result<SphereCheck> {
     let dir = scratch_dir(scratch, info.ball_diameter_mm);
     let result = write_dataset(&dir, background, info, labelled)
-        .and_then(|ds| held_out_radii(&ds).map(|r| summarise(info, r)));
+        .and_then(|ds| held_out_radii(&ds).map(|r| summarise(info, r, labelled)));
     // The scratch copy is only the bench's; a failed removal leaves a temp dir behind.
     let _ = std::fs::remove_dir_all(&dir);
     result
@@ -132,7 +137,11 @@ fn held_out_radii(ds: &PressDataset) -> anyhow::Result<Vec<Option<f64>>> {
     Ok(radii)
 }
 
-fn summarise(info: &DatasetInfo, radii: Vec<Option<f64>>) -> SphereCheck {
+fn summarise(
+    info: &DatasetInfo,
+    radii: Vec<Option<f64>>,
+    labelled: &[Labelled<'_>],
+) -> SphereCheck {
     let ball = info.ball_diameter_mm / 2.0;
     let within = radii
         .iter()
@@ -145,7 +154,41 @@ fn summarise(info: &DatasetInfo, radii: Vec<Option<f64>>) -> SphereCheck {
         within_10pct: within,
         radius_mm_median: sphere::median(radii.iter().flatten().copied()),
         radii_mm: radii,
+        contact_shares: labelled.iter().map(|l| l.true_contact_share).collect(),
     }
+}
+
+/// Bands of the true contact share that `bench label` breaks the sphere check down by.
+pub const SHARE_BANDS: [(f64, f64); 3] = [(0.3, 0.5), (0.5, 0.7), (0.7, 0.95)];
+
+/// Over `checks`, per [`SHARE_BANDS`] band: (held out, within [`SPHERE_TOLERANCE`],
+/// median of the sphere radius over the ball's − 1, %).
+pub fn by_share(checks: &[&SphereCheck]) -> Vec<(usize, usize, Option<f64>)> {
+    SHARE_BANDS
+        .iter()
+        .map(|&(lo, hi)| {
+            let errors: Vec<Option<f64>> = checks
+                .iter()
+                .flat_map(|c| {
+                    c.radii_mm
+                        .iter()
+                        .zip(&c.contact_shares)
+                        .filter(move |(_, s)| (lo..hi).contains(*s))
+                        .map(move |(r, _)| r.map(|r| (r / c.ball_radius_mm - 1.0) * 100.0))
+                })
+                .collect();
+            let within = errors
+                .iter()
+                .flatten()
+                .filter(|e| e.abs() <= SPHERE_TOLERANCE * 100.0)
+                .count();
+            (
+                errors.len(),
+                within,
+                sphere::median(errors.iter().flatten().copied()),
+            )
+        })
+        .collect()
 }
 
 #[cfg(test)]
@@ -158,15 +201,35 @@ mod tests {
             ball_diameter_mm: 4.0,
             mm_per_px: 0.0625,
         };
+        let image = RgbImage::new(4, 4);
+        let shares = [0.35, 0.55, 0.75, 0.8, 0.9];
+        let labelled: Vec<Labelled<'_>> = shares
+            .iter()
+            .map(|&s| Labelled {
+                image: &image,
+                circle: (2.0, 2.0, 1.0),
+                true_contact_share: s,
+            })
+            .collect();
         let c = summarise(
             &info,
             vec![Some(2.0), Some(2.19), Some(1.7), None, Some(f64::NAN)],
+            &labelled,
         );
         assert_eq!((c.held_out, c.within_10pct), (5, 2));
         assert_eq!(c.ball_radius_mm, 2.0);
         assert!(c.radius_mm_median.is_some());
-        let empty = summarise(&info, vec![]);
+        assert_eq!(c.contact_shares, shares);
+        // By band: the shallow press within, the middle one within (+9.5%), the deep
+        // ones out (−15%, unfitted, NaN).
+        let bands = by_share(&[&c]);
+        assert_eq!((bands[0].0, bands[0].1), (1, 1));
+        assert_eq!((bands[1].0, bands[1].1), (1, 1));
+        assert_eq!((bands[2].0, bands[2].1), (3, 0));
+        assert!(bands[2].2.is_some_and(|m| m < -14.0));
+        let empty = summarise(&info, vec![], &[]);
         assert_eq!((empty.held_out, empty.within_10pct), (0, 0));
         assert_eq!(empty.radius_mm_median, None);
+        assert!(by_share(&[&empty]).iter().all(|b| *b == (0, 0, None)));
     }
 }
