@@ -144,10 +144,14 @@ fn sensor_model(
         presses = CALIBRATION_PRESSES,
         "calibrating on simulated presses (cached for later runs)"
     );
+    // Runs in one process may calibrate the same sensor at once (tests do, with a cold
+    // cache): each calibration collects into its own directories.
+    static CALIBRATIONS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let run = CALIBRATIONS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     let mut datasets = Vec::new();
     for (k, ball_mm) in CALIBRATION_BALLS_MM.into_iter().enumerate() {
         let tmp = std::env::temp_dir().join(format!(
-            "gelgrip-autocal-{}-{id}-{ball_mm}mm",
+            "gelgrip-autocal-{}-{run}-{id}-{ball_mm}mm",
             std::process::id()
         ));
         let balls = BallPresses {
