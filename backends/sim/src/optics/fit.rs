@@ -8,9 +8,12 @@
 //! The fit: the background polynomial by least squares on the real background
 //! ([`fit_background`]); the reflectance, shadowing, crosstalk, gamma and the presses'
 //! geometry (a ball radius in px, since the real data has no ball size; the share of each
-//! labelled contact the ball touches; the gel's skirt, [`crate::gel`]) by coordinate
-//! descent on the sector means of noise-free renders at the real contacts
-//! ([`fit_presses`]); the noise is the real frames' ([`PressStats::noise_rgb`]).
+//! labelled contact the ball touches; the gel's skirt, [`crate::gel`]; or held where the
+//! labels were found for a known ball, [`GeometryFit::Held`]) by coordinate descent on the
+//! sector means of noise-free renders at the real contacts and, with a [`FitTarget`]
+//! response, on what a table trained on their pixels reads
+//! ([`crate::optics::response`]; [`fit_presses`]); the noise is the real frames'
+//! ([`PressStats::noise_rgb`]).
 
 use super::realistic::{BACKGROUND_TERMS, RealisticParams, RealisticShader, background_basis};
 use super::response::{ResponseCurve, model_pixels};
