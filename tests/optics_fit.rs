@@ -20,7 +20,7 @@ use gelgrip_sim::optics::fit::{
     fit_background, fit_presses, press_stats,
 };
 use gelgrip_sim::optics::realistic::{MINI, MINI_GEL, RealisticParams};
-use gelgrip_sim::optics::response::{ResponseCurve, model_pixels, real_pixels};
+use gelgrip_sim::optics::response::{ResponseCurve, real_pixels};
 use gelgrip_sim::optics::{Optics, Shader, render_shaded};
 use gelgrip_sim::scene::HeightMap;
 use gelgrip_sim::unit::{UnitVariation, rng_for};
@@ -483,20 +483,13 @@ fn fit() {
         &contacts,
         rounds,
     );
-    let model_curve = ResponseCurve::of(&model_pixels(
-        &fit.params,
-        size,
-        &contacts,
-        &fit.geometry,
-        2,
-    ));
     println!("response real  {:.3?}", real_curve.read);
-    println!("response model {:.3?}", model_curve.read);
+    println!("response model {:.3?}", fit.response.read);
     println!(
         "rounds {}, loss {:.2}, response RMS {:.3}, sector RMS {:.2} (contact {:.2}), {:?}, skirt {:.3} mm",
         fit.rounds,
         fit.loss,
-        model_curve.rms_from(&real_curve),
+        fit.response.rms_from(&real_curve),
         fit.rms,
         fit.contact_rms,
         fit.geometry,

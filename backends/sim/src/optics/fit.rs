@@ -396,16 +396,16 @@ pub struct PressFit {
     /// The presses' geometry.
     pub geometry: PressGeometry,
     /// The loss at the end: [`PressFit::rms`] plus, with a response target,
-    /// [`RESPONSE_WEIGHT_GREY`] × [`PressFit::response_rms`].
+    /// [`RESPONSE_WEIGHT_GREY`] × the RMS of [`PressFit::response`] from it.
     pub loss: f64,
     /// RMS difference of all the sector means (halo included) from the target's, grey
     /// levels.
     pub rms: f64,
     /// The same over the contact's sectors only.
     pub contact_rms: f64,
-    /// RMS difference of the response curve from the target's, slope units (with a
-    /// response target).
-    pub response_rms: Option<f64>,
+    /// The fitted optics' response curve at the real contacts (compare it with the
+    /// target's by [`ResponseCurve::rms_from`]).
+    pub response: ResponseCurve,
     /// Coordinate-descent rounds run.
     pub rounds: usize,
 }
@@ -416,8 +416,8 @@ pub struct PressFit {
 pub struct FitTarget<'a> {
     /// The real presses' colour statistics.
     pub sectors: &'a PressStats,
-    /// The real presses' response curve, rendered pixels to match it as
-    /// [`crate::optics::response::model_pixels`] gives them.
+    /// The real presses' response curve, which the curve of the rendered pixels
+    /// ([`crate::optics::response::model_pixels`]) is to match.
     pub response: Option<&'a ResponseCurve>,
 }
 
@@ -569,14 +569,13 @@ pub fn fit_presses(
     params.led_azimuth_deg = params.led_azimuth_deg.map(|a| a.rem_euclid(360.0));
     let m = model_sectors(&params, size, contacts, &geometry, 2);
     let inside = CONTACT_RINGS * SECTORS;
-    let response = ResponseCurve::of(&model_pixels(&params, size, contacts, &geometry, 2));
     PressFit {
+        response: ResponseCurve::of(&model_pixels(&params, size, contacts, &geometry, 2)),
         params,
         geometry,
         loss: best,
         rms: sector_rms(&m, &target.sectors.sectors_rgb),
         contact_rms: sector_rms(&m[..inside], &target.sectors.sectors_rgb[..inside]),
-        response_rms: target.response.map(|real| response.rms_from(real)),
         rounds,
     }
 }

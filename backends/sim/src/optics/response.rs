@@ -2,7 +2,8 @@
 //!
 //! A look-up table is trained on labelled pixels (each pixel's colour difference from the
 //! background, binned [`COLOUR_BIN`] grey levels wide per channel, holds the mean gradient
-//! of its samples, as `calibrate train --model lut` does), and read back on the same pixels;
+//! of its samples, as the classic table of `calibrate train --model lut --loss l2` does), and
+//! read back on the same pixels;
 //! the reading's component along each pixel's true slope direction is averaged per
 //! true-slope bin ([`SLOPE_BINS`] of [`SLOPE_BIN`]). An optics whose colour keeps changing
 //! with the slope reads back the slope; one whose channels clip, or whose colour turns back
