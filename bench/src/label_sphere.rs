@@ -3,7 +3,7 @@
 //! One ball's labelled presses become a press dataset (a scratch directory: the background,
 //! the press PNGs, `dataset.toml` and `presses.csv` with the labeller's centres and
 //! radii), and the library that `calibrate train` and `calibrate eval` use does the rest:
-//! a LUT of their defaults (`diff` input, 64 bins, the blur the presses' noise calls for)
+//! a LUT of their defaults (`relative` input, 64 bins, the blur the presses' noise calls for)
 //! trained on all rows but the held-out last 10% (`calibrate::split_index`), and the
 //! held-out presses solved (DST, as `calibrate train` does) and fitted with a sphere
 //! (`calibrate::sphere`). The held-out share moves through the presses fold by fold, so

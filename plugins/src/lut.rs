@@ -105,18 +105,24 @@ pub struct LutSpec {
 }
 
 impl LutSpec {
-    /// `calibrate train`'s LUT: the difference key, [`DEFAULT_BINS`], and the `huber` loss.
-    /// Robust as the median is where a colour is read from facets of two slopes (the
-    /// realistic optics' sphere check, `bench label`: 34 of 120 held-out presses within 10%
-    /// where the mean gives 16), without the median's steps: a median bin is a sample's
-    /// value, so the bins around the untouched colour sit at exactly zero and their
-    /// neighbours jump to a contact's slope. Pixel noise crossing such a step reads as a
-    /// spike of slope that the noise calibration, which saw zero, does not expect: with a
-    /// median table, 15–25 of 300 untouched frames of every simulated sensor showed a
-    /// contact; with the Huber or the mean, none (docs/calibration.md, "Bin values").
+    /// `calibrate train`'s LUT: the `relative` key, [`DEFAULT_BINS`] and the `huber` loss.
+    ///
+    /// `relative`, because the LEDs' light falls off across the pad, and a difference
+    /// scales with the light where it is taken (under any camera gamma, the ratio to the
+    /// background does not): on the realistic optics' presses (`bench label`'s sphere
+    /// check) the `diff` key leaves 58 of 120 held-out presses within 10% of the ball's
+    /// radius, `relative` 95; on the real Mini the two agree (20 of 24, docs/calibration.md).
+    ///
+    /// `huber`, robust as the median is where a colour is read from facets of two slopes,
+    /// without the median's steps: a median bin is a sample's value, so the bins around the
+    /// untouched colour sit at exactly zero and their neighbours jump to a contact's slope.
+    /// Pixel noise crossing such a step reads as a spike of slope that the noise
+    /// calibration, which saw zero, does not expect: with a median table, 15–25 of 300
+    /// untouched frames of every simulated sensor showed a contact; with the Huber or the
+    /// mean, none (docs/calibration.md, "Bin values").
     pub fn calibrate_default() -> Self {
         Self {
-            input: Input::Diff,
+            input: Input::Relative,
             bins: DEFAULT_BINS,
             loss: Loss::Huber,
         }

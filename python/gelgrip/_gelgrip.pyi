@@ -225,7 +225,7 @@ def train(
     data_dir: str,
     model: str = "lut",
     *,
-    input: str = "diff",
+    input: Optional[str] = None,
     bins: int = 64,
     blur_px: Optional[int] = None,
     hidden: int = 32,

@@ -84,7 +84,7 @@ fn within_f(what: &str, v: f64, lo: f64, hi: f64) -> PyResult<f64> {
 /// options and their limits; the model (its `report` the `--json` object). A bar shows the
 /// MLP's epochs when stderr is a terminal.
 #[pyfunction]
-#[pyo3(signature = (data_dir, model="lut", *, input="diff", bins=64, blur_px=None, hidden=32,
+#[pyo3(signature = (data_dir, model="lut", *, input=None, bins=64, blur_px=None, hidden=32,
     epochs=80, dropout=0.0, learning_rate=5e-3, patience=20, seed=1, loss=None,
     input_norm="standard"))]
 #[allow(clippy::too_many_arguments)]
@@ -92,7 +92,7 @@ pub fn train(
     py: Python<'_>,
     data_dir: PathBuf,
     model: &str,
-    input: &str,
+    input: Option<&str>,
     bins: i64,
     blur_px: Option<i64>,
     hidden: i64,
@@ -111,12 +111,16 @@ pub fn train(
         &[("lut", ModelChoice::Lut), ("mlp", ModelChoice::Mlp)],
     )?;
     let request = TrainRequest {
-        input: Input::parse(input).ok_or_else(|| {
-            PyValueError::new_err(format!(
-                "input={input:?}: expected one of {:?}",
-                Input::NAMES
-            ))
-        })?,
+        input: input
+            .map(|i| {
+                Input::parse(i).ok_or_else(|| {
+                    PyValueError::new_err(format!(
+                        "input={i:?}: expected one of {:?}",
+                        Input::NAMES
+                    ))
+                })
+            })
+            .transpose()?,
         bins: within("bins", bins, 2, 256)?,
         blur_px: blur_px.map(|b| within("blur_px", b, 0, 8)).transpose()?,
         hidden: within("hidden", hidden, 1, 1024)?,

@@ -34,8 +34,8 @@ pub struct TrainRequest {
     pub data: PathBuf,
     /// The model kind.
     pub model: ModelChoice,
-    /// The colour key.
-    pub input: Input,
+    /// The colour key. `None`: the model's default ([`TrainRequest::input`]).
+    pub input: Option<Input>,
     /// LUT bins per channel.
     pub bins: usize,
     /// LUT box-blur radius, px (`None`: chosen from the presses' noise).
@@ -66,7 +66,7 @@ impl TrainRequest {
         Self {
             data,
             model,
-            input: Input::Diff,
+            input: None,
             bins: DEFAULT_BINS,
             blur_px: None,
             hidden: 32,
@@ -78,6 +78,16 @@ impl TrainRequest {
             loss: None,
             input_norm: InputNorm::Standard,
         }
+    }
+
+    /// The colour key trained on: the one asked for, else the model's default, `relative`
+    /// for a LUT ([`LutSpec::calibrate_default`] says why) and `diff` for an MLP (which
+    /// also sees each pixel's position, so it learns the LEDs' falloff).
+    pub fn input(&self) -> Input {
+        self.input.unwrap_or(match self.model {
+            ModelChoice::Mlp => Input::Diff,
+            ModelChoice::Lut => LutSpec::calibrate_default().input,
+        })
     }
 
     /// The loss trained with: the one asked for, else the model's default, `l1` for an MLP
@@ -274,7 +284,7 @@ fn report(
     let mlp = request.model == ModelChoice::Mlp;
     TrainReport {
         model: if mlp { "mlp" } else { "lut" },
-        input: request.input.as_str(),
+        input: request.input().as_str(),
         hidden: fitted.hidden,
         parameters: fitted.parameters,
         epochs: mlp.then_some(request.epochs),
@@ -298,7 +308,7 @@ fn report(
 /// noise calls for.
 fn train_lut(request: &TrainRequest, ds: &PressDataset, split: usize) -> crate::Result<Fitted> {
     let spec = LutSpec {
-        input: request.input,
+        input: request.input(),
         bins: request.bins,
         loss: request.loss(),
     };
@@ -364,7 +374,7 @@ fn train_mlp(request: &TrainRequest, ds: &PressDataset) -> crate::Result<Fitted>
         opts.loss.as_str(),
         opts.input_norm.as_str(),
         request.learning_rate,
-        request.input.as_str(),
+        request.input().as_str(),
         rows.train.len(),
         rows.validation.len(),
         rows.test.len(),
@@ -375,7 +385,7 @@ fn train_mlp(request: &TrainRequest, ds: &PressDataset) -> crate::Result<Fitted>
     let bar = gelgrip_bench::progress::epochs(request.epochs as u64);
     let v = calibrate::train_mlp_validated(
         &[ds],
-        request.input,
+        request.input(),
         &opts,
         gelgrip_bench::progress::epoch_reporter(&bar),
     )?;
@@ -390,4 +400,27 @@ fn train_mlp(request: &TrainRequest, ds: &PressDataset) -> crate::Result<Fitted>
         train_rows: rows.train,
         validated: Some((rows.validation, v.summary)),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_lut_trains_on_the_relative_key_and_an_mlp_on_the_difference_unless_asked() {
+        let lut = TrainRequest::new(PathBuf::from("d"), ModelChoice::Lut);
+        let mlp = TrainRequest::new(PathBuf::from("d"), ModelChoice::Mlp);
+        assert_eq!(lut.input(), Input::Relative);
+        assert_eq!(mlp.input(), Input::Diff);
+        let asked = TrainRequest {
+            input: Some(Input::Diff),
+            ..lut
+        };
+        assert_eq!(asked.input(), Input::Diff);
+        let raw = TrainRequest {
+            input: Some(Input::Raw),
+            ..mlp
+        };
+        assert_eq!(raw.input(), Input::Raw);
+    }
 }

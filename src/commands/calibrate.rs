@@ -97,7 +97,7 @@ async fn collect(args: CollectArgs) -> anyhow::Result<u8> {
 fn train(args: TrainArgs) -> anyhow::Result<u8> {
     let request = TrainRequest {
         // clap allows only the names Input parses.
-        input: Input::parse(&args.input).unwrap_or(Input::Diff),
+        input: args.input.as_deref().and_then(Input::parse),
         bins: usize::from(args.bins),
         blur_px: args.blur_px.map(usize::from),
         hidden: usize::from(args.hidden),
@@ -338,11 +338,11 @@ pub struct TrainArgs {
     /// Model kind.
     #[arg(long, value_enum, default_value = "lut")]
     pub model: ModelKind,
-    /// Colour key: the difference image (`diff`), the difference relative to the
-    /// background (`relative`: a gain varying across the pad, vignetting or LED falloff,
-    /// cancels) or the raw frame.
-    #[arg(long, default_value = "diff", value_parser = Input::NAMES)]
-    pub input: String,
+    /// Colour key [default: `relative` for a LUT, `diff` for an MLP]: the difference image
+    /// (`diff`), the difference relative to the background (`relative`: a gain varying
+    /// across the pad, vignetting or LED falloff, cancels) or the raw frame.
+    #[arg(long, value_parser = Input::NAMES)]
+    pub input: Option<String>,
     /// LUT bins per channel.
     #[arg(long, default_value = "64", value_parser = clap::value_parser!(u16).range(2..=256))]
     pub bins: u16,
