@@ -253,7 +253,7 @@ fn bracket(p: usize, lo: usize, hi: usize) -> (usize, usize, f64) {
 }
 
 /// The full-resolution gel indentation of a pad, given its coarse `contact`. The object's
-/// distance is probed every [`MAP_STRIDE`] pixels inside the contact's bounding box and
+/// distance is probed every `MAP_STRIDE` (2) pixels inside the contact's bounding box and
 /// interpolated bilinearly between (the indentation is smooth at that scale).
 pub fn height_map(
     frame: &PadFrame,

@@ -88,7 +88,7 @@ impl BallOnGel {
         (scale * k0, -scale * k1 / l)
     }
 
-    /// How far from the centre the press reaches (the skirt down to [`SKIRT_CUTOFF`] of its
+    /// How far from the centre the press reaches (the skirt down to `SKIRT_CUTOFF` (10⁻⁴) of its
     /// edge depth).
     pub fn reach(&self) -> f64 {
         let (a, l) = (self.contact_radius, self.skirt_length);
