@@ -10,12 +10,13 @@ pub mod sheet;
 pub mod sphere;
 pub mod window;
 
-use crate::dataset::{DatasetError, PressDataset, PressTruth};
+use crate::dataset::{DatasetError, Press, PressDataset, PressTruth};
 use crate::gradient::{GradientModel, background_key, frame_key};
-use crate::lut::{Input, LutModel, LutSpec, LutTrainer};
+use crate::lut::{Input, LutModel, LutSpec, LutTrainer, RIM_BAND_PX, RimPixels};
 use crate::mlp::train::{EpochReport, Samples, TrainOptions, ValidationSummary};
 use crate::mlp::transfer::PressPixels;
 use crate::mlp::{MlpError, MlpModel};
+use crate::model_file::{Slopes, to_forward_differences};
 use crate::poisson::{PoissonPlan, Solver};
 
 /// Calibration failed: reading the dataset, or the network.
@@ -104,24 +105,37 @@ pub fn min_presses_for_validation() -> usize {
 }
 
 /// The labelled pixels of a press, as every trainer and the transfer use them: each inside
-/// pixel with its geometric gradient, and background pixels (untouched, one for every five
-/// inside pixels, evenly spaced) with zero gradient. Labels are `(pixel, gx, gy)`, possibly
-/// non-finite (callers skip those).
-fn labelled_pixels(truth: &PressTruth, w: usize, h: usize) -> Vec<(usize, f32, f32)> {
+/// pixel with its gradient ([`PressTruth::gradients`], its footprint's mean slope), and
+/// background pixels (untouched, one for every five inside pixels, evenly spaced) with
+/// zero gradient; with `reached`, also every outside pixel that the contact reaches into,
+/// with the rise it covers. Labels are `(pixel, gx, gy)`, possibly non-finite (callers
+/// skip those).
+fn labelled_pixels(
+    truth: &PressTruth,
+    (w, h): (usize, usize),
+    reached: bool,
+) -> Vec<(usize, f32, f32)> {
     let (gx, gy) = truth.gradients(w, h);
     let inside = truth.inside.iter().filter(|v| **v).count().max(1);
     let stride = ((w * h - inside).max(1) * 5 / inside).max(1);
     (0..w * h)
         .filter_map(|p| {
-            if truth.inside[p] {
+            let sloped = gx[p] != 0.0 || gy[p] != 0.0;
+            if truth.inside[p] || (reached && sloped) {
                 Some((p, gx[p] as f32, gy[p] as f32))
-            } else if p % stride == 0 && truth.depth_px[p] == 0.0 {
+            } else if p % stride == 0 && !sloped {
                 Some((p, 0.0, 0.0))
             } else {
                 None
             }
         })
         .collect()
+}
+
+/// Whether pixel `(x, y)` is within `band_px` of `press`'s contact circle, inside or out.
+fn on_rim(press: &Press, (x, y): (usize, usize), band_px: f64) -> bool {
+    let rho = (x as f64 - press.center_x_px).hypot(y as f64 - press.center_y_px);
+    (rho - press.contact_radius_px).abs() < band_px
 }
 
 /// Train a LUT on the dataset's training rows (every row but the held-out last 10%).
@@ -292,22 +306,70 @@ fn train_rows(
     (w, h): (usize, usize),
 ) -> Result<LutModel, DatasetError> {
     let input = spec.input;
+    let fallback_rim = spec.rim == RimPixels::Fallback;
+    let band_px = RIM_BAND_PX + blur_px as f64;
     let mut trainer = LutTrainer::for_spec(spec);
+    let mut rim = RimSamples::default();
     for ds in datasets {
         let r = ds.ball_radius_px();
         let background = ds.background.blurred(blur_px);
         for press in ds.presses.get(rows(ds)).unwrap_or(&[]) {
             let img = ds.press_image(press)?.blurred(blur_px);
             let truth = PressTruth::new(press, r, w, h);
-            for (p, gx, gy) in labelled_pixels(&truth, w, h) {
-                trainer.add(frame_key(&img, &background, p, input), gx, gy);
+            for (p, gx, gy) in labelled_pixels(&truth, (w, h), fallback_rim) {
+                let key = frame_key(&img, &background, p, input);
+                if fallback_rim && on_rim(press, (p % w, p / w), band_px) {
+                    rim.samples.push((key, gx, gy));
+                    continue;
+                }
+                if !truth.inside[p] {
+                    rim.see_flat(key);
+                }
+                trainer.add(key, gx, gy);
             }
         }
     }
-    let mut model = trainer.finish(w, h);
+    let mut model = if fallback_rim {
+        trainer.finish_with_fallback(rim.trainer(spec), w, h)
+    } else {
+        trainer.finish(w, h)
+    };
     model.blur_px = blur_px;
     model.mm_per_px = shared_mm_per_px(datasets);
+    model.slopes = Slopes::Footprint;
     Ok(model)
+}
+
+/// The rim's labelled pixels of a LUT with [`RimPixels::Fallback`], and how far from zero
+/// the keys of the untouched gel's labelled pixels (off every rim) reach per channel: the
+/// camera's noise around the flat gel, measured on the training presses themselves.
+#[derive(Default)]
+struct RimSamples {
+    samples: Vec<([f32; 3], f32, f32)>,
+    flat_reach: [f32; 3],
+}
+
+impl RimSamples {
+    fn see_flat(&mut self, key: [f32; 3]) {
+        for (reach, k) in self.flat_reach.iter_mut().zip(key) {
+            if k.is_finite() {
+                *reach = reach.max(k.abs());
+            }
+        }
+    }
+
+    /// The fallback trainer: the rim's pixels whose colour is outside the untouched gel's
+    /// reach (one within it may be a frame's noise on flat gel, which must read flat: a
+    /// rim pixel mostly outside the contact has the flat colour and a steep label).
+    fn trainer(self, spec: LutSpec) -> LutTrainer {
+        let mut trainer = LutTrainer::for_spec(spec);
+        for (key, gx, gy) in self.samples {
+            if key.iter().zip(&self.flat_reach).any(|(k, r)| k.abs() > *r) {
+                trainer.add(key, gx, gy);
+            }
+        }
+        trainer
+    }
 }
 
 /// The labelled pixels of the training rows of `datasets` as MLP samples (transfer not
@@ -337,6 +399,7 @@ pub fn mlp_samples_of(
         offset_rgb: [0.0; 3],
         gain_rgb: [1.0; 3],
         mm_per_px: None,
+        slopes: Slopes::Footprint,
     };
     let mut samples = Samples::default();
     for ds in datasets {
@@ -344,7 +407,7 @@ pub fn mlp_samples_of(
         for press in ds.presses.get(rows(ds)).unwrap_or(&[]) {
             let img = ds.press_image(press)?;
             let truth = PressTruth::new(press, r, w, h);
-            for (p, gx, gy) in labelled_pixels(&truth, w, h) {
+            for (p, gx, gy) in labelled_pixels(&truth, (w, h), false) {
                 if gx.is_finite() && gy.is_finite() {
                     let k = frame_key(&img, &ds.background, p, input);
                     samples.push(shape.features(k, p % w, p / w), gx, gy);
@@ -397,6 +460,7 @@ pub fn train_mlp_on(
     let (samples, size) = mlp_samples(datasets, input)?;
     let mut model = crate::mlp::train::train(&samples, input, size, opts, progress)?;
     model.mm_per_px = shared_mm_per_px(datasets);
+    model.slopes = Slopes::Footprint;
     Ok(model)
 }
 
@@ -432,6 +496,7 @@ pub fn train_mlp_validated(
     let (mut model, summary) =
         crate::mlp::train::train_validated(&samples, &validation, input, size, opts, progress)?;
     model.mm_per_px = shared_mm_per_px(datasets);
+    model.slopes = Slopes::Footprint;
     Ok(ValidatedMlp {
         model,
         summary,
@@ -454,7 +519,7 @@ pub fn press_pixels(
     let img = ds.press_image(press)?;
     let truth = PressTruth::new(press, ds.ball_radius_px(), w, h);
     let mut out = PressPixels::default();
-    for (p, gx, gy) in labelled_pixels(&truth, w, h) {
+    for (p, gx, gy) in labelled_pixels(&truth, (w, h), false) {
         if gx.is_finite() && gy.is_finite() {
             out.keys.push(frame_key(&img, &ds.background, p, input));
             out.background_keys
@@ -513,7 +578,10 @@ pub fn evaluate(
     for press in ds.presses.get(rows).unwrap_or(&[]) {
         let img = ds.press_image(press)?;
         let truth = PressTruth::new(press, r, w, h);
-        let (gx, gy) = truth.gradients(w, h);
+        // The model's gradients come as forward differences, so the labels are taken the
+        // same way.
+        let (mut gx, mut gy) = truth.gradients(w, h);
+        to_forward_differences(&mut gx, &mut gy, w);
         model.predict_frame(&img, &ds.background, &mut px, &mut py)?;
         if let Some(plan) = plan.as_mut() {
             plan.solve(&px, &py, &mut z);
@@ -562,6 +630,95 @@ fn mean_outside(z: &[f64], inside: &[bool]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::{best_blur, split_index};
+
+    /// Presses whose colour `SHARED` shows both a gentle facet inside the contact and the
+    /// steep rim on its right, and `RIM` only the rim on its left: a table with the rim as a
+    /// fallback reads `SHARED` as the gentle facet and still learns `RIM`; one that learns
+    /// the rim alike reads `SHARED` steeper.
+    #[test]
+    fn the_rim_teaches_only_the_colours_nothing_else_showed() {
+        use crate::dataset::{DatasetInfo, Press, PressDataset};
+        use crate::image::RgbImage;
+        use crate::lut::{LutSpec, RIM_BAND_PX, RimPixels, relative_key};
+        const FLAT: u8 = 128;
+        const SHARED: [u8; 3] = [FLAT - 30, FLAT, FLAT];
+        const RIM: [u8; 3] = [FLAT, FLAT - 30, FLAT];
+        const INSIDE: [u8; 3] = [FLAT, FLAT, FLAT - 60];
+        let (w, h) = (64, 48);
+        let mut background = RgbImage::new(w, h);
+        background.data.fill(FLAT);
+        let press = |i: usize| Press {
+            file: format!("press_{i:03}.png"),
+            center_x_px: 30.0 + i as f64,
+            center_y_px: 24.0,
+            contact_radius_px: 12.0,
+        };
+        let presses: Vec<Press> = (0..4).map(press).collect();
+        let dir = std::env::temp_dir().join(format!("gelgrip-rim-test-{}", std::process::id()));
+        let info = DatasetInfo {
+            ball_diameter_mm: 2.0,
+            mm_per_px: 0.05,
+        };
+        PressDataset::write_index(&dir, &info, &background, &presses).expect("index");
+        for p in &presses {
+            let mut img = background.clone();
+            for (k, px) in img.data.chunks_exact_mut(3).enumerate() {
+                let (dx, dy) = (
+                    (k % w) as f64 - p.center_x_px,
+                    (k / w) as f64 - p.center_y_px,
+                );
+                let (rho, a) = (dx.hypot(dy), p.contact_radius_px);
+                let colour = if rho >= a {
+                    continue;
+                } else if rho > a - RIM_BAND_PX {
+                    if dx > dy.abs() {
+                        SHARED
+                    } else if -dx > dy.abs() {
+                        RIM
+                    } else {
+                        continue;
+                    }
+                } else if dx > dy.abs() && (5.0..8.0).contains(&rho) {
+                    SHARED
+                } else {
+                    INSIDE
+                };
+                px.copy_from_slice(&colour);
+            }
+            img.write_png(&dir.join(&p.file)).expect("png");
+        }
+        let ds = PressDataset::load(&dir).expect("dataset");
+        let read = |rim, colour: [u8; 3]| {
+            let spec = LutSpec {
+                loss: crate::mlp::train::Loss::L2,
+                rim,
+                ..LutSpec::calibrate_default()
+            };
+            let lut = super::train_lut_blurred(&[&ds], spec, 0).expect("lut");
+            let key = colour.map(|c| relative_key(f32::from(c), f32::from(FLAT)));
+            lut.predict_at(key, 0, 0)[0]
+        };
+        let (fallback, learnt) = (
+            read(RimPixels::Fallback, SHARED),
+            read(RimPixels::Learnt, SHARED),
+        );
+        let rim_only = read(RimPixels::Fallback, RIM);
+        let _ = std::fs::remove_dir_all(&dir);
+        // A ball of 20 px: the facets 5–8 px from the centre slope 0.26–0.44 (falling
+        // towards +x), the rim at 10.5–12 px 0.6–0.9.
+        assert!(
+            (-0.45..-0.2).contains(&fallback),
+            "shared, rim as fallback: gx {fallback}"
+        );
+        assert!(
+            learnt < fallback - 0.05,
+            "shared, rim learnt: gx {learnt} vs {fallback}"
+        );
+        assert!(
+            rim_only > 0.3,
+            "a colour only the rim showed: gx {rim_only}"
+        );
+    }
 
     #[test]
     fn the_smallest_blur_within_a_tenth_of_the_best_is_kept() {

@@ -5,8 +5,8 @@
 //! Labels come from the ball geometry. A pixel is inside a press when
 //! (x − cx)² + (y − cy)² < r² at integer pixel centres. The press depth follows from the
 //! contact radius a and ball radius R (both in px): d = R − sqrt(R² − a²). The depth at
-//! ρ < a is sqrt(R² − ρ²) − (R − d). Gradients are forward differences of that depth, as
-//! the solvers assume (gx[i][j] = z[i][j+1] − z[i][j]).
+//! ρ < a is sqrt(R² − ρ²) − (R − d). A pixel's gradient label is that depth's mean slope
+//! over the pixel's footprint ([`PressTruth::gradients`]): what its colour shows.
 
 use std::path::{Path, PathBuf};
 
@@ -228,6 +228,8 @@ pub struct PressTruth {
     pub depth_px: Vec<f64>,
     /// Inside the contact circle.
     pub inside: Vec<bool>,
+    /// The cap: centre (px), contact radius (px), ball radius (px).
+    cap: (f64, f64, f64, f64),
 }
 
 impl PressTruth {
@@ -250,12 +252,59 @@ impl PressTruth {
                 }
             }
         }
-        Self { depth_px, inside }
+        Self {
+            depth_px,
+            inside,
+            cap: (press.center_x_px, press.center_y_px, a, r),
+        }
     }
 
-    /// Forward-difference gradients of the depth (px per px).
+    /// The cap's depth (px) at a point.
+    fn depth_at(&self, x: f64, y: f64) -> f64 {
+        let (cx, cy, a, r) = self.cap;
+        let rho2 = (x - cx).powi(2) + (y - cy).powi(2);
+        if rho2 >= a * a {
+            return 0.0;
+        }
+        ((r * r - rho2).max(0.0).sqrt() - (r * r - a * a).max(0.0).sqrt()).max(0.0)
+    }
+
+    /// Each pixel's gradient (px per px) as its colour shows it: the mean of the cap's
+    /// slope over the pixel's footprint (the unit square around its centre), as a camera
+    /// pixel gathers the light of its whole footprint and the simulator renders it. Inside,
+    /// that is the slope at the centre; on the rim, the pressed share's slope mixed with the
+    /// flat gel's; an outside pixel that the contact reaches into has the rise it covers.
+    /// Along a row, the labels sum to the depth's change (the mean over a pixel of ∂z/∂x is
+    /// the difference of z's column means at its sides), so they integrate to no plateau
+    /// beyond the contact. Forward differences at the pixels' centres did not: the rise at a
+    /// left or upper rim fell to an outside pixel whose colour is the flat gel's, so a table
+    /// never learnt it, and depth read beyond a contact's upper rim stood 0.03–0.04 mm above
+    /// zero (docs/calibration.md, "The rim's pixels").
     pub fn gradients(&self, width: usize, height: usize) -> (Vec<f64>, Vec<f64>) {
-        crate::poisson::gradients_of(&self.depth_px, height, width)
+        // Sub-samples along each side: the slope's kink at the rim is within a pixel, and
+        // the midpoint rule over 16 is exact to 0.3% of the rim's step.
+        const N: usize = 16;
+        let (cx, cy, a, _) = self.cap;
+        let mut gx = vec![0.0; width * height];
+        let mut gy = vec![0.0; width * height];
+        let y0 = (cy - a - 2.0).floor().max(0.0) as usize;
+        let y1 = ((cy + a + 2.0).ceil().max(0.0) as usize).min(height);
+        let x0 = (cx - a - 2.0).floor().max(0.0) as usize;
+        let x1 = ((cx + a + 2.0).ceil().max(0.0) as usize).min(width);
+        for y in y0..y1 {
+            for x in x0..x1 {
+                let (xf, yf) = (x as f64, y as f64);
+                let (mut sx, mut sy) = (0.0, 0.0);
+                for i in 0..N {
+                    let t = (i as f64 + 0.5) / N as f64 - 0.5;
+                    sx += self.depth_at(xf + 0.5, yf + t) - self.depth_at(xf - 0.5, yf + t);
+                    sy += self.depth_at(xf + t, yf + 0.5) - self.depth_at(xf + t, yf - 0.5);
+                }
+                gx[y * width + x] = sx / N as f64;
+                gy[y * width + x] = sy / N as f64;
+            }
+        }
+        (gx, gy)
     }
 }
 
@@ -290,5 +339,42 @@ mod tests {
             t.inside.iter().filter(|v| **v).count(),
             t.depth_px.iter().filter(|v| **v > 0.0).count()
         );
+    }
+
+    /// The labels are the footprint's mean slope: the cap's slope at an inside pixel's
+    /// centre, a share of the rim's on an outside pixel the contact reaches into, and every
+    /// row's and column's labels sum to zero (no plateau when they are integrated).
+    #[test]
+    fn gradients_are_the_footprints_mean_slope_and_close() {
+        let press = Press {
+            file: "p".into(),
+            center_x_px: 50.3,
+            center_y_px: 40.6,
+            contact_radius_px: 20.2,
+        };
+        let (w, h, r) = (100, 80, 48.0);
+        let t = PressTruth::new(&press, r, w, h);
+        let (gx, gy) = t.gradients(w, h);
+        assert!(gx.iter().chain(&gy).all(|g| g.is_finite()));
+        // Inside, 10 px right of the centre: the sphere's slope −x/√(r² − ρ²) there.
+        let (x, y) = (60usize, 41usize);
+        let (dx, dy) = (x as f64 - 50.3, y as f64 - 40.6);
+        let want = -dx / (r * r - dx * dx - dy * dy).sqrt();
+        assert!(
+            (gx[y * w + x] - want).abs() < 2e-3,
+            "{} vs {want}",
+            gx[y * w + x]
+        );
+        // The outside pixel left of the left rim (x = 30, ρ = 20.3) rises into the contact.
+        let outside = 41 * w + 30;
+        assert!(!t.inside[outside] && gx[outside] > 0.05, "{}", gx[outside]);
+        for row in 0..h {
+            let sum: f64 = gx[row * w..(row + 1) * w].iter().sum();
+            assert!(sum.abs() < 1e-9, "row {row}: {sum}");
+        }
+        for col in 0..w {
+            let sum: f64 = (0..h).map(|row| gy[row * w + col]).sum();
+            assert!(sum.abs() < 1e-9, "column {col}: {sum}");
+        }
     }
 }

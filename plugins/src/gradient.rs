@@ -7,7 +7,7 @@ use std::sync::Arc;
 use crate::image::RgbImage;
 use crate::lut::{Input, LutModel, relative_key};
 use crate::mlp::{INPUTS, MlpError, MlpModel, MlpNet};
-use crate::model_file::ModelFile;
+use crate::model_file::{ModelFile, Slopes, to_forward_differences};
 
 /// How an MLP is evaluated in the pipeline.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -105,6 +105,15 @@ impl GradientModel {
         }
     }
 
+    /// Which slope the model's raw output at a pixel is; [`GradientModel::predict_frame`]
+    /// and the pipeline give forward differences whichever it is.
+    pub fn slopes(&self) -> Slopes {
+        match self {
+            GradientModel::Lut(l) => l.slopes,
+            GradientModel::Mlp { model, .. } => model.slopes,
+        }
+    }
+
     /// Box-blur radius the model reads frames through, px (0 for an MLP).
     pub fn blur_px(&self) -> usize {
         match self {
@@ -127,7 +136,8 @@ impl GradientModel {
     }
 
     /// Gradients of every pixel of `img` against the no-contact `background` (evaluation
-    /// and calibration; the live pipeline works on windows).
+    /// and calibration; the live pipeline works on windows), as forward differences
+    /// (CONTRACTS.md), whichever [`Slopes`] the model learnt.
     pub fn predict_frame(
         &self,
         img: &RgbImage,
@@ -171,6 +181,9 @@ impl GradientModel {
                     gy[p] = f64::from(out[2 * p + 1] - bg[2 * p + 1]);
                 }
             }
+        }
+        if self.slopes() == Slopes::Footprint {
+            to_forward_differences(&mut gx[..w * h], &mut gy[..w * h], w);
         }
         Ok(())
     }

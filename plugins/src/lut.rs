@@ -17,7 +17,7 @@ use std::collections::VecDeque;
 use std::path::Path;
 
 use crate::mlp::train::Loss;
-use crate::model_file::{self, ModelFile, ModelFileError};
+use crate::model_file::{self, ModelFile, ModelFileError, Slopes};
 
 mod fit;
 
@@ -102,16 +102,53 @@ pub struct LutSpec {
     pub bins: usize,
     /// `l1`: each bin's median; `l2`: its mean; `huber`: between.
     pub loss: Loss,
+    /// What the pixels on a press's rim teach.
+    pub rim: RimPixels,
 }
 
+/// What the labelled pixels on a press's rim (within [`RIM_BAND_PX`], plus the frames' blur
+/// radius, of its contact circle) teach a LUT. Such a pixel sees the cap's steepest facets
+/// and the flat gel at once (and the camera's chroma is sampled over 2 × 2 pixels), so its
+/// colour is neither's; where that colour is also a gentler facet's, a table that learns
+/// the rim reads that facet as the rim's slope (docs/calibration.md, "The rim's pixels").
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RimPixels {
+    /// Every labelled pixel teaches its bin alike (the classic table).
+    Learnt,
+    /// A rim pixel teaches only a colour that no pixel off the rim showed, nor any within
+    /// [`FALLBACK_BEYOND_BINS`] of one; the outside pixels the contact reaches into are
+    /// labelled too (with the rise they cover), and a rim colour within the untouched
+    /// gel's noise teaches nothing (that colour must read flat).
+    Fallback,
+}
+
+/// Half-width of a press's rim band, px ([`RimPixels`]): a pixel's footprint reaches ½√2
+/// px from its centre, and the camera's chroma is shared by 2 × 2 pixels.
+pub const RIM_BAND_PX: f64 = 1.5;
+
+/// How many bins (face steps) from a bin that pixels off the rim taught a rim-only colour
+/// must be before the rim's value is used for it ([`LutTrainer::finish_with_fallback`]);
+/// nearer, the neighbour's value is. A held-out press's gentle facets fall into the
+/// training presses' sparse bins' gaps, and a gap the rim alone had reached read them the
+/// rim's slope: on the realistic optics' bench (`bench label`, forward-difference labels)
+/// 105 of 120 held-out presses within 10% of the ball's radius with 0, 116 with 1, 117
+/// with 2 and 3; with the footprint labels 117 with 1 and 2.
+pub const FALLBACK_BEYOND_BINS: usize = 2;
+
 impl LutSpec {
-    /// `calibrate train`'s LUT: the `relative` key, [`DEFAULT_BINS`] and the `huber` loss.
+    /// `calibrate train`'s LUT: the `relative` key, [`DEFAULT_BINS`], the `huber` loss, and
+    /// the rim's pixels as a fallback.
     ///
     /// `relative`, because the LEDs' light falls off across the pad, and a difference
     /// scales with the light where it is taken (under any camera gamma, the ratio to the
     /// background does not): on the realistic optics' presses (`bench label`'s sphere
     /// check) the `diff` key leaves 58 of 120 held-out presses within 10% of the ball's
     /// radius, `relative` 95; on the real Mini the two agree (20 of 24, docs/calibration.md).
+    ///
+    /// [`RimPixels::Fallback`], because the rim's mixed colours otherwise teach other
+    /// presses' gentle facets steep slopes: with the footprint labels, 89 → 117 of those
+    /// 120 (nominal optics 119), and with both the real Mini's depth error 0.126 → 0.110
+    /// mm (docs/calibration.md, "The rim's pixels").
     ///
     /// `huber`, robust as the median is where a colour is read from facets of two slopes,
     /// without the median's steps: a median bin is a sample's value, so the bins around the
@@ -125,6 +162,7 @@ impl LutSpec {
             input: Input::Relative,
             bins: DEFAULT_BINS,
             loss: Loss::Huber,
+            rim: RimPixels::Fallback,
         }
     }
 
@@ -134,6 +172,7 @@ impl LutSpec {
             input,
             bins,
             loss: Loss::L2,
+            rim: RimPixels::Learnt,
         }
     }
 }
@@ -163,6 +202,8 @@ pub struct LutModel {
     /// Pixel size on the gel of the presses it was trained on, mm (metadata `mm_per_px`;
     /// `None` for a file written before it was recorded).
     pub mm_per_px: Option<f64>,
+    /// Which slope a gradient in the table is (metadata `slopes`).
+    pub slopes: Slopes,
     /// `tiles × bins³` entries of (gx, gy), tile-major.
     table: Vec<[f32; 2]>,
 }
@@ -206,7 +247,9 @@ impl LutTrainer {
     /// An empty trainer for `spec`: its bins take the value that minimises its loss over
     /// their samples ([`fit`]).
     pub fn for_spec(spec: LutSpec) -> Self {
-        let LutSpec { input, bins, loss } = spec;
+        let LutSpec {
+            input, bins, loss, ..
+        } = spec;
         let bins = bins.clamp(2, 256);
         let running = loss == Loss::L2;
         Self {
@@ -244,7 +287,34 @@ impl LutTrainer {
     }
 
     /// Fit each bin to its samples, fill the empty bins, and produce the model.
-    pub fn finish(mut self, width: usize, height: usize) -> LutModel {
+    pub fn finish(self, width: usize, height: usize) -> LutModel {
+        let input = self.input;
+        let (table, filled) = self.fitted_bins();
+        model_of(input, table, filled, (width, height))
+    }
+
+    /// [`LutTrainer::finish`], where a bin that none of this trainer's samples reached, and
+    /// none within [`FALLBACK_BEYOND_BINS`] of one, takes `fallback`'s value if any of its
+    /// samples did (before the rest of the empty bins are filled from their neighbours).
+    /// Both must have the same key and bins.
+    pub fn finish_with_fallback(self, fallback: Self, width: usize, height: usize) -> LutModel {
+        let (input, bins) = (self.input, self.bins);
+        let (mut table, mut filled) = self.fitted_bins();
+        if fallback.bins == bins && fallback.input == input {
+            let (spare, spare_filled) = fallback.fitted_bins();
+            grow(&mut table, &mut filled, FALLBACK_BEYOND_BINS);
+            for i in 0..table.len() {
+                if !filled[i] && spare_filled[i] {
+                    table[i] = spare[i];
+                    filled[i] = true;
+                }
+            }
+        }
+        model_of(input, table, filled, (width, height))
+    }
+
+    /// Each bin's fitted value, and whether any sample reached it.
+    fn fitted_bins(mut self) -> (Vec<[f32; 2]>, Vec<bool>) {
         let n = self.bins;
         let mut table = vec![[0.0f32; 2]; n * n * n];
         for (i, (s, c)) in self.sums.iter().zip(&self.counts).enumerate() {
@@ -253,38 +323,65 @@ impl LutTrainer {
             }
         }
         fit::fit_bins(self.loss, &mut self.samples, |i, v| table[i] = v);
-        let mut filled: Vec<bool> = self.counts.iter().map(|c| *c > 0).collect();
-        let mut queue: VecDeque<usize> = (0..n * n * n).filter(|i| filled[*i]).collect();
-        while let Some(i) = queue.pop_front() {
-            let (r, g, b) = (i / (n * n), (i / n) % n, i % n);
-            let neighbours = [
-                (r > 0).then(|| i - n * n),
-                (r + 1 < n).then(|| i + n * n),
-                (g > 0).then(|| i - n),
-                (g + 1 < n).then(|| i + n),
-                (b > 0).then(|| i - 1),
-                (b + 1 < n).then(|| i + 1),
-            ];
-            for j in neighbours.into_iter().flatten() {
-                if !filled[j] {
-                    filled[j] = true;
-                    table[j] = table[i];
-                    queue.push_back(j);
-                }
+        let filled = self.counts.iter().map(|c| *c > 0).collect();
+        (table, filled)
+    }
+}
+
+/// Fill the empty bins next to filled ones with their values, `layers` layers deep
+/// (breadth first over the 6 face neighbours; `usize::MAX`: until every bin is filled).
+fn grow(table: &mut [[f32; 2]], filled: &mut [bool], layers: usize) {
+    let n = (table.len() as f64).cbrt().round() as usize;
+    let mut queue: VecDeque<(usize, usize)> = (0..n * n * n)
+        .filter(|i| filled[*i])
+        .map(|i| (i, 0))
+        .collect();
+    while let Some((i, layer)) = queue.pop_front() {
+        if layer >= layers {
+            continue;
+        }
+        let (r, g, b) = (i / (n * n), (i / n) % n, i % n);
+        let neighbours = [
+            (r > 0).then(|| i - n * n),
+            (r + 1 < n).then(|| i + n * n),
+            (g > 0).then(|| i - n),
+            (g + 1 < n).then(|| i + n),
+            (b > 0).then(|| i - 1),
+            (b + 1 < n).then(|| i + 1),
+        ];
+        for j in neighbours.into_iter().flatten() {
+            if !filled[j] {
+                filled[j] = true;
+                table[j] = table[i];
+                queue.push_back((j, layer + 1));
             }
         }
-        LutModel {
-            input: self.input,
-            bins: n,
-            width,
-            height,
-            offset_rgb: [0.0; 3],
-            tiles: [1, 1],
-            source: "presses".into(),
-            blur_px: 0,
-            mm_per_px: None,
-            table,
-        }
+    }
+}
+
+/// The model of a fitted `table` (bins³ entries) whose `filled` bins received samples: the
+/// empty bins take the value of the nearest filled one (breadth first over the 6 face
+/// neighbours).
+fn model_of(
+    input: Input,
+    mut table: Vec<[f32; 2]>,
+    mut filled: Vec<bool>,
+    (width, height): (usize, usize),
+) -> LutModel {
+    let n = (table.len() as f64).cbrt().round() as usize;
+    grow(&mut table, &mut filled, usize::MAX);
+    LutModel {
+        input,
+        bins: n,
+        width,
+        height,
+        offset_rgb: [0.0; 3],
+        tiles: [1, 1],
+        source: "presses".into(),
+        blur_px: 0,
+        mm_per_px: None,
+        slopes: Slopes::Forward,
+        table,
     }
 }
 
@@ -328,6 +425,7 @@ impl LutModel {
             source: source.into(),
             blur_px: 0,
             mm_per_px: None,
+            slopes: Slopes::Forward,
             table,
         })
     }
@@ -411,6 +509,7 @@ impl LutModel {
             ("blur_px".to_string(), self.blur_px.to_string()),
         ]);
         model_file::put_mm_per_px(&mut metadata, self.mm_per_px);
+        model_file::put_slopes(&mut metadata, self.slopes);
         let n = self.bins;
         let values = self.table.iter().flat_map(|g| *g).collect();
         let t = self.tiles[0] * self.tiles[1];
@@ -523,6 +622,7 @@ impl LutModel {
                 })?,
         };
         model.mm_per_px = model_file::mm_per_px(file, &p)?;
+        model.slopes = model_file::slopes(file, &p)?;
         Ok(model)
     }
 }
@@ -558,6 +658,7 @@ mod tests {
         m.offset_rgb = [1.0, -2.0, 0.5];
         m.blur_px = 3;
         m.mm_per_px = Some(0.05);
+        m.slopes = Slopes::Footprint;
         let dir = std::env::temp_dir().join(format!("gelgrip-lut-{}", std::process::id()));
         std::fs::create_dir_all(&dir).expect("tmp dir");
         let path = dir.join("m.safetensors");
@@ -567,6 +668,10 @@ mod tests {
         unknown.mm_per_px = None;
         unknown.save(&path).expect("save");
         assert_eq!(LutModel::load(&path).expect("load").mm_per_px, None);
+        let mut forward = m.clone();
+        forward.slopes = Slopes::Forward;
+        forward.save(&path).expect("save");
+        assert_eq!(LutModel::load(&path).expect("load").slopes, Slopes::Forward);
         let mut wide = m.clone();
         wide.blur_px = 99;
         wide.save(&path).expect("save");

@@ -2,7 +2,8 @@
 //! `gelgrip-gradient-model`, `version`, `kind` (`lut`|`mlp`), `input` (`diff`|`raw`),
 //! `width`, `height` and `offset_rgb` (CONTRACTS.md, "Model file"), and optionally
 //! `mm_per_px`, the pixel size on the gel the model was trained at (files written before
-//! it have none: [`mm_per_px`]).
+//! it have none: [`mm_per_px`]), and `slopes`, which slope a gradient at a pixel is
+//! ([`Slopes`]; files written before it have forward differences).
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -61,6 +62,78 @@ pub fn mm_per_px(file: &ModelFile, path: &str) -> Result<Option<f64>, ModelFileE
             actual: Some(v.clone()),
             expected: "a positive number (mm per pixel)".into(),
         })
+}
+
+/// Which slope a model's gradient at a pixel is (metadata `slopes`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Slopes {
+    /// `forward`: the forward difference to the next pixel, as the solvers take gradients
+    /// (CONTRACTS.md, "Tactile conventions"): models trained before 2026-11-29, whose files
+    /// have no `slopes`, and models fitted to such gradients.
+    #[default]
+    Forward,
+    /// `footprint`: the mean slope over the pixel's own footprint, what its colour shows
+    /// (`PressTruth::gradients`, what `calibrate train` labels). The gradient stage turns
+    /// them into forward differences ([`to_forward_differences`]) before anything else
+    /// sees them.
+    Footprint,
+}
+
+/// Metadata key of [`Slopes`].
+pub const SLOPES_KEY: &str = "slopes";
+
+impl Slopes {
+    /// `forward` or `footprint`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Slopes::Forward => "forward",
+            Slopes::Footprint => "footprint",
+        }
+    }
+}
+
+/// Add `slopes` to `metadata`.
+pub fn put_slopes(metadata: &mut HashMap<String, String>, slopes: Slopes) {
+    metadata.insert(SLOPES_KEY.to_string(), slopes.as_str().to_string());
+}
+
+/// The file's [`Slopes`]: `forward` when absent (a file written before the key); another
+/// value is an error naming the key.
+pub fn slopes(file: &ModelFile, path: &str) -> Result<Slopes, ModelFileError> {
+    match file.metadata.get(SLOPES_KEY).map(|v| v.trim()) {
+        None | Some("forward") => Ok(Slopes::Forward),
+        Some("footprint") => Ok(Slopes::Footprint),
+        Some(v) => Err(ModelFileError::Metadata {
+            path: path.to_string(),
+            key: SLOPES_KEY.to_string(),
+            actual: Some(v.to_string()),
+            expected: "forward or footprint".into(),
+        }),
+    }
+}
+
+/// Turn a `w`-wide row-major map of footprint slopes into the forward differences the
+/// solvers take, in place: each gradient becomes the mean of its pixel's slope and the next
+/// pixel's (right for `gx`, below for `gy`), the slope at the point between them; the last
+/// column of `gx` and last row of `gy` keep their own. The sum along a row (column) is
+/// kept but for half of its ends, so what closed still closes.
+pub fn to_forward_differences<T>(gx: &mut [T], gy: &mut [T], w: usize)
+where
+    T: Copy + std::ops::Add<Output = T> + std::ops::Mul<Output = T> + From<f32>,
+{
+    let half = T::from(0.5);
+    if w == 0 {
+        return;
+    }
+    for row in gx.chunks_exact_mut(w) {
+        for x in 0..w.saturating_sub(1) {
+            row[x] = half * (row[x] + row[x + 1]);
+        }
+    }
+    let n = gy.len();
+    for p in 0..n.saturating_sub(w) {
+        gy[p] = half * (gy[p] + gy[p + w]);
+    }
 }
 
 /// Three numbers as metadata: `r,g,b`.
@@ -219,5 +292,51 @@ impl ModelFile {
             .iter()
             .find(|(n, _, _)| n == name)
             .map(|(_, s, v)| (s.as_slice(), v.as_slice()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Footprint slopes of a ramp z = x² along x (slope 2x at each centre) become its forward
+    /// differences (2x + 1) inside; the last column keeps its own; gy likewise down columns.
+    #[test]
+    fn footprint_slopes_become_forward_differences() {
+        let (w, h) = (5usize, 3usize);
+        let mut gx: Vec<f64> = (0..w * h).map(|p| 2.0 * (p % w) as f64).collect();
+        let mut gy: Vec<f64> = (0..w * h).map(|p| 2.0 * (p / w) as f64).collect();
+        to_forward_differences(&mut gx, &mut gy, w);
+        for p in 0..w * h {
+            let (x, y) = ((p % w) as f64, (p / w) as f64);
+            let want_x = if p % w + 1 < w {
+                2.0 * x + 1.0
+            } else {
+                2.0 * x
+            };
+            let want_y = if p / w + 1 < h {
+                2.0 * y + 1.0
+            } else {
+                2.0 * y
+            };
+            assert_eq!((gx[p], gy[p]), (want_x, want_y), "pixel {p}");
+        }
+        let (mut empty_x, mut empty_y) = (Vec::<f32>::new(), Vec::<f32>::new());
+        to_forward_differences(&mut empty_x, &mut empty_y, 0);
+    }
+
+    #[test]
+    fn slopes_default_to_forward_and_a_bad_value_names_the_key() {
+        let mut file = ModelFile {
+            metadata: HashMap::new(),
+            tensors: Vec::new(),
+        };
+        assert_eq!(slopes(&file, "m").expect("absent"), Slopes::Forward);
+        put_slopes(&mut file.metadata, Slopes::Footprint);
+        assert_eq!(slopes(&file, "m").expect("written"), Slopes::Footprint);
+        file.metadata.insert(SLOPES_KEY.into(), "centre".into());
+        let err = slopes(&file, "m.safetensors").expect_err("bad");
+        let text = err.to_string();
+        assert!(text.contains("slopes") && text.contains("centre"), "{text}");
     }
 }

@@ -21,6 +21,7 @@ use crate::halves::{first_half, run_halves, worth_splitting};
 use crate::lut::{Input, relative_gain};
 use crate::markers::InkFill;
 use crate::mlp::INPUTS;
+use crate::model_file::{Slopes, to_forward_differences};
 use crate::poisson::{PlanCache, Solver};
 use crate::undistort::Remap;
 
@@ -426,6 +427,9 @@ impl SensorPipeline {
             return Ok(&[]);
         }
         self.window_gradients((x0, y0, w, h))?;
+        if self.choice.model.slopes() == Slopes::Footprint {
+            to_forward_differences(&mut self.gx[..w * h], &mut self.gy[..w * h], w);
+        }
         let solver = self.choice.stages.solver.unwrap_or(Solver::Dst);
         let gradients = (&self.gx[..w * h], &self.gy[..w * h]);
         let depth = &mut self.depth_px[..w * h];

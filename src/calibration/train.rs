@@ -311,6 +311,7 @@ fn train_lut(request: &TrainRequest, ds: &PressDataset, split: usize) -> crate::
         input: request.input(),
         bins: request.bins,
         loss: request.loss(),
+        ..LutSpec::calibrate_default()
     };
     eprintln!(
         "training lut ({} input, {} bins, {} loss) on {} presses, testing on {}",

@@ -81,6 +81,7 @@ pub fn bake(model: &MlpModel, opts: BakeOptions) -> Result<LutModel, MlpError> {
     )
     .map(|mut lut| {
         lut.mm_per_px = model.mm_per_px;
+        lut.slopes = model.slopes;
         lut
     })
     .ok_or_else(|| MlpError::NoData("the baked table has non-finite values".into()))

@@ -23,6 +23,7 @@ impl MlpModel {
             ("activation".to_string(), "tanh".to_string()),
         ]);
         model_file::put_mm_per_px(&mut metadata, self.mm_per_px);
+        model_file::put_slopes(&mut metadata, self.slopes);
         let mut tensors = Vec::new();
         for (i, l) in self.layers.iter().enumerate() {
             tensors.push((
@@ -107,6 +108,7 @@ impl MlpModel {
             offset_rgb,
             gain_rgb,
             mm_per_px: model_file::mm_per_px(file, p)?,
+            slopes: model_file::slopes(file, p)?,
         })
     }
 }
@@ -136,6 +138,7 @@ mod tests {
             offset_rgb: [1.0, -2.0, 3.5],
             gain_rgb: [1.1, 0.9, 1.0],
             mm_per_px: Some(0.0625),
+            slopes: crate::model_file::Slopes::Footprint,
         }
     }
 
@@ -153,11 +156,15 @@ mod tests {
             file.metadata.get("mm_per_px").map(String::as_str),
             Some("0.0625")
         );
-        // A file written before `mm_per_px` was recorded loads without it.
+        // A file written before `mm_per_px` (or `slopes`) was recorded loads without it
+        // (forward differences).
         let mut old = file.clone();
         old.metadata.remove("mm_per_px");
+        old.metadata.remove("slopes");
         old.write(&path).expect("write");
-        assert_eq!(MlpModel::load(&path).expect("load").mm_per_px, None);
+        let loaded = MlpModel::load(&path).expect("load");
+        assert_eq!(loaded.mm_per_px, None);
+        assert_eq!(loaded.slopes, crate::model_file::Slopes::Forward);
         for (key, value, expect) in [
             ("version", Some("7"), "metadata `version` is Some(\"7\")"),
             ("hidden", None, "metadata `hidden` is None"),

@@ -81,6 +81,8 @@ pub struct MlpModel {
     /// Pixel size on the gel of the presses it was trained on, mm (metadata `mm_per_px`;
     /// `None` for a file written before it was recorded).
     pub mm_per_px: Option<f64>,
+    /// Which slope its output at a pixel is (metadata `slopes`).
+    pub slopes: crate::model_file::Slopes,
 }
 
 /// Grey levels per unit of network input.

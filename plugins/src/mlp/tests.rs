@@ -24,6 +24,7 @@ fn shape() -> MlpModel {
         offset_rgb: [0.0; 3],
         gain_rgb: [1.0; 3],
         mm_per_px: None,
+        slopes: crate::model_file::Slopes::Forward,
     }
 }
 

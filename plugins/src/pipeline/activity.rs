@@ -26,6 +26,23 @@ impl SensorPipeline {
         ((self.width - w) / 2, (self.height - h) / 2, w, h)
     }
 
+    /// The noise calibration's windows: the [`Self::central_window`] and one of its size in
+    /// each corner of the frame. The depth's noise is not the same everywhere: a key
+    /// relative to the background (`relative`) magnifies the camera's noise where the
+    /// LEDs' light falls off towards the frame's edges, and a contact near an edge is
+    /// solved in a window against it (`crate::contact`).
+    pub(super) fn noise_windows(&self) -> [(usize, usize, usize, usize); 5] {
+        let (x, y, w, h) = self.central_window();
+        let (right, bottom) = (self.width - w, self.height - h);
+        [
+            (x, y, w, h),
+            (0, 0, w, h),
+            (right, 0, w, h),
+            (0, bottom, w, h),
+            (right, bottom, w, h),
+        ]
+    }
+
     /// Per 8×8 block: the sum over channels of |mean(frame − reference)|, in one pass over
     /// the frame (the full difference image is never materialised): the frame's block sums
     /// (exact, in integers) less the reference's, which are kept with the reference.

@@ -88,8 +88,8 @@ impl SensorPipeline {
         self.predict_background()?;
         let mut pixel_activity = Vec::new();
         let (mut activity, mut depth) = (Vec::new(), Vec::new());
-        let window = self.central_window();
-        let mm = self.mm_per_px as f32;
+        let mut deepest_mm = 0.0f32;
+        let windows = self.noise_windows();
         for frame in no_contact {
             self.load(*frame)?;
             if let Some(ink) = &mut self.ink {
@@ -107,8 +107,7 @@ impl SensorPipeline {
             self.mark_near_active(None);
             activity.extend_from_slice(&self.blocks);
             if self.choice.stages.solver.is_some() {
-                let d = self.solve_window(window, true)?;
-                depth.extend(d.iter().map(|v| (v * mm).abs()));
+                deepest_mm = deepest_mm.max(self.noise_depths_mm(&windows, &mut depth)?);
             }
         }
         self.pixel_threshold = if pixel_activity.is_empty() {
@@ -118,7 +117,26 @@ impl SensorPipeline {
                 (pixel_activity.len() * PIXEL_NOISE_PERCENTILE / 100).min(pixel_activity.len() - 1);
             *pixel_activity.select_nth_unstable_by(k, f32::total_cmp).1
         };
-        self.noise = Some(NoiseModel::measure(&activity, &depth));
+        self.noise = Some(NoiseModel::measure(&activity, &depth, deepest_mm));
         Ok(())
+    }
+
+    /// The loaded no-contact frame's |depth| (mm) over each of `windows`, appended to
+    /// `depth_mm`; returns the deepest.
+    fn noise_depths_mm(
+        &mut self,
+        windows: &[(usize, usize, usize, usize)],
+        depth_mm: &mut Vec<f32>,
+    ) -> Result<f32, PipelineError> {
+        let mm = self.mm_per_px as f32;
+        let mut deepest_mm = 0.0f32;
+        for window in windows {
+            for v in self.solve_window(*window, true)? {
+                let d = (v * mm).abs();
+                deepest_mm = deepest_mm.max(d);
+                depth_mm.push(d);
+            }
+        }
+        Ok(deepest_mm)
     }
 }
