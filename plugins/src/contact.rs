@@ -7,14 +7,15 @@
 //!   μ + 5σ of the no-contact activity. With a Gaussian tail that is about 3·10⁻⁷ false
 //!   blocks per block, so fewer than one false block in 10⁴ frames at 320×240.
 //! - **depth**: a pixel is in contact where the reconstructed depth exceeds μ + 5σ of |depth|
-//!   reconstructed from the same no-contact frames, and the deepest |depth| any of them
-//!   reached. Their depth is solved in five windows of a contact's size, one at the frame's
-//!   centre and one in each corner, since the noise is not the same everywhere (a
-//!   `relative` key magnifies it where the light falls off towards the edges). The deepest
-//!   is there for the tail: |depth| is not Gaussian (it is the noise integrated over a
-//!   window), and with a model whose flat colours read zero without bias μ + 5σ fell to
-//!   0.010 mm on f1.tip, below what 3 of 150 untouched frames reached at the frame's top
-//!   edge (0.016–0.022 mm); the deepest of the calibration's 60 windows was 0.018 mm.
+//!   reconstructed from the same no-contact frames, and the depth that [`MIN_CONTACT_PX`]
+//!   pixels of any one of their windows reached (so that none of them would read as a
+//!   contact). Their depth is solved in five windows of a contact's size, one at the
+//!   frame's centre and one in each corner, since the noise is not the same everywhere (a
+//!   `relative` key magnifies it where the light falls off towards the edges). The second
+//!   bound is for the tail: |depth| is the noise integrated over a window, not Gaussian,
+//!   and with a model whose flat colours read zero without bias μ + 5σ fell to 0.010 mm on
+//!   a 12-press table of f1.tip, below what 3 of 150 untouched frames reached at the
+//!   frame's top edge (contacts of 16–70 px, 0.012–0.022 mm deep).
 //!
 //! The force proxy is indentation volume × a stiffness constant (N/mm³). The default, 0.1,
 //! is the Hertz estimate for a 6 mm ball 0.5 mm into a gel of E ≈ 0.2 MPa; the grasp
@@ -40,8 +41,8 @@ pub struct NoiseModel {
 }
 
 impl NoiseModel {
-    /// μ + 5σ of each statistic over the samples; the depth's at least `deepest_mm` (the
-    /// deepest |depth| the no-contact frames reached, when it is finite).
+    /// μ + 5σ of each statistic over the samples; the depth's at least `deepest_mm` (when
+    /// finite: the depth that [`MIN_CONTACT_PX`] pixels of one no-contact window reached).
     pub fn measure(block_activity: &[f32], abs_depth_mm: &[f32], deepest_mm: f32) -> Self {
         let spread_mm = mean_plus_sigmas(abs_depth_mm);
         Self {

@@ -2,7 +2,7 @@
 //! given background) and the noise thresholds measured on the same frames.
 
 use super::{Frame, PIXEL_NOISE_PERCENTILE, PipelineError, SensorPipeline, pixel_difference};
-use crate::contact::NoiseModel;
+use crate::contact::{MIN_CONTACT_PX, NoiseModel};
 use crate::markers::InkFill;
 
 impl SensorPipeline {
@@ -122,7 +122,8 @@ impl SensorPipeline {
     }
 
     /// The loaded no-contact frame's |depth| (mm) over each of `windows`, appended to
-    /// `depth_mm`; returns the deepest.
+    /// `depth_mm`; returns the deepest that [`MIN_CONTACT_PX`] pixels of one window reached
+    /// (into the gel): the least threshold under which this frame would read no contact.
     fn noise_depths_mm(
         &mut self,
         windows: &[(usize, usize, usize, usize)],
@@ -130,11 +131,19 @@ impl SensorPipeline {
     ) -> Result<f32, PipelineError> {
         let mm = self.mm_per_px as f32;
         let mut deepest_mm = 0.0f32;
+        let mut into_gel = Vec::new();
         for window in windows {
+            into_gel.clear();
             for v in self.solve_window(*window, true)? {
-                let d = (v * mm).abs();
-                deepest_mm = deepest_mm.max(d);
-                depth_mm.push(d);
+                depth_mm.push((v * mm).abs());
+                into_gel.push(v * mm);
+            }
+            if into_gel.len() >= MIN_CONTACT_PX {
+                let k = MIN_CONTACT_PX - 1;
+                let (_, kth, _) = into_gel.select_nth_unstable_by(k, |a, b| b.total_cmp(a));
+                if kth.is_finite() {
+                    deepest_mm = deepest_mm.max(*kth);
+                }
             }
         }
         Ok(deepest_mm)
