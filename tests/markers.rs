@@ -116,23 +116,32 @@ fn a_marker_gel_is_labelled_and_reconstructed_as_the_plain_gel_is() {
     ]));
     let a = reconstructed(&model, &plain, &dir.join("rec-plain"));
     let b = reconstructed(&model, &dotted, &dir.join("rec-dotted"));
-    let mut depth_errors: Vec<f64> = a
-        .iter()
-        .zip(&b)
-        .map(|(a, b)| {
-            let (x, y) = (a["max_depth_mm"].as_f64(), b["max_depth_mm"].as_f64());
-            let (x, y) = (x.expect("plain depth"), y.expect("dotted depth"));
-            assert!(x > 0.0 && y.is_finite());
-            (y / x - 1.0).abs()
-        })
-        .collect();
-    depth_errors.sort_by(f64::total_cmp);
-    // Measured: within 3% on 19 of 24 presses, at most 5.3% (docs/pipeline.md).
-    assert!(
-        depth_errors[depth_errors.len() / 2] <= 0.03,
-        "{depth_errors:?}"
-    );
-    assert!(depth_errors.iter().all(|e| *e <= 0.08), "{depth_errors:?}");
+    // Each figure's error against the plain gel's, per press, sorted.
+    let errors = |key: &str| {
+        let mut e: Vec<f64> = a
+            .iter()
+            .zip(&b)
+            .map(|(a, b)| {
+                let (x, y) = (a[key].as_f64(), b[key].as_f64());
+                let (x, y) = (x.expect("plain figure"), y.expect("dotted figure"));
+                assert!(x > 0.0 && y.is_finite(), "{key}: {x} and {y}");
+                (y / x - 1.0).abs()
+            })
+            .collect();
+        e.sort_by(f64::total_cmp);
+        eprintln!("{key}: errors against the plain gel {e:.4?}");
+        e
+    };
+    let median = |e: &[f64]| e[e.len() / 2];
+    // Measured on 24 presses (docs/pipeline.md, "Marker gels"): depth within 3% on 23,
+    // volume on 19, area on 14 (DCT; 18 with DST).
+    let depth = errors("max_depth_mm");
+    assert!(median(&depth) <= 0.03, "{depth:?}");
+    assert!(depth.iter().all(|e| *e <= 0.05), "{depth:?}");
+    let volume = errors("volume_mm3");
+    assert!(median(&volume) <= 0.03, "{volume:?}");
+    let area = errors("area_mm2");
+    assert!(median(&area) <= 0.05, "{area:?}");
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -21,8 +21,10 @@
 //! a press; a dot moved by the gel's shear is found where it is.
 
 mod shear;
+mod transmission;
 
 pub use shear::{CONFIRM_FRAMES, DotTracker, ShearEstimate, SlipState};
+pub use transmission::{InkTransmission, MIN_TRANSMISSION};
 
 /// The gel's brightness is taken over a window of this share of the frame's shorter side.
 const LEVEL_WINDOW_SHARE: f64 = 1.0 / 12.0;
@@ -49,6 +51,9 @@ pub struct InkFill {
     found: usize,
     /// The dots found whole on the reference, and each one's shift in the last frame.
     tracker: DotTracker,
+    /// The ink's transmission around a whole dot's centre (`None`: every ink pixel is
+    /// filled from the gel around it).
+    transmission: Option<InkTransmission>,
     /// Working space of [`find_dots`].
     seen: Vec<bool>,
     stack: Vec<usize>,
@@ -96,12 +101,13 @@ impl InkFill {
             return None;
         }
         let threshold = level.iter().map(|l| l * split).collect();
-        Some(Self {
+        let mut fill = Self {
             width,
             height,
             threshold,
             found: dots.len(),
             tracker: DotTracker::new(whole_dots(&dots, width, height)),
+            transmission: None,
             seen,
             stack,
             raw: vec![0; width * height],
@@ -112,7 +118,32 @@ impl InkFill {
             near_ink: vec![0; width],
             frames: 0,
             confirmation: shear::Confirmation::default(),
-        })
+        };
+        fill.transmission = fill.measure_transmission(rgb);
+        Some(fill)
+    }
+
+    /// The ink's transmission profile on `reference` (interleaved RGB, the size this fill
+    /// was found on): the reference against its own line fill, around its whole dots.
+    fn measure_transmission(&mut self, reference: &[f32]) -> Option<InkTransmission> {
+        // Non-negative after the clamp: adding a half and truncating rounds it.
+        let mut filled: Vec<u8> = reference
+            .iter()
+            .map(|v| (v.clamp(0.0, 255.0) + 0.5) as u8)
+            .collect();
+        self.mark(&filled);
+        self.widen();
+        self.fill_rows(&filled);
+        self.fill_columns(&mut filled);
+        let centres: Vec<(f64, f64)> = self.tracker.shifts().map(|(at, _)| at).collect();
+        let size = (self.width, self.height);
+        InkTransmission::measure(reference, &filled, size, &centres, self.tracker.pitch_px())
+    }
+
+    /// How far from a dot's centre its ink darkens the gel, px (`None`: no profile; every ink
+    /// pixel is filled from the gel around it).
+    pub fn ink_reach_px(&self) -> Option<f64> {
+        self.transmission.as_ref().map(InkTransmission::reach_px)
     }
 
     /// How many dots the reference showed (those its border cuts among them; the whole
@@ -192,6 +223,10 @@ impl InkFill {
             return;
         }
         self.widen();
+        if let Some(transmission) = &mut self.transmission {
+            transmission.place(self.tracker.shifts(), self.tracker.noise_px());
+            transmission.apply(rgb, &mut self.ink);
+        }
         self.fill_rows(rgb);
         self.fill_columns(rgb);
     }
@@ -552,7 +587,7 @@ mod tests {
     use super::*;
 
     /// A gel of `level` with shading ramping across, dots of radius 3 px every 16 px
-    /// darkened to a quarter, shifted by `dx`.
+    /// darkened to a quarter (their edges anti-aliased), shifted by `dx`.
     fn gel(w: usize, h: usize, dots: bool, dx: f64) -> Vec<f32> {
         let mut rgb = Vec::with_capacity(w * h * 3);
         for y in 0..h {
@@ -560,8 +595,13 @@ mod tests {
                 let shade = 1.0 + 0.2 * x as f32 / w as f32;
                 let (fx, fy) = (x as f64 + 0.5 - dx, y as f64 + 0.5);
                 let (gx, gy) = ((fx / 16.0).round() * 16.0, (fy / 16.0).round() * 16.0);
-                let ink = dots && (fx - gx).hypot(fy - gy) < 3.0;
-                let k = if ink { 0.25 } else { 1.0 };
+                // The ink anti-aliased over the pixel around its edge, as a camera sees it.
+                let cover = if dots {
+                    (3.5 - (fx - gx).hypot(fy - gy)).clamp(0.0, 1.0) as f32
+                } else {
+                    0.0
+                };
+                let k = 1.0 - 0.75 * cover;
                 rgb.extend([150.0, 140.0, 130.0].map(|c: f32| c * shade * k));
             }
         }
@@ -596,7 +636,7 @@ mod tests {
             .zip(&plain)
             .map(|(a, b)| (f32::from(*a) - b).abs())
             .fold(0.0, f32::max);
-        assert!(worst <= 1.0, "{worst}");
+        assert!(worst <= 2.0, "{worst}");
     }
 
     #[test]

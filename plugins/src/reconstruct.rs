@@ -191,6 +191,11 @@ impl Reconstructor {
         })
     }
 
+    /// The depth (mm) above which a pixel is in contact, as measured on the quiet frames.
+    pub fn depth_threshold_mm(&self) -> Option<f32> {
+        self.pipe.noise().map(|n| n.depth_threshold_mm)
+    }
+
     /// Reconstruct one image (of the background's size).
     pub fn reconstruct(&mut self, image: &RgbImage) -> Result<Reconstruction, ReconstructError> {
         let (w, h) = (self.width, self.height);

@@ -68,6 +68,12 @@ pub fn run(args: ReconstructArgs) -> anyhow::Result<u8> {
                 args.model.display()
             ))
         })?;
+    if let Some(threshold) = recon.depth_threshold_mm() {
+        tracing::info!(
+            "contact depth threshold {threshold:.4} mm, measured on {} quiet frames",
+            sample_refs.len().max(1)
+        );
+    }
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating the output directory {}", args.out.display()))?;
     let mut out = ReconstructJson {
