@@ -24,7 +24,7 @@ mod shear;
 mod transmission;
 
 pub use shear::{CONFIRM_FRAMES, DotTracker, ShearEstimate, SlipState};
-pub use transmission::{InkTransmission, MIN_TRANSMISSION};
+use transmission::InkTransmission;
 
 /// The gel's brightness is taken over a window of this share of the frame's shorter side.
 const LEVEL_WINDOW_SHARE: f64 = 1.0 / 12.0;

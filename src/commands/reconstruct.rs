@@ -70,8 +70,7 @@ pub fn run(args: ReconstructArgs) -> anyhow::Result<u8> {
         })?;
     if let Some(threshold) = recon.depth_threshold_mm() {
         tracing::info!(
-            "contact depth threshold {threshold:.4} mm, measured on {} quiet frames",
-            sample_refs.len().max(1)
+            "contact depth threshold {threshold:.4} mm, measured on the images' quiet frames"
         );
     }
     std::fs::create_dir_all(&args.out)
