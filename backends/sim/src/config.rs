@@ -33,8 +33,12 @@ pub struct SensorFaults {
 /// A validated simulated-hub configuration.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SimConfig {
-    /// Seed of every random draw (unit variation, noise, faults).
+    /// Seed of every random draw (unit variation, presses, faults; the noise too unless
+    /// `noise_seed` is given).
     pub seed: u64,
+    /// Seed of the cameras' noise alone (`noise_seed`; `seed` when not given): the same
+    /// units, presses and scene under a fresh draw of noise.
+    pub noise_seed: u64,
     /// JPEG quality 1–100.
     pub jpeg_quality: u8,
     /// SPI clock, Hz.
@@ -74,6 +78,7 @@ pub struct SimConfig {
 struct RawSim {
     scene: Option<String>,
     seed: u64,
+    noise_seed: Option<u64>,
     jpeg_quality: i64,
     spi_clock_hz: f64,
     i2c_hz: f64,
@@ -94,6 +99,7 @@ impl Default for RawSim {
         Self {
             scene: None,
             seed: 1,
+            noise_seed: None,
             jpeg_quality: 85,
             spi_clock_hz: 40e6,
             i2c_hz: 400e3,
@@ -179,6 +185,7 @@ impl SimConfig {
         let faults = sensor_faults(section, &raw.faults, layout)?;
         Ok(Self {
             seed: raw.seed,
+            noise_seed: raw.noise_seed.unwrap_or(raw.seed),
             jpeg_quality: check.range(&p("jpeg_quality"), raw.jpeg_quality as f64, 1.0, 100.0)?
                 as u8,
             spi_clock_hz: check.range(&p("spi_clock_hz"), raw.spi_clock_hz, 1e5, 6e7)? as u32,

@@ -99,3 +99,13 @@ fn optics_are_nominal_unless_asked_for_and_realistic_brings_its_noise() {
     let err = parse("optics = \"realistic\"\nnoise_sigma = 100").expect_err("range");
     assert!(err.to_string().contains("hub.sim.noise_sigma"), "{err}");
 }
+
+#[test]
+fn the_noise_seed_defaults_to_the_seed_and_can_be_set_alone() {
+    let plain = parse("seed = 9").expect("valid");
+    assert_eq!((plain.seed, plain.noise_seed), (9, 9));
+    let redrawn = parse("seed = 9\nnoise_seed = 4").expect("valid");
+    assert_eq!((redrawn.seed, redrawn.noise_seed), (9, 4));
+    let err = parse("noise_seed = -1").expect_err("a negative seed");
+    assert!(err.to_string().contains("noise_seed"), "{err}");
+}
