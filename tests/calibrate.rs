@@ -444,7 +444,9 @@ fn pipeline_accuracy_is_within_documented_tolerances() {
         let area_err = f("area_err_pct").abs();
         let volume_err = (f("volume_mm3") - f("true_volume_mm3")).abs() / f("true_volume_mm3");
         assert!(depth_err <= 0.15, "max depth error {depth_err}: {r}");
-        assert!(area_err <= 30.0, "area error {area_err} %: {r}");
+        // +0.5% to +3.6% on the seven sensors since the DCT's plane zero level (up to +17%
+        // with the sides' mean: docs/pipeline.md, "Accuracy on simulated presses").
+        assert!(area_err <= 10.0, "area error {area_err} %: {r}");
         assert!(volume_err <= 0.20, "volume error {volume_err}: {r}");
     }
 }

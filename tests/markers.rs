@@ -16,7 +16,9 @@ use gelgrip_sim::markers::GelShear;
 use gelgrip_sim::pool::SceneCamera;
 use gelgrip_sim::traction::Traction;
 
-const PRESSES: &str = "8";
+/// The presses of each gel: the 24 of docs/pipeline.md's "Marker gels" table (the same
+/// seed, so the same presses, noise and table).
+const PRESSES: usize = 24;
 
 fn collect(config: &str, out: &Path) {
     ok(&gelgrip(&[
@@ -27,7 +29,7 @@ fn collect(config: &str, out: &Path) {
         "--sensor",
         "f1.tip",
         "--presses",
-        PRESSES,
+        &PRESSES.to_string(),
         "--out",
         s(out),
     ]));
@@ -49,7 +51,7 @@ fn label_errors(data: &Path, labels: &Path) -> Vec<(f64, f64)> {
         "0.0625",
         "--json",
     ]));
-    assert_eq!(report["labelled"], 8, "{report}");
+    assert_eq!(report["labelled"], PRESSES, "{report}");
     let read = |p: &Path| {
         let text = std::fs::read_to_string(p.join("presses.csv")).expect("presses.csv");
         text.lines()
@@ -82,7 +84,7 @@ fn reconstructed(model: &Path, data: &Path, out: &Path) -> Vec<serde_json::Value
         s(out).into(),
         "--json".into(),
     ];
-    args.extend((0..8).map(|k| s(&data.join(format!("press_{k:03}.png"))).to_string()));
+    args.extend((0..PRESSES).map(|k| s(&data.join(format!("press_{k:03}.png"))).to_string()));
     let args: Vec<&str> = args.iter().map(String::as_str).collect();
     let report = json(&gelgrip(&args));
     report["images"].as_array().expect("images").clone()
@@ -133,15 +135,20 @@ fn a_marker_gel_is_labelled_and_reconstructed_as_the_plain_gel_is() {
         e
     };
     let median = |e: &[f64]| e[e.len() / 2];
-    // Measured on 24 presses (docs/pipeline.md, "Marker gels"): depth within 3% on 23,
-    // volume on 19, area on 14 (DCT; 18 with DST).
-    let depth = errors("max_depth_mm");
-    assert!(median(&depth) <= 0.03, "{depth:?}");
-    assert!(depth.iter().all(|e| *e <= 0.05), "{depth:?}");
-    let volume = errors("volume_mm3");
-    assert!(median(&volume) <= 0.03, "{volume:?}");
-    let area = errors("area_mm2");
-    assert!(median(&area) <= 0.05, "{area:?}");
+    let within_3_pct = |e: &[f64]| e.iter().filter(|e| **e <= 0.03).count();
+    // Measured (docs/pipeline.md, "Marker gels"): within 3% on 23 (depth), 20 (volume) and
+    // 22 (area) of the 24 presses; medians 1.1%, 1.6% and 1.1%; the worst 3.1% (depth).
+    // With the sides' mean as the DCT's zero, the area was within 3% on 14.
+    for (key, most) in [
+        ("max_depth_mm", 0.05),
+        ("volume_mm3", 0.08),
+        ("area_mm2", 0.08),
+    ] {
+        let e = errors(key);
+        assert!(median(&e) <= 0.03, "{key}: {e:?}");
+        assert!(within_3_pct(&e) >= 18, "{key}: {e:?}");
+        assert!(e.iter().all(|e| *e <= most), "{key}: {e:?}");
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }
 

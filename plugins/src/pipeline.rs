@@ -28,6 +28,7 @@ use crate::undistort::Remap;
 mod activity;
 mod calibration;
 pub mod stream;
+mod zero_level;
 
 /// Registered stage names, per slot.
 pub const STAGES: [(&str, &[&str]); 7] = [
@@ -435,20 +436,24 @@ impl SensorPipeline {
         let depth = &mut self.depth_px[..w * h];
         self.plans.solve(solver, (h, w), gradients, depth);
         if solver == Solver::Dct {
-            // Neumann leaves a free constant. Zero depth is on the window's sides inside
-            // the image (the margin around the contact); a side on the image edge may cut
-            // through the contact (Neumann there is right, but its depth is not zero).
-            // When the window spans the whole image the contact may cover all of it; depth
-            // is never negative, so the shallowest pixels (2nd percentile) are zero.
-            // No-contact frames (the noise calibration) take the whole border as zero.
+            // Neumann leaves a free constant, and the gradients' bias a tilt: zero depth is
+            // the plane through the window's sides inside the image (`zero_level`). When
+            // the window spans the whole image the contact may cover all of it; depth is
+            // never negative, so the shallowest pixels (2nd percentile) are zero. No-contact
+            // frames (the noise calibration) take the whole border's mean level.
             let window = (x0, y0, w, h);
-            let zero = if no_contact {
-                border_mean(depth, w, h)
+            let plane = if no_contact {
+                Some(zero_level::border_level(depth, w, h))
             } else {
-                interior_border_mean(depth, window, (self.width, self.height))
-                    .unwrap_or_else(|| low_percentile(depth, &mut self.scratch))
+                zero_level::sides_plane(depth, window, (self.width, self.height))
             };
-            depth.iter_mut().for_each(|d| *d -= zero);
+            match plane {
+                Some(plane) => plane.subtract_from(depth, w),
+                None => {
+                    let zero = low_percentile(depth, &mut self.scratch);
+                    depth.iter_mut().for_each(|d| *d -= zero);
+                }
+            }
         }
         self.last_window = (x0, y0, w, h);
         Ok(&self.depth_px[..w * h])
@@ -654,51 +659,6 @@ fn low_percentile(d: &[f32], scratch: &mut Vec<f32>) -> f32 {
     }
     let k = scratch.len() / 50;
     *scratch.select_nth_unstable_by(k, f32::total_cmp).1
-}
-
-/// Mean depth over the window's border pixels on the sides that lie inside the image (not
-/// on its edge); `None` when the window spans the whole image.
-fn interior_border_mean(
-    d: &[f32],
-    (x0, y0, w, h): (usize, usize, usize, usize),
-    (width, height): (usize, usize),
-) -> Option<f32> {
-    let [left, right, top, bottom] = [x0 > 0, x0 + w < width, y0 > 0, y0 + h < height];
-    let (mut sum, mut n) = (0.0f64, 0usize);
-    // Only the border is visited, in row-major order (the sum is that of every pixel on an
-    // inside side, each once).
-    for (y, row) in d.chunks_exact(w.max(1)).take(h).enumerate() {
-        if (y == 0 && top) || (y + 1 == h && bottom) {
-            for v in row {
-                sum += f64::from(*v);
-            }
-            n += row.len();
-            continue;
-        }
-        if left || (right && w == 1) {
-            sum += f64::from(row[0]);
-            n += 1;
-        }
-        if right && w > 1 {
-            sum += f64::from(row[w - 1]);
-            n += 1;
-        }
-    }
-    (n > 0).then(|| (sum / n as f64) as f32)
-}
-
-fn border_mean(d: &[f32], w: usize, h: usize) -> f32 {
-    let mut sum = 0.0;
-    let mut n = 0.0;
-    for y in 0..h {
-        for x in 0..w {
-            if y == 0 || x == 0 || y + 1 == h || x + 1 == w {
-                sum += d[y * w + x];
-                n += 1.0;
-            }
-        }
-    }
-    if n > 0.0 { sum / n } else { 0.0 }
 }
 
 #[cfg(test)]

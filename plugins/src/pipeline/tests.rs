@@ -231,52 +231,6 @@ fn a_relative_key_is_the_difference_as_a_share_of_the_reference() {
     }
 }
 
-/// The depth zero's border mean visits only the border, and sums exactly what a pass over
-/// every pixel of the window would (same pixels, same order), for every side pattern and
-/// for windows one pixel wide or high.
-#[test]
-fn the_interior_border_mean_is_the_mean_of_the_inside_sides() {
-    let brute =
-        |d: &[f32], (x0, y0, w, h): (usize, usize, usize, usize), (iw, ih): (usize, usize)| {
-            let sides = [x0 > 0, x0 + w < iw, y0 > 0, y0 + h < ih];
-            let (mut sum, mut n) = (0.0f64, 0usize);
-            for y in 0..h {
-                for x in 0..w {
-                    let on = [x == 0, x + 1 == w, y == 0, y + 1 == h];
-                    if on.iter().zip(&sides).any(|(o, s)| *o && *s) {
-                        sum += f64::from(d[y * w + x]);
-                        n += 1;
-                    }
-                }
-            }
-            (n > 0).then(|| (sum / n as f64) as f32)
-        };
-    let mut rng = Pcg64Mcg::seed_from_u64(11);
-    let image = (40, 30);
-    for (w, h) in [
-        (1, 1),
-        (1, 7),
-        (7, 1),
-        (2, 2),
-        (13, 9),
-        (40, 30),
-        (40, 9),
-        (13, 30),
-    ] {
-        let d: Vec<f32> = (0..w * h).map(|_| rng.random_range(-1.0..1.0)).collect();
-        for x0 in [0, 1, image.0 - w] {
-            for y0 in [0, 1, image.1 - h] {
-                let window = (x0.min(image.0 - w), y0.min(image.1 - h), w, h);
-                assert_eq!(
-                    interior_border_mean(&d, window, image),
-                    brute(&d, window, image),
-                    "{window:?}"
-                );
-            }
-        }
-    }
-}
-
 /// A large press processed with its stages in two halves gives the one-pass readings and
 /// depth bit for bit.
 #[test]
