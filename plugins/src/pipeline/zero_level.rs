@@ -60,28 +60,41 @@ pub(super) fn border_level(depth: &[f32], w: usize, h: usize) -> ZeroPlane {
     })
 }
 
+/// How deep into the window a tilted plane's sides reach, px: its two slopes are fitted to
+/// this many rows and columns along each side (the level alone, to the outermost), so the
+/// camera's noise on a one-pixel side does not tilt it (at 5× the nominal noise a held
+/// finger's force wandered by 10% with one-pixel sides). Within the window's margin
+/// (`WINDOW_MARGIN_PX`, 8 px beyond the active blocks).
+const TILT_SIDE_PX: usize = 4;
+
 /// Least squares over the pixels of the sides `[left, right, top, bottom]` marked, each
-/// once; with `slopes`, a slope is fitted where the sides reach over at least half the
-/// window across it, without, only the level (their mean). Non-finite depths are left out.
+/// once; with `slopes`, over [`TILT_SIDE_PX`] along each side, and a slope is fitted where
+/// the sides reach over at least half the window across it; without, over the outermost
+/// pixels, only the level (their mean). Non-finite depths are left out.
 fn plane_through(
     depth: &[f32],
     (w, h): (usize, usize),
     [left, right, top, bottom]: [bool; 4],
     slopes: bool,
 ) -> Option<ZeroPlane> {
+    let reach = if slopes { TILT_SIDE_PX } else { 1 };
+    // Only the sides are visited: the left's columns, then the right's (none twice).
+    let left_end = if left { reach.min(w) } else { 0 };
+    let right_start = if right {
+        w.saturating_sub(reach).max(left_end)
+    } else {
+        w
+    };
     let mut sums = PlaneSums::default();
     for (y, row) in depth.chunks_exact(w.max(1)).take(h).enumerate() {
-        if (y == 0 && top) || (y + 1 == h && bottom) {
+        if (top && y < reach) || (bottom && y + reach >= h) {
             for (x, v) in row.iter().enumerate() {
                 sums.add(x, y, *v);
             }
             continue;
         }
-        if left || (right && w == 1) {
-            sums.add(0, y, row[0]);
-        }
-        if right && w > 1 {
-            sums.add(w - 1, y, row[w - 1]);
+        for x in (0..left_end).chain(right_start..w) {
+            sums.add(x, y, row[x]);
         }
     }
     sums.solve(w, h, slopes)
