@@ -11,7 +11,7 @@
 //! (untouched frames read contact there).
 
 /// A plane `offset + slope_x·x + slope_y·y` over the window's pixels (window coordinates).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub(super) struct ZeroPlane {
     offset: f64,
     slope_x: f64,
@@ -53,11 +53,7 @@ pub(super) fn sides_plane(
 /// along an edge of the image), and a tilted zero here set it too low for those (untouched
 /// frames read contact at a corner).
 pub(super) fn border_level(depth: &[f32], w: usize, h: usize) -> ZeroPlane {
-    plane_through(depth, (w, h), [true; 4], false).unwrap_or(ZeroPlane {
-        offset: 0.0,
-        slope_x: 0.0,
-        slope_y: 0.0,
-    })
+    plane_through(depth, (w, h), [true; 4], false).unwrap_or_default()
 }
 
 /// How deep into the window a tilted plane's sides reach, px: its two slopes are fitted to
@@ -256,5 +252,54 @@ mod tests {
         let extreme = vec![1e30f32; 12];
         assert!(border_level(&extreme, 4, 3).at(3, 2).is_finite());
         assert_eq!(border_level(&[], 0, 0).at(0, 0), 0.0);
+    }
+
+    /// The side walk visits exactly the pixels within its reach of an inside side, each
+    /// once, for every side pattern and for windows one pixel wide or high: its level is
+    /// their mean, as a pass over every pixel of the window finds it.
+    #[test]
+    fn the_sides_walked_are_the_inside_sides_each_pixel_once() {
+        let brute = |d: &[f32], (w, h): (usize, usize), sides: [bool; 4], reach: usize| {
+            let (mut sum, mut n) = (0.0f64, 0usize);
+            for y in 0..h {
+                for x in 0..w {
+                    let on = [x < reach, x + reach >= w, y < reach, y + reach >= h];
+                    if on.iter().zip(&sides).any(|(o, s)| *o && *s) {
+                        sum += f64::from(d[y * w + x]);
+                        n += 1;
+                    }
+                }
+            }
+            (n > 0).then(|| sum / n as f64)
+        };
+        for (w, h) in [(1, 1), (1, 7), (7, 1), (2, 2), (5, 6), (13, 9), (40, 30)] {
+            let d: Vec<f32> = (0..w * h).map(|k| ((k * 37 % 101) as f32) / 7.0).collect();
+            for bits in 0..16u8 {
+                let sides = [0, 1, 2, 3].map(|b| bits & (1 << b) != 0);
+                for (slopes, reach) in [(false, 1), (true, TILT_SIDE_PX)] {
+                    let walked = plane_through(&d, (w, h), sides, slopes).map(|p| {
+                        // Without slopes the offset is the mean; with them, the fitted
+                        // plane's mean over the same pixels is the mean too.
+                        let mut sums = PlaneSums::default();
+                        for y in 0..h {
+                            for x in 0..w {
+                                let on = [x < reach, x + reach >= w, y < reach, y + reach >= h];
+                                if on.iter().zip(&sides).any(|(o, s)| *o && *s) {
+                                    sums.add(x, y, p.at(x, y));
+                                }
+                            }
+                        }
+                        sums.z / sums.n
+                    });
+                    let expected = brute(&d, (w, h), sides, reach);
+                    match (walked, expected) {
+                        (Some(a), Some(b)) => {
+                            assert!((a - b).abs() < 1e-4, "{w}x{h} {sides:?} {slopes}: {a} {b}")
+                        }
+                        (a, b) => assert_eq!(a.is_some(), b.is_some(), "{w}x{h} {sides:?}"),
+                    }
+                }
+            }
+        }
     }
 }
