@@ -430,23 +430,35 @@ fn slip_columns_in_the_task_log(log: &Path) {
 /// The report of a gentle grasp at `--target-force auto` of `scene` on the marker config,
 /// its task log written to `log`.
 fn auto_grasp(scene: &str, log: &Path) -> serde_json::Value {
-    json(&common::gelgrip_cached(&[
+    marker_grasp(
+        scene,
+        &[
+            "--log",
+            log.to_str().expect("a UTF-8 path"),
+            "--target-force",
+            "auto",
+        ],
+    )
+}
+
+/// The report of a gentle grasp of `scene` on the marker config on the virtual clock, with
+/// `more` arguments.
+fn marker_grasp(scene: &str, more: &[&str]) -> serde_json::Value {
+    let mut args = vec![
         "run",
-        "--log",
-        log.to_str().expect("a UTF-8 path"),
         "--config",
         "configs/gelgripper-sim-markers.toml",
         "--clock",
         "virtual",
         "--task",
         "gentle-grasp",
-        "--target-force",
-        "auto",
         "--scene",
         scene,
         "--headless",
         "--json",
-    ]))
+    ];
+    args.extend_from_slice(more);
+    json(&common::gelgrip_cached(&args))
 }
 
 /// `run --target-force auto` on the marker config: the tennis ball is grasped at the
@@ -501,4 +513,23 @@ fn an_auto_grasp_that_cannot_hold_ends_slipping_with_the_fingers_holding() {
     // timeout with the fingers closing on.
     let t_s = report["elapsed_s"].as_f64().expect("elapsed_s");
     assert!(t_s < 9.0, "{report}");
+}
+
+/// The rubber duck at the fixed 1.5 N on the marker config, held after its table drops: a
+/// middle phalanx that touches it lightly carries all its friction can and slides whole,
+/// while the tips that bear the load stick and the duck stays in the hand. The grasp
+/// holds by the load its contacts carry (docs/control.md, "The reflex"): it holds at the
+/// target, neither squeezing to `max_force_n` nor giving up as `slipping`.
+#[test]
+fn a_light_contact_sliding_whole_does_not_make_a_held_duck_slip() {
+    let report = marker_grasp("configs/scenes/rubber-duck.toml", &["--hold", "5"]);
+    assert_eq!(report["grasped"], true, "{report}");
+    assert_eq!(report["reason"], "stable", "{report}");
+    let peak_n = report["hold_test_peak_force_n"]
+        .as_f64()
+        .expect("hold_test_peak_force_n");
+    assert!(peak_n < 1.1 * 1.5, "{report}");
+    let slip_mm = report["hold_slip_mm"].as_f64().expect("hold_slip_mm");
+    assert!(slip_mm < 0.1, "{report}");
+    assert_eq!(report["slip"]["false_alarms"], 0, "{report}");
 }

@@ -3,6 +3,11 @@
 //! area, deepest point, force and centroid; per sensor, the deformation signal (indentation
 //! volume, the quantity the paper plots for the screwdriver task).
 //!
+//! A group's slip is told two ways: by the contact slipping most (the first sign of slip,
+//! what is shown and reported) and weighted by the force each contact presses with
+//! ([`SlipLoad`]: the share of the group's friction that its load uses, what the grip
+//! reflex holds by).
+//!
 //! A sensor whose reading is missing (its frame was corrupt or its pipeline failed) marks
 //! its finger stale: the controller then holds that finger rather than guess.
 
@@ -89,6 +94,8 @@ pub struct FusedContact {
     /// The slip of its sensor slipping most (the most advanced state, then the least stick
     /// ratio); `None` when none of its sensors can tell.
     pub slip: Option<SensorSlip>,
+    /// Its contacts' slip weighted by the force each presses with.
+    pub slip_load: SlipLoad,
 }
 
 /// One set, fused.
@@ -121,6 +128,119 @@ impl FusedSet {
     }
 }
 
+impl SensorSlip {
+    /// The share of the contact's friction that its load uses: `1 − s³` for a stick ratio
+    /// `s` (Cattaneo–Mindlin: `s = (1 − Q/μP)^(1/3)`), and all of it (1) once it slides or
+    /// when its stick ratio is unreadable.
+    pub fn grip_used(&self) -> f64 {
+        if self.state == SlipState::Gross || !self.stick_ratio.is_finite() {
+            return 1.0;
+        }
+        let s = self.stick_ratio.clamp(0.0, 1.0);
+        1.0 - s * s * s
+    }
+}
+
+/// Contacts' slip weighted by the force each presses with. A contact's tangential load is
+/// `Q = μP × (1 − s³)`, so over the contacts `Σ Q / Σ μP` is the force-weighted mean of
+/// their [`SensorSlip::grip_used`]: the share of the group's friction that the load uses.
+/// A light contact beside the load-bearing ones may slide whole (it carries all that its
+/// friction can, and the others the rest) while the object holds; weighted by its force,
+/// it counts for what it carries. Sums add over sensors, fingers and the palm.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct SlipLoad {
+    /// Contacts whose slip is known.
+    pub contacts: u32,
+    /// Their force, N.
+    pub force_n: f64,
+    /// Σ force × the share of its friction used, N.
+    pub used_n: f64,
+    /// Force of the contacts per state (none, incipient, gross), N.
+    pub state_n: [f64; 3],
+    /// Contacts per state (none, incipient, gross): the weights when no force is known.
+    pub state_count: [u32; 3],
+    /// Σ the share of its friction used, unweighted (when no force is known).
+    pub used_sum: f64,
+    /// The slip of the contact pressing most: its shear stands for the group's.
+    pub heaviest: Option<(f64, SensorSlip)>,
+}
+
+impl SlipLoad {
+    /// Add a contact pressing with `force_n` and slipping as `slip`.
+    pub fn add(&mut self, force_n: f64, slip: &SensorSlip) {
+        let force_n = if force_n.is_finite() {
+            force_n.max(0.0)
+        } else {
+            0.0
+        };
+        let state = slip.state as usize;
+        self.contacts += 1;
+        self.force_n += force_n;
+        self.used_n += force_n * slip.grip_used();
+        self.used_sum += slip.grip_used();
+        self.state_n[state] += force_n;
+        self.state_count[state] += 1;
+        if self.heaviest.is_none_or(|(f, _)| force_n > f) {
+            self.heaviest = Some((force_n, *slip));
+        }
+    }
+
+    /// Both groups' contacts together.
+    pub fn merged(self, other: &SlipLoad) -> SlipLoad {
+        let heaviest = match (self.heaviest, other.heaviest) {
+            (Some(a), Some(b)) => Some(if b.0 > a.0 { b } else { a }),
+            (a, b) => a.or(b),
+        };
+        let add3 = |a: [f64; 3], b: [f64; 3]| [a[0] + b[0], a[1] + b[1], a[2] + b[2]];
+        SlipLoad {
+            contacts: self.contacts + other.contacts,
+            force_n: self.force_n + other.force_n,
+            used_n: self.used_n + other.used_n,
+            state_n: add3(self.state_n, other.state_n),
+            state_count: [0, 1, 2].map(|k| self.state_count[k] + other.state_count[k]),
+            used_sum: self.used_sum + other.used_sum,
+            heaviest,
+        }
+    }
+
+    /// The group as one contact (`None` without any whose slip is known): the stick ratio
+    /// `(1 − u)^(1/3)` of the share `u` its load uses; the state in which contacts pressing
+    /// at least half the force are, or a more advanced one (the force-weighted median;
+    /// by count where no force is known); the shear of the contact pressing most.
+    pub fn slip(&self) -> Option<SensorSlip> {
+        let (_, heaviest) = self.heaviest?;
+        let by_force = self.force_n > 0.0;
+        let weights = if by_force {
+            self.state_n
+        } else {
+            self.state_count.map(f64::from)
+        };
+        let total: f64 = weights.iter().sum();
+        let state = if weights[2] >= 0.5 * total {
+            SlipState::Gross
+        } else if weights[1] + weights[2] >= 0.5 * total {
+            SlipState::Incipient
+        } else {
+            SlipState::None
+        };
+        let used = if by_force {
+            self.used_n / self.force_n
+        } else {
+            self.used_sum / f64::from(self.contacts.max(1))
+        };
+        let used = if used.is_finite() {
+            used.clamp(0.0, 1.0)
+        } else {
+            1.0
+        };
+        Some(SensorSlip {
+            shear_mm: heaviest.shear_mm,
+            stick_ratio: (1.0 - used).cbrt(),
+            state,
+        })
+    }
+}
+
 /// The one of `a` and `b` slipping most: the more advanced state, then the less stick.
 pub fn worse_slip(a: Option<SensorSlip>, b: Option<SensorSlip>) -> Option<SensorSlip> {
     match (a, b) {
@@ -149,6 +269,7 @@ fn add(acc: &mut FusedContact, best_n: &mut f64, sensor: usize, reading: Option<
     acc.force_n += force;
     if let Some(slip) = r.slip.filter(|_| r.in_contact) {
         acc.slip = worse_slip(acc.slip, Some(slip));
+        acc.slip_load.add(force, &slip);
     }
     if r.in_contact
         && (acc.centroid.is_none() || force > *best_n)
@@ -351,5 +472,105 @@ mod tests {
         assert_eq!(fused.slip(), Some(slip(SlipState::Incipient, 0.7)));
         set_slip(&mut r, "palm", slip(SlipState::Gross, 0.9));
         assert_eq!(fuse(&layout, &r).slip(), Some(slip(SlipState::Gross, 0.9)));
+    }
+
+    #[test]
+    fn the_grip_used_follows_cattaneo_mindlin() {
+        let slip = |stick_ratio, state| SensorSlip {
+            shear_mm: [0.0, 0.0],
+            stick_ratio,
+            state,
+        };
+        assert_eq!(slip(1.0, SlipState::None).grip_used(), 0.0);
+        // c/a = (1 − Q/μP)^(1/3) at Q/μP = 0.5.
+        let s = 0.5f64.cbrt();
+        assert!((slip(s, SlipState::Incipient).grip_used() - 0.5).abs() < 1e-12);
+        assert_eq!(slip(0.8, SlipState::Gross).grip_used(), 1.0);
+        for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            assert_eq!(slip(bad, SlipState::None).grip_used(), 1.0, "{bad}");
+        }
+        for out in [-1.0, 2.0] {
+            let u = slip(out, SlipState::Incipient).grip_used();
+            assert!((0.0..=1.0).contains(&u), "{out}: {u}");
+        }
+    }
+
+    /// A contact slipping as `state` at `stick_ratio`, sheared `shear_mm` along x.
+    fn slip_of(state: SlipState, stick_ratio: f64, shear_mm: f64) -> SensorSlip {
+        SensorSlip {
+            shear_mm: [shear_mm, 0.0],
+            stick_ratio,
+            state,
+        }
+    }
+
+    #[test]
+    fn a_light_contact_sliding_beside_load_bearing_ones_that_stick_does_not_slide_the_load() {
+        // The rubber duck held after its table dropped (docs/control.md): a middle phalanx
+        // at 0.6 N slides whole, the tips at 3.4–3.9 N stick at 0.9.
+        let mut load = SlipLoad::default();
+        load.add(0.6, &slip_of(SlipState::Gross, 0.18, 0.05));
+        load.add(3.4, &slip_of(SlipState::None, 0.9, 0.12));
+        load.add(3.9, &slip_of(SlipState::Incipient, 0.88, 0.15));
+        let held = load.slip().expect("known");
+        let used = (0.6 + 3.4 * (1.0 - 0.9f64.powi(3)) + 3.9 * (1.0 - 0.88f64.powi(3))) / 7.9;
+        assert!((held.stick_ratio - (1.0 - used).cbrt()).abs() < 1e-12);
+        assert!(held.stick_ratio > 0.8, "{}", held.stick_ratio);
+        assert_eq!(held.state, SlipState::Incipient, "3.9 of 7.9 N or more");
+        assert_eq!(held.shear_mm, [0.15, 0.0], "the heaviest contact's");
+        // When the load-bearing ones slide too, the load slides.
+        let mut sliding = SlipLoad::default();
+        sliding.add(0.6, &slip_of(SlipState::Gross, 0.18, 0.05));
+        sliding.add(3.4, &slip_of(SlipState::Gross, 0.2, 0.3));
+        sliding.add(3.9, &slip_of(SlipState::Incipient, 0.35, 0.3));
+        let slid = sliding.slip().expect("known");
+        assert_eq!(slid.state, SlipState::Gross);
+        assert!(slid.stick_ratio < 0.5, "{}", slid.stick_ratio);
+        // Merging adds the groups as if they were one.
+        let merged = load.merged(&sliding);
+        assert_eq!(merged.contacts, 6);
+        assert!((merged.force_n - 15.8).abs() < 1e-12);
+        assert_eq!(merged.heaviest.map(|(f, _)| f), Some(3.9));
+    }
+
+    #[test]
+    fn a_slip_load_without_force_or_with_bad_values_stays_finite() {
+        assert_eq!(SlipLoad::default().slip(), None);
+        // No force known: the contacts count alike.
+        let mut unforced = SlipLoad::default();
+        unforced.add(0.0, &slip_of(SlipState::Gross, 0.1, 0.0));
+        unforced.add(f64::NAN, &slip_of(SlipState::None, 1.0, 0.0));
+        unforced.add(-3.0, &slip_of(SlipState::Gross, 0.2, 0.0));
+        let s = unforced.slip().expect("known");
+        assert_eq!(s.state, SlipState::Gross, "two of three");
+        assert!((s.stick_ratio - (1.0f64 / 3.0).cbrt()).abs() < 1e-12);
+        for bad in [f64::NAN, f64::INFINITY, -1.0, 1e300] {
+            let mut l = SlipLoad::default();
+            l.add(bad, &slip_of(SlipState::Incipient, bad, bad));
+            l.add(1.0, &slip_of(SlipState::None, bad, 0.0));
+            let s = l.slip().expect("known");
+            assert!((0.0..=1.0).contains(&s.stick_ratio), "{bad}: {s:?}");
+        }
+    }
+
+    #[test]
+    fn a_finger_sums_its_contacts_slip_load() {
+        let l = layout();
+        let mut r: Vec<Option<SensorReading>> = (0..7).map(|_| touch(1.0, 0.0)).collect();
+        r[0] = touch(0.5, 0.0).map(|t| SensorReading {
+            slip: Some(slip_of(SlipState::Gross, 0.1, 0.01)),
+            ..t
+        });
+        r[1] = touch(3.0, 0.0).map(|t| SensorReading {
+            slip: Some(slip_of(SlipState::None, 1.0, 0.02)),
+            ..t
+        });
+        let f = fuse(&l, &r);
+        let load = f.fingers[0].slip_load;
+        assert_eq!(load.contacts, 2);
+        assert!((load.used_n - 0.5).abs() < 1e-12);
+        assert_eq!(load.slip().map(|s| s.state), Some(SlipState::None));
+        assert_eq!(f.fingers[0].slip.map(|s| s.state), Some(SlipState::Gross));
+        assert_eq!(f.fingers[1].slip_load, SlipLoad::default());
     }
 }

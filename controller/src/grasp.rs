@@ -458,6 +458,7 @@ impl GraspController {
             settled: self.settled(),
             auto_target: self.request.auto_target,
             grasp_slip: set.and_then(|s| self.grasp_slip(s)),
+            held_slip: set.and_then(|s| self.held_slip(s)),
             tuning: &self.tuning,
         };
         for (f, c) in self.fingers.iter_mut().enumerate() {
@@ -544,6 +545,20 @@ impl GraspController {
             .filter(|(_, c)| c.active)
             .map(|(f, _)| f.slip);
         fingers.chain(palm).fold(None, crate::fusion::worse_slip)
+    }
+
+    /// The slip the grasp holds by: its contacts' weighted by the force each presses with
+    /// ([`crate::fusion::SlipLoad`]), over the fingers taking part and the palm.
+    fn held_slip(&self, set: &FusedSet) -> Option<SensorSlip> {
+        let palm = set.palm.map(|p| p.slip_load);
+        set.fingers
+            .iter()
+            .zip(&self.fingers)
+            .filter(|(_, c)| c.active)
+            .map(|(f, _)| f.slip_load)
+            .chain(palm)
+            .fold(crate::fusion::SlipLoad::default(), |all, l| all.merged(&l))
+            .slip()
     }
 
     /// A grasp that finds its own force has settled once every finger has held for

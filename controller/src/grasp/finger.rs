@@ -35,6 +35,9 @@ pub(super) struct StepContext<'a> {
     /// The slip of the contact slipping most over the grasp's fingers and the palm (`None`:
     /// no contact's slip is known; the reflex then watches contact motion).
     pub(super) grasp_slip: Option<SensorSlip>,
+    /// The slip the grasp holds by: its contacts' weighted by their force (`None` as
+    /// above); the reflex's.
+    pub(super) held_slip: Option<SensorSlip>,
     /// The controller's constants.
     pub(super) tuning: &'a Tuning,
 }
@@ -502,7 +505,7 @@ impl FingerCtl {
         if self.phase == Phase::Squeeze {
             self.end_squeeze(k, fused, in_band);
         } else if self.status == FingerStatus::ContactClosing && k.settled && t.grasp.reflex {
-            match k.grasp_slip {
+            match k.held_slip {
                 Some(slip) => self.slip_reflex(k, now, &slip),
                 None => self.watch_slip(k, fused),
             }

@@ -4,7 +4,10 @@
 //! the contact's radius that still sticks; `docs/slip.md`). By Cattaneo–Mindlin,
 //! `s = (1 − Q/μP)^(1/3)`, so the share of the grip that the load uses is `1 − s³`, and the
 //! least grip that would just hold the load is `P × (1 − s³)`: what the measured slip and the
-//! friction it implies require, without knowing either Q or μ. The reflex aims at that force
+//! friction it implies require, without knowing either Q or μ. Over the grasp's contacts
+//! the slip it holds by is weighted by the force each presses with
+//! ([`crate::fusion::SlipLoad`]): a light contact that slides whole beside load-bearing
+//! ones that stick does not make the grasp slide. The reflex aims at that force
 //! plus the settings' `slip_margin` (a gross slip aims at `max_force_n`), within
 //! `[floor, max_force_n]`, and moves the target toward the aim at a bounded rate: up at
 //! `reflex_rate_n_s`, down at [`RELAX_SHARE`] of it, so that a stable grasp relaxes slowly
@@ -16,20 +19,6 @@ use crate::fusion::{SensorSlip, SlipState};
 /// A gross slip that the reflex, at its most, has not stopped for this long ends the grasp
 /// (`slipping`), s.
 pub const GIVE_UP_S: f64 = 1.0;
-
-/// The share of a grip that the load of a contact slipping as `slip` shows uses: `1 − s³`
-/// for a stick ratio `s`, and all of it (1) once the contact slides.
-pub fn grip_used(slip: &SensorSlip) -> f64 {
-    if slip.state == SlipState::Gross {
-        return 1.0;
-    }
-    let s = if slip.stick_ratio.is_finite() {
-        slip.stick_ratio.clamp(0.0, 1.0)
-    } else {
-        0.0 // unreadable: assume the worst
-    };
-    1.0 - s * s * s
-}
 
 /// Below this estimated stick ratio a contact is taken as sliding. The detector's estimate
 /// reads high where little sticks (a sliding contact reads 0.32 at the median and up to
@@ -52,7 +41,7 @@ pub fn least_n(force_n: f64, slip: &SensorSlip) -> f64 {
     } else {
         0.0
     };
-    force_n * grip_used(slip)
+    force_n * slip.grip_used()
 }
 
 /// How far ahead the aim looks along the least force's rise, s: about the lag from a new
@@ -252,19 +241,6 @@ mod tests {
             stop.floor_n(0.1, 0.5, &sheared(1.0, SlipState::None, f64::INFINITY)),
             0.5
         );
-    }
-
-    #[test]
-    fn the_grip_used_follows_cattaneo_mindlin() {
-        assert_eq!(grip_used(&slip(1.0, SlipState::None)), 0.0);
-        // c/a = (1 − Q/μP)^(1/3) at Q/μP = 0.5.
-        let s = 0.5f64.cbrt();
-        assert!((grip_used(&slip(s, SlipState::Incipient)) - 0.5).abs() < 1e-12);
-        assert_eq!(grip_used(&slip(0.8, SlipState::Gross)), 1.0);
-        for bad in [f64::NAN, f64::INFINITY, -1.0, 2.0] {
-            let u = grip_used(&slip(bad, SlipState::Incipient));
-            assert!((0.0..=1.0).contains(&u), "{bad}: {u}");
-        }
     }
 
     #[test]

@@ -3,7 +3,7 @@
 //! a first-order lag, as a current-capped servo pressing on an object does.
 
 use super::*;
-use crate::fusion::FusedContact;
+use crate::fusion::{FusedContact, SensorSlip, SlipLoad};
 
 pub(crate) struct ToyFinger {
     pub(crate) position_deg: f64,
@@ -59,7 +59,15 @@ pub(crate) fn toy_contact(force_n: f64) -> FusedContact {
         centroid: (force_n > 0.01).then_some((0, 0.0, 0.0)),
         stale: false,
         slip: None,
+        slip_load: SlipLoad::default(),
     }
+}
+
+/// `contact` slipping as `slip`, as fusion tells it of a one-sensor finger.
+pub(crate) fn slipping(contact: &mut FusedContact, slip: SensorSlip) {
+    contact.slip = Some(slip);
+    contact.slip_load = SlipLoad::default();
+    contact.slip_load.add(contact.force_n, &slip);
 }
 
 /// The fused set the toy fingers give.

@@ -30,7 +30,7 @@ fn loaded_set(fingers: &[ToyFinger], load_n: f64) -> FusedSet {
     };
     let mut set = toy_set(fingers);
     for c in &mut set.fingers {
-        c.slip = Some(slip);
+        slipping(c, slip);
     }
     set
 }
@@ -167,6 +167,48 @@ fn a_load_beyond_the_most_force_ends_slipping_with_the_fingers_holding() {
     assert!(ctl.targets_n().iter().all(|t| *t <= max_n + 1e-9));
 }
 
+/// The rubber duck after its table drops (docs/control.md): besides each finger's
+/// load-bearing contact, which sticks, finger 1 touches with a second, light contact that
+/// carries all its friction can and so slides whole, while the object holds. The grasp
+/// holds by the load its contacts carry: it neither gives up nor squeezes to the most.
+#[test]
+fn a_light_contact_sliding_whole_beside_ones_that_stick_neither_squeezes_nor_gives_up() {
+    let (mut ctl, mut f) = held(1.5, Tuning::default());
+    let dt = 1.0 / RATE_HZ;
+    let t0 = ctl.last_s.expect("stepped") + dt;
+    let mut goals = ctl.goals();
+    let sticks = SensorSlip {
+        shear_mm: [0.1, 0.0],
+        stick_ratio: 0.92,
+        state: SlipState::None,
+    };
+    let slides = SensorSlip {
+        shear_mm: [0.05, 0.0],
+        stick_ratio: 0.18,
+        state: SlipState::Gross,
+    };
+    for k in 0..(10.0 * RATE_HZ) as usize {
+        let mut set = toy_set(&f);
+        for c in &mut set.fingers {
+            slipping(c, sticks);
+        }
+        // The light contact: a fifth of the finger's force, sliding whole.
+        let light_n = 0.2 * set.fingers[0].force_n;
+        set.fingers[0].slip = Some(slides);
+        set.fingers[0].slip_load.add(light_n, &slides);
+        let states: Vec<ServoState> = f.iter().zip(&goals).map(|(x, g)| x.state(g)).collect();
+        goals = ctl.step(t0 + k as f64 * dt, Some(&set), &states).goals;
+        for (x, g) in f.iter_mut().zip(&goals) {
+            x.step(g, dt);
+        }
+    }
+    let outcome = ctl.outcome().expect("ended");
+    assert!(outcome.grasped, "{outcome:?}");
+    assert_ne!(outcome.reason, GraspReason::Slipping);
+    let targets = ctl.targets_n();
+    assert!(targets.iter().all(|t| *t <= 1.5 + 1e-9), "{targets:?}");
+}
+
 #[test]
 fn with_the_reflex_off_the_target_stays() {
     let mut tuning = Tuning::default();
@@ -198,8 +240,8 @@ fn a_finger_outside_the_grasp_does_not_trigger_its_reflex() {
     let t0 = ctl.last_s.unwrap_or(0.0);
     for k in 1..=30 {
         let mut set = toy_set(&f);
-        set.fingers[1].slip = Some(gross);
-        set.fingers[2].slip = Some(gross);
+        slipping(&mut set.fingers[1], gross);
+        slipping(&mut set.fingers[2], gross);
         ctl.step(t0 + k as f64 / RATE_HZ, Some(&set), &states);
     }
     assert_eq!(ctl.targets_n()[0], 1.0);
