@@ -547,19 +547,17 @@ impl GraspController {
         fingers.chain(palm).fold(None, crate::fusion::worse_slip)
     }
 
-    /// The slip the grasp holds by: its fingers' contacts' weighted by the force each
-    /// presses with ([`crate::fusion::SlipLoad`]), over the fingers taking part. The palm
-    /// is left out: the reflex does not set its force, and it mostly presses along the
-    /// load (an object resting on it), so it says how the support unloads, not how much of
-    /// the fingers' friction the load uses.
+    /// The slip the grasp holds by: its contacts' weighted by the force each presses with
+    /// ([`crate::fusion::SlipLoad`]), over the fingers taking part and the palm.
     fn held_slip(&self, set: &FusedSet) -> Option<SensorSlip> {
+        let palm = set.palm.map(|p| p.slip_load);
         set.fingers
             .iter()
             .zip(&self.fingers)
             .filter(|(_, c)| c.active)
-            .fold(crate::fusion::SlipLoad::default(), |all, (f, _)| {
-                all.merged(&f.slip_load)
-            })
+            .map(|(f, _)| f.slip_load)
+            .chain(palm)
+            .fold(crate::fusion::SlipLoad::default(), |all, l| all.merged(&l))
             .slip()
     }
 

@@ -209,43 +209,6 @@ fn a_light_contact_sliding_whole_beside_ones_that_stick_neither_squeezes_nor_giv
     assert!(targets.iter().all(|t| *t <= 1.5 + 1e-9), "{targets:?}");
 }
 
-/// An object lifted off the palm: the fingers' contacts slide while the palm's, unloading
-/// along the load, still reads stuck. The palm is a support the reflex does not set, so
-/// its reading does not hold the fingers back: they tighten.
-#[test]
-fn a_palm_that_still_sticks_does_not_hold_back_fingers_that_slide() {
-    let (mut ctl, mut f) = held(0.3, Tuning::default());
-    let dt = 1.0 / RATE_HZ;
-    let t0 = ctl.last_s.expect("stepped") + dt;
-    let mut goals = ctl.goals();
-    let slides = SensorSlip {
-        shear_mm: [0.2, 0.0],
-        stick_ratio: 0.22,
-        state: SlipState::Incipient,
-    };
-    let palm_sticks = SensorSlip {
-        shear_mm: [0.0, 0.0],
-        stick_ratio: 1.0,
-        state: SlipState::None,
-    };
-    for k in 0..(0.5 * RATE_HZ) as usize {
-        let mut set = toy_set(&f);
-        for c in &mut set.fingers {
-            slipping(c, slides);
-        }
-        let mut palm = toy_contact(2.0);
-        slipping(&mut palm, palm_sticks);
-        set.palm = Some(palm);
-        let states: Vec<ServoState> = f.iter().zip(&goals).map(|(x, g)| x.state(g)).collect();
-        goals = ctl.step(t0 + k as f64 * dt, Some(&set), &states).goals;
-        for (x, g) in f.iter_mut().zip(&goals) {
-            x.step(g, dt);
-        }
-    }
-    let targets = ctl.targets_n();
-    assert!(targets.iter().all(|t| *t > 1.5), "{targets:?}");
-}
-
 #[test]
 fn with_the_reflex_off_the_target_stays() {
     let mut tuning = Tuning::default();
