@@ -149,9 +149,7 @@ impl SensorSlip {
 /// it counts for what it carries. Sums add over sensors, fingers and the palm.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct SlipLoad {
-    /// Contacts whose slip is known.
-    pub contacts: u32,
-    /// Their force, N.
+    /// The force of the contacts whose slip is known, N.
     pub force_n: f64,
     /// Σ force × the share of its friction used, N.
     pub used_n: f64,
@@ -166,6 +164,11 @@ pub struct SlipLoad {
 }
 
 impl SlipLoad {
+    /// How many contacts' slip is known.
+    pub fn contacts(&self) -> u32 {
+        self.state_count.iter().sum()
+    }
+
     /// Add a contact pressing with `force_n` and slipping as `slip`.
     pub fn add(&mut self, force_n: f64, slip: &SensorSlip) {
         let force_n = if force_n.is_finite() {
@@ -174,7 +177,6 @@ impl SlipLoad {
             0.0
         };
         let state = slip.state as usize;
-        self.contacts += 1;
         self.force_n += force_n;
         self.used_n += force_n * slip.grip_used();
         self.used_sum += slip.grip_used();
@@ -191,12 +193,10 @@ impl SlipLoad {
             (Some(a), Some(b)) => Some(if b.0 > a.0 { b } else { a }),
             (a, b) => a.or(b),
         };
-        let add3 = |a: [f64; 3], b: [f64; 3]| [a[0] + b[0], a[1] + b[1], a[2] + b[2]];
         SlipLoad {
-            contacts: self.contacts + other.contacts,
             force_n: self.force_n + other.force_n,
             used_n: self.used_n + other.used_n,
-            state_n: add3(self.state_n, other.state_n),
+            state_n: [0, 1, 2].map(|k| self.state_n[k] + other.state_n[k]),
             state_count: [0, 1, 2].map(|k| self.state_count[k] + other.state_count[k]),
             used_sum: self.used_sum + other.used_sum,
             heaviest,
@@ -226,7 +226,7 @@ impl SlipLoad {
         let used = if by_force {
             self.used_n / self.force_n
         } else {
-            self.used_sum / f64::from(self.contacts.max(1))
+            self.used_sum / f64::from(self.contacts().max(1))
         };
         let used = if used.is_finite() {
             used.clamp(0.0, 1.0)
@@ -528,7 +528,7 @@ mod tests {
         assert!(slid.stick_ratio < 0.5, "{}", slid.stick_ratio);
         // Merging adds the groups as if they were one.
         let merged = load.merged(&sliding);
-        assert_eq!(merged.contacts, 6);
+        assert_eq!(merged.contacts(), 6);
         assert!((merged.force_n - 15.8).abs() < 1e-12);
         assert_eq!(merged.heaviest.map(|(f, _)| f), Some(3.9));
     }
@@ -567,7 +567,7 @@ mod tests {
         });
         let f = fuse(&l, &r);
         let load = f.fingers[0].slip_load;
-        assert_eq!(load.contacts, 2);
+        assert_eq!(load.contacts(), 2);
         assert!((load.used_n - 0.5).abs() < 1e-12);
         assert_eq!(load.slip().map(|s| s.state), Some(SlipState::None));
         assert_eq!(f.fingers[0].slip.map(|s| s.state), Some(SlipState::Gross));
