@@ -118,6 +118,33 @@ impl FusedSet {
         self.fingers.iter().map(|f| f.force_n).sum::<f64>() + self.palm.map_or(0.0, |p| p.force_n)
     }
 
+    /// The fingers that `active` marks (by index; a finger past its end is left out) and
+    /// the palm.
+    fn taking_part<'a>(&'a self, active: &'a [bool]) -> impl Iterator<Item = &'a FusedContact> {
+        self.fingers
+            .iter()
+            .zip(active)
+            .filter(|(_, a)| **a)
+            .map(|(f, _)| f)
+            .chain(self.palm.as_ref())
+    }
+
+    /// [`FusedSet::slip`] over the fingers that `active` marks and the palm: a finger that
+    /// another drive moves on purpose (a task's trigger) is left out.
+    pub fn worst_slip(&self, active: &[bool]) -> Option<SensorSlip> {
+        self.taking_part(active)
+            .map(|c| c.slip)
+            .fold(None, worse_slip)
+    }
+
+    /// The slip a grasp holds by over the fingers that `active` marks and the palm: their
+    /// contacts' weighted by the force each presses with ([`SlipLoad`]).
+    pub fn held_slip(&self, active: &[bool]) -> Option<SensorSlip> {
+        self.taking_part(active)
+            .fold(SlipLoad::default(), |all, c| all.merged(&c.slip_load))
+            .slip()
+    }
+
     /// The grasp's slip: that of its finger (or palm) slipping most, as a finger's is that
     /// of its sensor slipping most (`None`: no contact's slip is known).
     pub fn slip(&self) -> Option<SensorSlip> {
@@ -572,5 +599,42 @@ mod tests {
         assert_eq!(load.slip().map(|s| s.state), Some(SlipState::None));
         assert_eq!(f.fingers[0].slip.map(|s| s.state), Some(SlipState::Gross));
         assert_eq!(f.fingers[1].slip_load, SlipLoad::default());
+    }
+
+    #[test]
+    fn a_grasp_reads_slip_over_the_fingers_taking_part_and_the_palm() {
+        let l = layout();
+        let with = |force_n: f64, slip: SensorSlip| {
+            touch(force_n, 0.0).map(|t| SensorReading {
+                slip: Some(slip),
+                ..t
+            })
+        };
+        // Order: f1.middle, f1.tip, f2.middle, f2.tip, f3.middle, f3.tip, palm.
+        let mut r: Vec<Option<SensorReading>> = (0..7)
+            .map(|_| with(2.0, slip_of(SlipState::None, 0.95, 0.01)))
+            .collect();
+        r[2] = with(2.0, slip_of(SlipState::Gross, 0.1, 0.3)); // f2, the trigger finger
+        let f = fuse(&l, &r);
+        let all = [true; 3];
+        let trigger_out = [true, false, true];
+        assert_eq!(f.worst_slip(&all), f.slip());
+        assert_eq!(f.worst_slip(&all).map(|s| s.state), Some(SlipState::Gross));
+        assert_eq!(
+            f.worst_slip(&trigger_out).map(|s| s.state),
+            Some(SlipState::None)
+        );
+        let held_all = f.held_slip(&all).expect("known");
+        let held_out = f.held_slip(&trigger_out).expect("known");
+        assert!(held_all.stick_ratio < held_out.stick_ratio, "{held_all:?}");
+        assert!((held_out.stick_ratio - 0.95).abs() < 1e-9, "{held_out:?}");
+        // The palm always counts; a mask shorter than the fingers leaves the rest out.
+        r[6] = with(4.0, slip_of(SlipState::Gross, 0.0, 0.2));
+        let f = fuse(&l, &r);
+        assert_eq!(f.worst_slip(&[]).map(|s| s.state), Some(SlipState::Gross));
+        assert_eq!(f.held_slip(&[]).map(|s| s.state), Some(SlipState::Gross));
+        let none = FusedSet { palm: None, ..f };
+        assert_eq!(none.worst_slip(&[]), None);
+        assert_eq!(none.held_slip(&[]), None);
     }
 }

@@ -37,7 +37,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::actuator::{FingerGoal, ServoState};
-use crate::fusion::{FusedSet, SensorSlip};
+use crate::fusion::FusedSet;
 
 mod finger;
 pub mod limits;
@@ -449,6 +449,7 @@ impl GraspController {
         let dt = (t_s - self.last_s.unwrap_or(t_s)).clamp(0.0, 0.5);
         self.last_s = Some(t_s);
         let rate = self.track_set_rate(t_s, set.is_some());
+        let active: Vec<bool> = self.fingers.iter().map(|c| c.active).collect();
         let k = StepContext {
             t_s,
             dt,
@@ -457,8 +458,8 @@ impl GraspController {
             rate,
             settled: self.settled(),
             auto_target: self.request.auto_target,
-            grasp_slip: set.and_then(|s| self.grasp_slip(s)),
-            held_slip: set.and_then(|s| self.held_slip(s)),
+            grasp_slip: set.and_then(|s| s.worst_slip(&active)),
+            held_slip: set.and_then(|s| s.held_slip(&active)),
             tuning: &self.tuning,
         };
         for (f, c) in self.fingers.iter_mut().enumerate() {
@@ -532,33 +533,6 @@ impl GraspController {
             slow_weight: spanning(t.slow_hold_span_s),
             use_median: period <= t.reference_period_s,
         }
-    }
-
-    /// The slip of the contact slipping most over the fingers taking part and the palm: a
-    /// finger that another drive moves on purpose (a task's trigger) is left out.
-    fn grasp_slip(&self, set: &FusedSet) -> Option<SensorSlip> {
-        let palm = set.palm.map(|p| p.slip);
-        let fingers = set
-            .fingers
-            .iter()
-            .zip(&self.fingers)
-            .filter(|(_, c)| c.active)
-            .map(|(f, _)| f.slip);
-        fingers.chain(palm).fold(None, crate::fusion::worse_slip)
-    }
-
-    /// The slip the grasp holds by: its contacts' weighted by the force each presses with
-    /// ([`crate::fusion::SlipLoad`]), over the fingers taking part and the palm.
-    fn held_slip(&self, set: &FusedSet) -> Option<SensorSlip> {
-        let palm = set.palm.map(|p| p.slip_load);
-        set.fingers
-            .iter()
-            .zip(&self.fingers)
-            .filter(|(_, c)| c.active)
-            .map(|(f, _)| f.slip_load)
-            .chain(palm)
-            .fold(crate::fusion::SlipLoad::default(), |all, l| all.merged(&l))
-            .slip()
     }
 
     /// A grasp that finds its own force has settled once every finger has held for
