@@ -309,7 +309,7 @@ pub fn run(rig: &dyn Rig, args: BenchSlipArgs) -> anyhow::Result<u8> {
                     };
                     first_trace.get_or_insert(trace);
                     rows.push(row);
-                    bar.inc(1);
+                    crate::progress::advance(&bar, "trials");
                 }
             }
         }
