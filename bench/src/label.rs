@@ -191,7 +191,7 @@ fn press_ball(
         let jpeg = cam.jpeg(&map, 2_000_000 + i as u64)?;
         images.push(decode_frame(cam, &jpeg)?);
         truths.push((cx, cy, a_px));
-        progress::advance(&bar, "presses");
+        progress::advance(bar, "presses");
     }
     Ok((images, truths))
 }
