@@ -4,9 +4,9 @@
 //! volume, the quantity the paper plots for the screwdriver task).
 //!
 //! A group's slip is told two ways: by the contact slipping most (the first sign of slip,
-//! what is shown and reported) and weighted by the force each contact presses with
-//! ([`SlipLoad`]: the share of the group's friction that its load uses, what the grip
-//! reflex holds by).
+//! what is shown and reported) and by the contact slipping most among those that bear
+//! their share of the force ([`SlipLoad`]: what the grip reflex holds by; a light touch
+//! beside them is left out).
 //!
 //! A sensor whose reading is missing (its frame was corrupt or its pipeline failed) marks
 //! its finger stale: the controller then holds that finger rather than guess.
@@ -94,7 +94,7 @@ pub struct FusedContact {
     /// The slip of its sensor slipping most (the most advanced state, then the least stick
     /// ratio); `None` when none of its sensors can tell.
     pub slip: Option<SensorSlip>,
-    /// Its contacts' slip weighted by the force each presses with.
+    /// Its contacts' forces and slips, for the slip the grasp holds by ([`SlipLoad`]).
     pub slip_load: SlipLoad,
 }
 
@@ -137,8 +137,9 @@ impl FusedSet {
             .fold(None, worse_slip)
     }
 
-    /// The slip a grasp holds by over the fingers that `active` marks and the palm: their
-    /// contacts' weighted by the force each presses with ([`SlipLoad`]).
+    /// The slip a grasp holds by over the fingers that `active` marks and the palm: that of
+    /// the contact slipping most among those bearing their share of the force
+    /// ([`SlipLoad`]).
     pub fn held_slip(&self, active: &[bool]) -> Option<SensorSlip> {
         self.taking_part(active)
             .fold(SlipLoad::default(), |all, c| all.merged(&c.slip_load))
@@ -168,32 +169,35 @@ impl SensorSlip {
     }
 }
 
-/// Contacts' slip weighted by the force each presses with. A contact's tangential load is
-/// `Q = μP × (1 − s³)`, so over the contacts `Σ Q / Σ μP` is the force-weighted mean of
-/// their [`SensorSlip::grip_used`]: the share of the group's friction that the load uses.
-/// A light contact beside the load-bearing ones may slide whole (it carries all that its
-/// friction can, and the others the rest) while the object holds; weighted by its force,
-/// it counts for what it carries. Sums add over sensors, fingers and the palm.
+/// How many contacts a [`SlipLoad`] keeps, the heaviest (the three-finger hand has seven
+/// sensors).
+pub const SLIP_LOAD_KEPT: usize = 8;
+
+/// A contact whose force is below this share of the group's mean is light: its slip does
+/// not stand for the group's.
+pub const FAIR_SHARE: f64 = 0.5;
+
+/// Contacts' slip as a grasp holds by it: that of the contact slipping most among those
+/// that carry at least [`FAIR_SHARE`] of the mean force. Contacts share a load by
+/// stiffness, each up to its own friction limit, so a light touch beside load-bearing
+/// contacts reaches its limit first and reads sliding whole while the object holds (the
+/// rubber duck's middle phalanx at 0.6 N beside tips at 3.4–3.9 N); it is left out. A
+/// contact that bears its share and slides is the load sliding on it. Groups merge over
+/// sensors, fingers and the palm.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct SlipLoad {
     /// The force of the contacts whose slip is known, N.
     pub force_n: f64,
-    /// Σ force × the share of its friction used, N.
-    pub used_n: f64,
-    /// Force of the contacts per state (none, incipient, gross), N.
-    pub state_n: [f64; 3],
-    /// Contacts per state (none, incipient, gross): the weights when no force is known.
-    pub state_count: [u32; 3],
-    /// Σ the share of its friction used, unweighted (when no force is known).
-    pub used_sum: f64,
-    /// The slip of the contact pressing most: its shear stands for the group's.
-    pub heaviest: Option<(f64, SensorSlip)>,
+    /// How many contacts' slip is known.
+    count: u32,
+    /// The heaviest of them (force, N; slip), at most [`SLIP_LOAD_KEPT`].
+    kept: [Option<(f64, SensorSlip)>; SLIP_LOAD_KEPT],
 }
 
 impl SlipLoad {
     /// How many contacts' slip is known.
     pub fn contacts(&self) -> u32 {
-        self.state_count.iter().sum()
+        self.count
     }
 
     /// Add a contact pressing with `force_n` and slipping as `slip`.
@@ -203,68 +207,53 @@ impl SlipLoad {
         } else {
             0.0
         };
-        let state = slip.state as usize;
         self.force_n += force_n;
-        self.used_n += force_n * slip.grip_used();
-        self.used_sum += slip.grip_used();
-        self.state_n[state] += force_n;
-        self.state_count[state] += 1;
-        if self.heaviest.is_none_or(|(f, _)| force_n > f) {
-            self.heaviest = Some((force_n, *slip));
+        self.count += 1;
+        self.keep(force_n, *slip);
+    }
+
+    /// Keep a contact: in a free place, or in place of the lightest kept when it is heavier.
+    fn keep(&mut self, force_n: f64, slip: SensorSlip) {
+        let place = self.kept.iter().position(Option::is_none).or_else(|| {
+            let (k, lightest) = self
+                .kept
+                .iter()
+                .enumerate()
+                .filter_map(|(k, c)| c.map(|(f, _)| (k, f)))
+                .min_by(|a, b| a.1.total_cmp(&b.1))?;
+            (force_n > lightest).then_some(k)
+        });
+        if let Some(k) = place {
+            self.kept[k] = Some((force_n, slip));
         }
     }
 
     /// Both groups' contacts together.
-    pub fn merged(self, other: &SlipLoad) -> SlipLoad {
-        let heaviest = match (self.heaviest, other.heaviest) {
-            (Some(a), Some(b)) => Some(if b.0 > a.0 { b } else { a }),
-            (a, b) => a.or(b),
-        };
-        SlipLoad {
-            force_n: self.force_n + other.force_n,
-            used_n: self.used_n + other.used_n,
-            state_n: [0, 1, 2].map(|k| self.state_n[k] + other.state_n[k]),
-            state_count: [0, 1, 2].map(|k| self.state_count[k] + other.state_count[k]),
-            used_sum: self.used_sum + other.used_sum,
-            heaviest,
+    pub fn merged(mut self, other: &SlipLoad) -> SlipLoad {
+        self.force_n += other.force_n;
+        self.count += other.count;
+        for (f, slip) in other.kept.iter().flatten() {
+            self.keep(*f, *slip);
         }
+        self
     }
 
-    /// The group as one contact (`None` without any whose slip is known): the stick ratio
-    /// `(1 − u)^(1/3)` of the share `u` its load uses; the state in which contacts pressing
-    /// at least half the force are, or a more advanced one (the force-weighted median;
-    /// by count where no force is known); the shear of the contact pressing most.
+    /// The slip the group holds by (`None` without any contact whose slip is known): the
+    /// slip of the contact slipping most among those pressing at least [`FAIR_SHARE`] of
+    /// the mean force (all of them where no force is known).
     pub fn slip(&self) -> Option<SensorSlip> {
-        let (_, heaviest) = self.heaviest?;
-        let by_force = self.force_n > 0.0;
-        let weights = if by_force {
-            self.state_n
+        let mean_n = self.force_n / f64::from(self.count.max(1));
+        let floor_n = if mean_n.is_finite() {
+            FAIR_SHARE * mean_n
         } else {
-            self.state_count.map(f64::from)
+            0.0
         };
-        let total: f64 = weights.iter().sum();
-        let state = if weights[2] >= 0.5 * total {
-            SlipState::Gross
-        } else if weights[1] + weights[2] >= 0.5 * total {
-            SlipState::Incipient
-        } else {
-            SlipState::None
-        };
-        let used = if by_force {
-            self.used_n / self.force_n
-        } else {
-            self.used_sum / f64::from(self.contacts().max(1))
-        };
-        let used = if used.is_finite() {
-            used.clamp(0.0, 1.0)
-        } else {
-            1.0
-        };
-        Some(SensorSlip {
-            shear_mm: heaviest.shear_mm,
-            stick_ratio: (1.0 - used).cbrt(),
-            state,
-        })
+        self.kept
+            .iter()
+            .flatten()
+            .filter(|(f, _)| *f >= floor_n)
+            .map(|(_, slip)| Some(*slip))
+            .fold(None, worse_slip)
     }
 }
 
@@ -539,45 +528,66 @@ mod tests {
         load.add(0.6, &slip_of(SlipState::Gross, 0.18, 0.05));
         load.add(3.4, &slip_of(SlipState::None, 0.9, 0.12));
         load.add(3.9, &slip_of(SlipState::Incipient, 0.88, 0.15));
-        let held = load.slip().expect("known");
-        let used = (0.6 + 3.4 * (1.0 - 0.9f64.powi(3)) + 3.9 * (1.0 - 0.88f64.powi(3))) / 7.9;
-        assert!((held.stick_ratio - (1.0 - used).cbrt()).abs() < 1e-12);
-        assert!(held.stick_ratio > 0.8, "{}", held.stick_ratio);
-        assert_eq!(held.state, SlipState::Incipient, "3.9 of 7.9 N or more");
-        assert_eq!(held.shear_mm, [0.15, 0.0], "the heaviest contact's");
-        // When the load-bearing ones slide too, the load slides.
+        assert_eq!(
+            load.slip(),
+            Some(slip_of(SlipState::Incipient, 0.88, 0.15)),
+            "the load-bearing contact slipping most"
+        );
+        // When a load-bearing one slides, the load slides.
         let mut sliding = SlipLoad::default();
         sliding.add(0.6, &slip_of(SlipState::Gross, 0.18, 0.05));
         sliding.add(3.4, &slip_of(SlipState::Gross, 0.2, 0.3));
-        sliding.add(3.9, &slip_of(SlipState::Incipient, 0.35, 0.3));
-        let slid = sliding.slip().expect("known");
-        assert_eq!(slid.state, SlipState::Gross);
-        assert!(slid.stick_ratio < 0.5, "{}", slid.stick_ratio);
-        // Merging adds the groups as if they were one.
+        sliding.add(3.9, &slip_of(SlipState::None, 0.95, 0.3));
+        assert_eq!(sliding.slip().map(|s| s.state), Some(SlipState::Gross));
+        // Three contacts alike, all creeping a little (the wet soap): the worst stands.
+        let mut creep = SlipLoad::default();
+        for (f, s) in [(0.3, 0.98), (0.32, 0.52), (0.29, 0.84)] {
+            creep.add(f, &slip_of(SlipState::Incipient, s, 0.01));
+        }
+        assert_eq!(creep.slip().map(|s| s.stick_ratio), Some(0.52));
+        // Merging adds the groups as if they were one: 6 contacts, 15.8 N, a mean of
+        // 2.63 N; the 0.6 N contacts stay out.
         let merged = load.merged(&sliding);
         assert_eq!(merged.contacts(), 6);
         assert!((merged.force_n - 15.8).abs() < 1e-12);
-        assert_eq!(merged.heaviest.map(|(f, _)| f), Some(3.9));
+        assert_eq!(merged.slip(), Some(slip_of(SlipState::Gross, 0.2, 0.3)));
     }
 
     #[test]
     fn a_slip_load_without_force_or_with_bad_values_stays_finite() {
         assert_eq!(SlipLoad::default().slip(), None);
-        // No force known: the contacts count alike.
+        // No force known: every contact counts.
         let mut unforced = SlipLoad::default();
-        unforced.add(0.0, &slip_of(SlipState::Gross, 0.1, 0.0));
-        unforced.add(f64::NAN, &slip_of(SlipState::None, 1.0, 0.0));
-        unforced.add(-3.0, &slip_of(SlipState::Gross, 0.2, 0.0));
-        let s = unforced.slip().expect("known");
-        assert_eq!(s.state, SlipState::Gross, "two of three");
-        assert!((s.stick_ratio - (1.0f64 / 3.0).cbrt()).abs() < 1e-12);
+        unforced.add(0.0, &slip_of(SlipState::None, 1.0, 0.0));
+        unforced.add(f64::NAN, &slip_of(SlipState::Gross, 0.1, 0.0));
+        unforced.add(-3.0, &slip_of(SlipState::Incipient, 0.2, 0.0));
+        assert_eq!(unforced.slip().map(|s| s.state), Some(SlipState::Gross));
+        assert_eq!(unforced.force_n, 0.0);
         for bad in [f64::NAN, f64::INFINITY, -1.0, 1e300] {
             let mut l = SlipLoad::default();
             l.add(bad, &slip_of(SlipState::Incipient, bad, bad));
-            l.add(1.0, &slip_of(SlipState::None, bad, 0.0));
+            l.add(1.0, &slip_of(SlipState::None, 0.9, 0.0));
             let s = l.slip().expect("known");
-            assert!((0.0..=1.0).contains(&s.stick_ratio), "{bad}: {s:?}");
+            assert!(l.force_n.is_finite(), "{bad}: {l:?}");
+            assert!(
+                s.state == SlipState::Incipient || s.stick_ratio == 0.9,
+                "{bad}: {s:?}"
+            );
         }
+    }
+
+    #[test]
+    fn a_slip_load_keeps_the_heaviest_contacts() {
+        let mut l = SlipLoad::default();
+        // A sliding light contact first, then more heavier ones than it keeps.
+        l.add(0.01, &slip_of(SlipState::Gross, 0.0, 0.0));
+        for k in 0..SLIP_LOAD_KEPT {
+            l.add(1.0 + k as f64, &slip_of(SlipState::None, 1.0, 0.0));
+        }
+        assert_eq!(l.contacts(), SLIP_LOAD_KEPT as u32 + 1);
+        assert_eq!(l.slip().map(|s| s.state), Some(SlipState::None));
+        l.add(20.0, &slip_of(SlipState::Incipient, 0.7, 0.0));
+        assert_eq!(l.slip().map(|s| s.state), Some(SlipState::Incipient));
     }
 
     #[test]
@@ -595,8 +605,12 @@ mod tests {
         let f = fuse(&l, &r);
         let load = f.fingers[0].slip_load;
         assert_eq!(load.contacts(), 2);
-        assert!((load.used_n - 0.5).abs() < 1e-12);
-        assert_eq!(load.slip().map(|s| s.state), Some(SlipState::None));
+        assert!((load.force_n - 3.5).abs() < 1e-12);
+        assert_eq!(
+            load.slip().map(|s| s.state),
+            Some(SlipState::None),
+            "0.5 N is light"
+        );
         assert_eq!(f.fingers[0].slip.map(|s| s.state), Some(SlipState::Gross));
         assert_eq!(f.fingers[1].slip_load, SlipLoad::default());
     }

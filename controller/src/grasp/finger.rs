@@ -35,8 +35,8 @@ pub(super) struct StepContext<'a> {
     /// The slip of the contact slipping most over the grasp's fingers and the palm (`None`:
     /// no contact's slip is known; the reflex then watches contact motion).
     pub(super) grasp_slip: Option<SensorSlip>,
-    /// The slip the grasp holds by: its contacts' weighted by their force (`None` as
-    /// above); the reflex's.
+    /// The slip the grasp holds by: that of the contact slipping most among those bearing
+    /// their share of the force (`None` as above); the reflex's.
     pub(super) held_slip: Option<SensorSlip>,
     /// The controller's constants.
     pub(super) tuning: &'a Tuning,

@@ -5,10 +5,10 @@
 //! `s = (1 − Q/μP)^(1/3)`, so the share of the grip that the load uses is `1 − s³`, and the
 //! least grip that would just hold the load is `P × (1 − s³)`: what the measured slip and the
 //! friction it implies require, without knowing either Q or μ. Over the grasp's contacts
-//! the slip it holds by is weighted by the force each presses with
-//! ([`crate::fusion::SlipLoad`]): a light contact that slides whole beside load-bearing
-//! ones that stick does not make the grasp slide. The reflex aims at that force
-//! plus the settings' `slip_margin` (a gross slip aims at `max_force_n`), within
+//! the slip it holds by is that of the contact slipping most among those that bear their
+//! share of the force ([`crate::fusion::SlipLoad`]): a light contact that slides whole
+//! beside load-bearing ones that stick does not make the grasp slide. The reflex aims at
+//! that force plus the settings' `slip_margin` (a gross slip aims at `max_force_n`), within
 //! `[floor, max_force_n]`, and moves the target toward the aim at a bounded rate: up at
 //! `reflex_rate_n_s`, down at [`RELAX_SHARE`] of it, so that a stable grasp relaxes slowly
 //! toward the least force that holds and a load that grows is followed.
