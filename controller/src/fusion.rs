@@ -132,9 +132,7 @@ impl FusedSet {
     /// [`FusedSet::slip`] over the fingers that `active` marks and the palm: a finger that
     /// another drive moves on purpose (a task's trigger) is left out.
     pub fn worst_slip(&self, active: &[bool]) -> Option<SensorSlip> {
-        self.taking_part(active)
-            .map(|c| c.slip)
-            .fold(None, worse_slip)
+        slipping_most(self.taking_part(active))
     }
 
     /// The slip a grasp holds by over the fingers that `active` marks and the palm: that of
@@ -149,11 +147,13 @@ impl FusedSet {
     /// The grasp's slip: that of its finger (or palm) slipping most, as a finger's is that
     /// of its sensor slipping most (`None`: no contact's slip is known).
     pub fn slip(&self) -> Option<SensorSlip> {
-        self.fingers
-            .iter()
-            .chain(&self.palm)
-            .fold(None, |worst, c| worse_slip(worst, c.slip))
+        slipping_most(self.fingers.iter().chain(&self.palm))
     }
+}
+
+/// The slip of the one of `contacts` slipping most (`None` when none of them can tell).
+fn slipping_most<'a>(contacts: impl Iterator<Item = &'a FusedContact>) -> Option<SensorSlip> {
+    contacts.map(|c| c.slip).fold(None, worse_slip)
 }
 
 impl SensorSlip {
