@@ -31,8 +31,8 @@ fn run_task(task: &str, extra: &[&str]) -> (Option<i32>, String) {
 }
 
 #[test]
-fn the_cli_refuses_a_force_a_speed_and_a_timeout_out_of_range_with_exit_2() {
-    let cases: [(&[&str], &[&str]); 3] = [
+fn the_cli_refuses_a_force_a_speed_a_timeout_and_a_lift_out_of_range_with_exit_2() {
+    let cases: [(&[&str], &[&str]); 5] = [
         (
             &["--target-force", "500"],
             &[
@@ -52,6 +52,14 @@ fn the_cli_refuses_a_force_a_speed_and_a_timeout_out_of_range_with_exit_2() {
         (
             &["--task-timeout", "500"],
             &["--task-timeout", "(0, 120] s"],
+        ),
+        (
+            &["--lift-rise-s", "61"],
+            &["--lift-rise-s", "61 s is outside 0..=60 s"],
+        ),
+        (
+            &["--lift-rise-s=-0.5"],
+            &["--lift-rise-s", "-0.5 s is outside 0..=60 s"],
         ),
     ];
     for (args, needles) in cases {

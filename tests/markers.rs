@@ -464,11 +464,23 @@ fn marker_grasp(scene: &str, more: &[&str]) -> serde_json::Value {
 /// `run --target-force auto` on the marker config: the tennis ball is grasped at the
 /// preload, lifted (the task log's `lift` stage) while the reflex finds the force its
 /// weight needs, and held through the hold test at a settled force below today's fixed
-/// 1.5 N; `target_force_n` is null.
+/// 1.5 N; `target_force_n` is null. The weight comes on over the asked `--lift-rise-s`
+/// (4 s: longer than a default lift's stage can last, 0.5 s and 2.5 s to settle).
 #[test]
 fn an_auto_grasp_finds_the_force_the_tennis_ball_needs_and_holds_it() {
     let log = Path::new(env!("CARGO_TARGET_TMPDIR")).join("markers-auto-log.csv");
-    let report = auto_grasp("configs/scenes/tennis-ball.toml", &log);
+    let lift_rise_s = 4.0;
+    let report = marker_grasp(
+        "configs/scenes/tennis-ball.toml",
+        &[
+            "--log",
+            log.to_str().expect("a UTF-8 path"),
+            "--target-force",
+            "auto",
+            "--lift-rise-s",
+            &lift_rise_s.to_string(),
+        ],
+    );
     assert_eq!(report["grasped"], true, "{report}");
     assert_eq!(report["reason"], "stable", "{report}");
     assert_eq!(report["crushed"], false, "{report}");
@@ -492,6 +504,18 @@ fn an_auto_grasp_finds_the_force_the_tennis_ball_needs_and_holds_it() {
     for s in ["grasp", "lift", "hold_test"] {
         assert!(stages.contains(&s), "no {s} stage: {header:?}");
     }
+    // The lift lasts until the weight is all on, and at most 2.5 s more (a set's slack).
+    let lift_t_s: Vec<f64> = csv
+        .lines()
+        .skip(1)
+        .filter(|l| l.split(',').nth(stage) == Some("lift"))
+        .filter_map(|l| l.split(',').next()?.parse().ok())
+        .collect();
+    let lift_s = lift_t_s.last().zip(lift_t_s.first()).map(|(b, a)| b - a);
+    assert!(
+        lift_s.is_some_and(|s| s >= lift_rise_s && s <= lift_rise_s + 2.6),
+        "the lift lasted {lift_s:?} s"
+    );
 }
 
 /// A ball heavier than `[grasp] max_force_n` can hold at its friction (1 kg, μ 0.3: a grip

@@ -1,5 +1,5 @@
-//! `gelgrip bench grasp [--scene FILE]… [--target-force N] [--sweep resolution] [--json]`:
-//! the gentle grasp on every scene object, each run in this process on the virtual clock
+//! `gelgrip bench grasp [--scene FILE]… [--target-force N|auto] [--lift-rise-s S] [--sweep
+//! resolution] [--json]`: the gentle grasp on every scene object, each run in this process on the virtual clock
 //! through the library's session (the code path `gelgrip run --task gentle-grasp` runs, a
 //! fresh runtime, hub, servos and world per object), one row per object with the task fields of `run --json`, the set rate, the
 //! true force's overshoot and the crush margin. `--sweep resolution` repeats every object
@@ -31,7 +31,7 @@ use gelgrip_controller::runtime::options::RunOptions;
 
 use crate::rig::Rig;
 use gelgrip_controller::clock::ClockKind;
-use gelgrip_controller::runtime::gentle_grasp::GraspOptions;
+use gelgrip_controller::runtime::gentle_grasp::{GraspOptions, LIFT_RISE_S};
 
 /// The configuration a sweep starts from.
 const BASE_CONFIG: &str = "configs/gelgripper-sim.toml";
@@ -230,6 +230,7 @@ pub async fn gentle_grasp(
     config: Option<&Path>,
     duration_s: f64,
     target_force: TargetForce,
+    lift_rise_s: f64,
 ) -> anyhow::Result<Value> {
     let defaults = RunOptions::default();
     let options = RunOptions {
@@ -239,6 +240,7 @@ pub async fn gentle_grasp(
         task: Some("gentle-grasp".into()),
         grasp: GraspOptions {
             target_force,
+            lift_rise_s,
             ..defaults.grasp.clone()
         },
         headless: true,
@@ -280,9 +282,15 @@ pub async fn run(rig: &dyn Rig, args: BenchGraspArgs) -> anyhow::Result<u8> {
                 config.as_deref(),
                 args.duration,
                 args.target_force,
+                args.lift_rise_s,
             )
             .await?;
-            rows.push(row(scene, &report, *resolution));
+            let mut row = row(scene, &report, *resolution);
+            // A grasp that found its own force was lifted: over how long its weight came on.
+            if let (true, Value::Object(m)) = (args.target_force.is_auto(), &mut row) {
+                m.insert("lift_rise_s".into(), Value::from(args.lift_rise_s));
+            }
+            rows.push(row);
         }
     }
     // The budget holds for the default configuration (bench pipeline's); a resolution
@@ -425,6 +433,11 @@ fn sweep_figure(rows: &[Value], target: &str) -> crate::plot::Figure {
     }
 }
 
+/// `s` as the lift's rise, s, in [0, 60].
+fn parse_lift_rise_s(s: &str) -> Result<f64, String> {
+    crate::args::parse_within(s, "a duration", "s", 0.0..=60.0)
+}
+
 /// `gelgrip bench grasp`.
 #[derive(Debug, Args)]
 pub struct BenchGraspArgs {
@@ -442,6 +455,11 @@ pub struct BenchGraspArgs {
     /// Simulated seconds per object at most.
     #[arg(long, default_value_t = 25.0)]
     pub duration: f64,
+    /// Under `--target-force auto`: after each grasp settles, the object is let go and its
+    /// weight comes on over this many seconds (how fast the robot loads the grasp), in
+    /// [0, 60]; the rows gain `lift_rise_s`.
+    #[arg(long, default_value_t = LIFT_RISE_S, value_parser = parse_lift_rise_s)]
+    pub lift_rise_s: f64,
     /// `virtual` (deterministic, as fast as the host can) or `real` (frames arrive as the
     /// bus delivers them: the latency figures measure the host against the bus).
     #[arg(long, value_enum, default_value_t = ClockArg::Virtual)]

@@ -9,7 +9,7 @@ use gelgrip_controller::actuator::XM430_W350;
 use gelgrip_controller::clock::ClockKind;
 use gelgrip_controller::grasp::{MAX_TIMEOUT_S, TargetForce};
 use gelgrip_controller::runtime::RuntimeEvent;
-use gelgrip_controller::runtime::gentle_grasp::GraspOptions;
+use gelgrip_controller::runtime::gentle_grasp::{GraspOptions, LIFT_RISE_S};
 use gelgrip_ros_bridge::publisher::RosPublisher;
 use std::path::PathBuf;
 use tokio::sync::mpsc;
@@ -88,6 +88,7 @@ impl From<&RunArgs> for RunOptions {
                 speed_deg_s: args.speed,
                 timeout_s: args.task_timeout,
                 hold_s: args.hold,
+                lift_rise_s: args.lift_rise_s,
             },
             log: args.log.clone(),
             record: args.record.clone(),
@@ -180,6 +181,11 @@ pub struct RunArgs {
     /// before the hold test and the end of the task.
     #[arg(long, default_value_t = 0.0, value_parser = parse_hold_s)]
     pub hold: f64,
+    /// Gentle grasp under `--target-force auto`, on the simulator: after the grasp settles
+    /// the object is let go and its weight comes on over this many seconds (how fast the
+    /// robot loads the grasp), in [0, 60].
+    #[arg(long, default_value_t = LIFT_RISE_S, value_parser = parse_lift_rise_s)]
+    pub lift_rise_s: f64,
     /// Write the task's signals (time, stage, deformation per sensor, state and force per
     /// finger) to this CSV file.
     #[arg(long)]
@@ -231,4 +237,8 @@ fn parse_ros_namespace(s: &str) -> Result<String, String> {
 
 fn parse_hold_s(s: &str) -> Result<f64, String> {
     parse_within(s, "a duration", "s", 0.0..=3600.0)
+}
+
+fn parse_lift_rise_s(s: &str) -> Result<f64, String> {
+    parse_within(s, "a duration", "s", 0.0..=60.0)
 }

@@ -36,15 +36,16 @@ pub const TASK_NAME: &str = "gentle-grasp";
 const HOLD_TEST_S: f64 = 1.0;
 /// The hold test's pull rises to its full value over this long, s.
 const HOLD_TEST_RISE_S: f64 = 0.25;
-/// Under `auto`, the lift: the object's weight comes on over this long, s…
-const LIFT_RISE_S: f64 = 0.5;
+/// Under `auto`, the lift: by default the object's weight comes on over this long, s
+/// ([`GraspOptions::lift_rise_s`])…
+pub const LIFT_RISE_S: f64 = 0.5;
 /// …and the grip has settled once its force has stayed within [`LIFT_BAND`] for this
 /// long, s…
 const LIFT_STEADY_S: f64 = 0.5;
 /// …a share of the force…
 const LIFT_BAND: f64 = 0.05;
-/// …or, at the latest, this long after the lift began, s.
-const LIFT_TIMEOUT_S: f64 = 3.0;
+/// …or, at the latest, this long after the weight is on, s.
+const LIFT_TIMEOUT_S: f64 = 2.5;
 /// Weight multiple of the hold test.
 const HOLD_TEST_FACTOR: f64 = 2.0;
 /// "Held": slip during the hold test below this, mm.
@@ -61,6 +62,9 @@ pub struct GraspOptions {
     pub timeout_s: f64,
     /// Once stable, keep holding this long before the hold test, s.
     pub hold_s: f64,
+    /// Under `auto`, with a ground truth: the lift brings the object's weight on over
+    /// this long, s (how fast the robot loads the grasp; [`LIFT_RISE_S`] by default).
+    pub lift_rise_s: f64,
 }
 
 #[derive(Debug)]
@@ -98,6 +102,7 @@ pub struct GentleGrasp {
     true_peak_force_n: Option<f64>,
     target_force: TargetForce,
     hold_s: f64,
+    lift_rise_s: f64,
     time_to_stable_s: Option<f64>,
     hold_slip_mm: Option<f64>,
     /// The object's slip when the grasp became stable, mm: the hold test counts from
@@ -173,6 +178,7 @@ impl GentleGrasp {
             true_peak_force_n: None,
             target_force: options.target_force,
             hold_s: options.hold_s,
+            lift_rise_s: options.lift_rise_s,
             time_to_stable_s: None,
             hold_slip_mm: None,
             slip_at_stable_mm: None,
@@ -300,12 +306,13 @@ impl GentleGrasp {
     }
 
     /// Under `auto`, with a ground truth: let the object go, its weight coming on over
-    /// [`LIFT_RISE_S`] (false without a ground truth: the grasp's outcome stands).
+    /// the options' `lift_rise_s` (false without a ground truth: the grasp's outcome
+    /// stands).
     fn begin_lift(&mut self, t_s: f64) -> bool {
         let Some(truth) = self.plant.truth_mut() else {
             return false;
         };
-        truth.pull_object(1.0, LIFT_RISE_S);
+        truth.pull_object(1.0, self.lift_rise_s);
         self.stage = Stage::Lift {
             since_s: t_s,
             steady: None,
@@ -314,7 +321,7 @@ impl GentleGrasp {
     }
 
     /// The lift at `t_s`: once the weight is on and the settled force has stayed within
-    /// [`LIFT_BAND`] for [`LIFT_STEADY_S`] (or [`LIFT_TIMEOUT_S`] after the lift began), the
+    /// [`LIFT_BAND`] for [`LIFT_STEADY_S`] (or [`LIFT_TIMEOUT_S`] after the weight is on), the
     /// outcome takes that force and the task holds.
     fn advance_lift(
         &mut self,
@@ -327,12 +334,13 @@ impl GentleGrasp {
             // No finger holds any more: the outcome stands and the hold test tells.
             return self.hold_after_stable(true, t_s);
         };
-        let weighed = t_s - since_s >= LIFT_RISE_S;
+        let weighed = t_s - since_s >= self.lift_rise_s;
         let steady = match steady {
             Some((at, f0)) if weighed && (force_n - f0).abs() <= LIFT_BAND * f0 => (at, f0),
             _ => (t_s, force_n),
         };
-        let done = weighed && t_s - steady.0 >= LIFT_STEADY_S || t_s - since_s >= LIFT_TIMEOUT_S;
+        let done = weighed && t_s - steady.0 >= LIFT_STEADY_S
+            || t_s - since_s >= self.lift_rise_s + LIFT_TIMEOUT_S;
         if !done {
             self.stage = Stage::Lift {
                 since_s,

@@ -56,6 +56,7 @@ impl Default for RunOptions {
                 speed_deg_s: 15.0,
                 timeout_s: 20.0,
                 hold_s: 0.0,
+                lift_rise_s: crate::runtime::gentle_grasp::LIFT_RISE_S,
             },
             log: None,
             record: None,
