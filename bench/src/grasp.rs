@@ -1,6 +1,6 @@
 //! `gelgrip bench grasp [--scene FILE]… [--target-force N|auto] [--lift-rise-s S] [--sweep
-//! resolution] [--json]`: the gentle grasp on every scene object, each run in this process on the virtual clock
-//! through the library's session (the code path `gelgrip run --task gentle-grasp` runs, a
+//! resolution] [--json]`: the gentle grasp on every scene object, each run in this process
+//! on the virtual clock through the library's session (the code path `gelgrip run --task gentle-grasp` runs, a
 //! fresh runtime, hub, servos and world per object), one row per object with the task fields of `run --json`, the set rate, the
 //! true force's overshoot and the crush margin. `--sweep resolution` repeats every object
 //! at 320×240, 160×120 and 80×60: smaller frames cross the bus faster (a higher set rate)
