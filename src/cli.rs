@@ -148,7 +148,7 @@ pub use crate::commands::run::RunArgs;
 pub use crate::commands::servo::ServoArgs;
 pub use gelgrip_bench::args::{
     ClockArg, DEFAULT_EPOCHS, ModelKind, UsageError, UsbArg, parse_current_ma, parse_duration,
-    parse_within,
+    parse_lift_rise_s, parse_within,
 };
 pub use gelgrip_bench::bus::BenchBusArgs;
 pub use gelgrip_bench::calibration::BenchCalibrationArgs;

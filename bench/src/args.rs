@@ -72,6 +72,12 @@ pub fn parse_within(
     }
 }
 
+/// `s` as the `auto` grasp's lift rise (`--lift-rise-s`), s, in [0, `MAX_LIFT_RISE_S`].
+pub fn parse_lift_rise_s(s: &str) -> Result<f64, String> {
+    use gelgrip_controller::runtime::gentle_grasp::MAX_LIFT_RISE_S;
+    parse_within(s, "a duration", "s", 0.0..=MAX_LIFT_RISE_S)
+}
+
 /// `s` as a current in mA, within the XM430's range.
 pub fn parse_current_ma(s: &str) -> Result<f64, String> {
     parse_within(s, "a current", "mA", 0.0..=3209.0)

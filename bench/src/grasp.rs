@@ -18,7 +18,7 @@
 //! ahead.
 
 use crate::args::ClockArg;
-use crate::args::parse_force_n;
+use crate::args::{parse_force_n, parse_lift_rise_s};
 use clap::{Args, ValueEnum};
 use gelgrip_controller::grasp::TargetForce;
 use std::path::{Path, PathBuf};
@@ -431,11 +431,6 @@ fn sweep_figure(rows: &[Value], target: &str) -> crate::plot::Figure {
         markers: true,
         legend: Some(plotters::prelude::SeriesLabelPosition::UpperLeft),
     }
-}
-
-/// `s` as the lift's rise, s, in [0, 60].
-fn parse_lift_rise_s(s: &str) -> Result<f64, String> {
-    crate::args::parse_within(s, "a duration", "s", 0.0..=60.0)
 }
 
 /// `gelgrip bench grasp`.

@@ -2,7 +2,7 @@
 //! ends, a signal arrives, the task ends or a fault stops it; statistics once a second to
 //! stderr; a report at the end.
 
-use crate::cli::{ClockArg, parse_current_ma, parse_duration, parse_within};
+use crate::cli::{ClockArg, parse_current_ma, parse_duration, parse_lift_rise_s, parse_within};
 use clap::Args;
 use gelgrip::session::{RunOptions, Session};
 use gelgrip_controller::actuator::XM430_W350;
@@ -237,8 +237,4 @@ fn parse_ros_namespace(s: &str) -> Result<String, String> {
 
 fn parse_hold_s(s: &str) -> Result<f64, String> {
     parse_within(s, "a duration", "s", 0.0..=3600.0)
-}
-
-fn parse_lift_rise_s(s: &str) -> Result<f64, String> {
-    parse_within(s, "a duration", "s", 0.0..=60.0)
 }

@@ -39,6 +39,8 @@ const HOLD_TEST_RISE_S: f64 = 0.25;
 /// Under `auto`, the lift: by default the object's weight comes on over this long, s
 /// ([`GraspOptions::lift_rise_s`])…
 pub const LIFT_RISE_S: f64 = 0.5;
+/// The longest a lift may take to bring the weight on (`--lift-rise-s`), s.
+pub const MAX_LIFT_RISE_S: f64 = 60.0;
 /// …and the grip has settled once its force has stayed within [`LIFT_BAND`] for this
 /// long, s…
 const LIFT_STEADY_S: f64 = 0.5;
