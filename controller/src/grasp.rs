@@ -424,6 +424,19 @@ impl GraspController {
             .collect()
     }
 
+    /// Whether the grip is still catching up with what the felt slip asks: a finger holding
+    /// the object whose reflex aims above its target, or whose force stands below its
+    /// target, by more than the stable band (an `auto` lift waits for it).
+    pub fn tightening(&self) -> bool {
+        let band = 1.0 + self.tuning.stable_band;
+        self.fingers.iter().any(|f| {
+            f.active
+                && f.phase == Phase::Hold
+                && f.status == FingerStatus::ContactClosing
+                && (f.aim_n > band * f.target_n || f.force_n * band < f.target_n)
+        })
+    }
+
     /// The outcome, once the grasp has ended.
     pub fn outcome(&self) -> Option<&GraspOutcome> {
         self.done.as_ref()

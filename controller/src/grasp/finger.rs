@@ -138,6 +138,8 @@ pub(super) struct FingerCtl {
     moved_from_n: f64,
     /// When the reflex last moved the target, s.
     reflex_at_s: Option<f64>,
+    /// What the reflex last aimed the target at, N (the target while it has not acted).
+    pub(super) aim_n: f64,
     /// The least force that holds, as the reflex tracks it.
     least: reflex::LeastTrack,
     /// The force at which the last slide stopped (a floor of the reflex's aim).
@@ -196,6 +198,7 @@ impl FingerCtl {
             moved_at_s: None,
             moved_from_n: target_n,
             reflex_at_s: None,
+            aim_n: target_n,
             least: reflex::LeastTrack::default(),
             slide_stop: reflex::SlideStop::default(),
             stiffness: StiffnessTrack::default(),
@@ -295,6 +298,7 @@ impl FingerCtl {
         self.slip_ref = None;
         self.slip_seen = 0;
         self.reflex_at_s = None;
+        self.aim_n = self.target_n;
         self.least = reflex::LeastTrack::default();
         self.slide_stop = reflex::SlideStop::default();
         self.gross_since_s = None;
@@ -619,6 +623,7 @@ impl FingerCtl {
         let stopped_n = self.slide_stop.floor_n(k.t_s, self.force_n, slip);
         let aim_n = reflex::aim_n(g, ahead_n.max(stopped_n), slip, self.floor_n, ceiling_n);
         self.target_n = reflex::follow(g, self.target_n, aim_n, dt);
+        self.aim_n = aim_n;
         if (self.target_n - self.moved_from_n).abs() > k.tuning.stable_band * self.moved_from_n {
             self.moved_from_n = self.target_n;
             self.moved_at_s = Some(k.t_s);

@@ -245,7 +245,10 @@ mod tests {
 
     #[test]
     fn the_aim_is_the_least_that_holds_with_the_margin_within_bounds() {
-        let settings = GraspSettings::default(); // margin 0.2
+        let settings = GraspSettings {
+            slip_margin: 0.2,
+            ..GraspSettings::default()
+        };
         let half = slip(0.5f64.cbrt(), SlipState::Incipient);
         // 2 N of which half is used: 1 N holds, 1.2 N with the margin.
         assert!((least_n(2.0, &half) - 1.0).abs() < 1e-12);

@@ -10,7 +10,10 @@ pub struct GraspSettings {
     /// The most an `auto` grasp or the reflex may ask of a finger, N.
     pub max_force_n: f64,
     /// How far above the least force that holds a grasp settles: the share added to the
-    /// force that the contacts' measured slip says would just hold (0.2: 20% more).
+    /// force that the contacts' measured slip says would just hold (1.5: 150% more, so
+    /// that the grip holds through a load that doubles before the reflex can follow,
+    /// with the detector's reading high at a grip that holds; `docs/control.md`, "The
+    /// margin").
     pub slip_margin: f64,
     /// The slip reflex while holding (on by default).
     pub reflex: bool,
@@ -28,7 +31,7 @@ impl Default for GraspSettings {
         Self {
             preload_n: 0.3,
             max_force_n: 4.0,
-            slip_margin: 0.2,
+            slip_margin: 1.5,
             reflex: true,
             reflex_rate_n_s: 4.0,
         }

@@ -6,8 +6,9 @@
 //! object is let go and pulled with twice its weight, reached over 0.25 s as a lift
 //! would, for 1 s; held = it slips less than 1 mm), then ends. Under `--target-force auto`
 //! the grasp settles at the preload first; with a ground truth the task then lifts (the
-//! object's weight comes on over 0.5 s), the slip reflex tightens as far as the weight
-//! needs, and the force it settles on under the weight is the grasp's `settled_force_n`.
+//! object's weight comes on over 0.5 s, waiting while the slip reflex tightens:
+//! [`crate::runtime::lift`]), the reflex tightens as far as the weight needs, and the force
+//! it settles on under the weight is the grasp's `settled_force_n`.
 //!
 //! Safety: the controller acts only on gated sets; a finger with a missing sensor holds; a
 //! watchdog stops all motion (hold at the present position) when no set arrives within
@@ -23,6 +24,7 @@ use crate::grasp::{
 use crate::gripper::{CommandKind, GripperError, GripperHandle, GripperService, PendingGrasp};
 use crate::layout::HandLayout;
 use crate::runtime::RuntimeError;
+use crate::runtime::lift::{Lift, LiftStep};
 use crate::runtime::outcome::EndReason;
 use crate::runtime::plant::Plant;
 use crate::runtime::ports::Sensing;
@@ -36,18 +38,11 @@ pub const TASK_NAME: &str = "gentle-grasp";
 const HOLD_TEST_S: f64 = 1.0;
 /// The hold test's pull rises to its full value over this long, s.
 const HOLD_TEST_RISE_S: f64 = 0.25;
-/// Under `auto`, the lift: by default the object's weight comes on over this long, s
-/// ([`GraspOptions::lift_rise_s`])…
+/// Under `auto`, the lift: by default the object's weight comes on over this long while
+/// the grip keeps up, s ([`GraspOptions::lift_rise_s`]).
 pub const LIFT_RISE_S: f64 = 0.5;
 /// The longest a lift may take to bring the weight on (`--lift-rise-s`), s.
 pub const MAX_LIFT_RISE_S: f64 = 60.0;
-/// …and the grip has settled once its force has stayed within [`LIFT_BAND`] for this
-/// long, s…
-const LIFT_STEADY_S: f64 = 0.5;
-/// …a share of the force…
-const LIFT_BAND: f64 = 0.05;
-/// …or, at the latest, this long after the weight is on, s.
-const LIFT_TIMEOUT_S: f64 = 2.5;
 /// Weight multiple of the hold test.
 const HOLD_TEST_FACTOR: f64 = 2.0;
 /// "Held": slip during the hold test below this, mm.
@@ -65,19 +60,16 @@ pub struct GraspOptions {
     /// Once stable, keep holding this long before the hold test, s.
     pub hold_s: f64,
     /// Under `auto`, with a ground truth: the lift brings the object's weight on over
-    /// this long, s (how fast the robot loads the grasp; [`LIFT_RISE_S`] by default).
+    /// this long while the grip keeps up, s (how fast the robot loads the grasp;
+    /// [`LIFT_RISE_S`] by default; the weight waits while the reflex tightens).
     pub lift_rise_s: f64,
 }
 
-#[derive(Debug)]
+#[derive(Debug, Clone, Copy)]
 enum Stage {
     Grasp,
-    /// Under `auto`: the weight comes on; `steady` is since when (s) and at what settled
-    /// force (N) the grip has stayed steady.
-    Lift {
-        since_s: f64,
-        steady: Option<(f64, f64)>,
-    },
+    /// Under `auto`: the weight comes on as fast as the grip keeps up.
+    Lift(Lift),
     Hold {
         until_s: f64,
     },
@@ -215,7 +207,7 @@ impl GentleGrasp {
             .controller()
             .map_or(0.0, |c| c.forces_n().into_iter().fold(0.0, f64::max));
         match self.stage {
-            Stage::Grasp | Stage::Lift { .. } | Stage::Hold { .. } => {
+            Stage::Grasp | Stage::Lift(_) | Stage::Hold { .. } => {
                 self.peak_force_n = self.peak_force_n.max(regulated);
                 if let Some(peak) = self.plant.true_finger_peak_n(&truth) {
                     self.true_peak_force_n = Some(self.true_peak_force_n.unwrap_or(0.0).max(peak));
@@ -269,12 +261,12 @@ impl GentleGrasp {
                     return Ok(self.hold_after_stable(stable, t_s));
                 }
             }
-            Stage::Lift { since_s, steady } => {
+            Stage::Lift(lift) => {
                 if self.slipping() {
                     self.stage = Stage::Done;
                     return Ok(Some(EndReason::Done));
                 }
-                return Ok(self.advance_lift(t_s, since_s, steady));
+                return Ok(self.advance_lift(t_s, lift));
             }
             Stage::Hold { until_s } => {
                 if t_s >= until_s {
@@ -307,53 +299,49 @@ impl GentleGrasp {
         }
     }
 
-    /// Under `auto`, with a ground truth: let the object go, its weight coming on over
-    /// the options' `lift_rise_s` (false without a ground truth: the grasp's outcome
-    /// stands).
+    /// Under `auto`, with a ground truth: let the object go, its weight to come on over
+    /// the options' `lift_rise_s` as the grip keeps up ([`Lift`]; false without a ground
+    /// truth: the grasp's outcome stands).
     fn begin_lift(&mut self, t_s: f64) -> bool {
         let Some(truth) = self.plant.truth_mut() else {
             return false;
         };
-        truth.pull_object(1.0, self.lift_rise_s);
-        self.stage = Stage::Lift {
-            since_s: t_s,
-            steady: None,
-        };
+        truth.pull_object(0.0, 0.0);
+        self.stage = Stage::Lift(Lift::begin(t_s, self.lift_rise_s));
         true
     }
 
-    /// The lift at `t_s`: once the weight is on and the settled force has stayed within
-    /// [`LIFT_BAND`] for [`LIFT_STEADY_S`] (or [`LIFT_TIMEOUT_S`] after the weight is on), the
-    /// outcome takes that force and the task holds.
-    fn advance_lift(
-        &mut self,
-        t_s: f64,
-        since_s: f64,
-        steady: Option<(f64, f64)>,
-    ) -> Option<EndReason> {
-        let force_n = self.service.controller().and_then(|c| c.settled_force_n());
-        let Some(force_n) = force_n else {
+    /// The lift at `t_s`: the weight's share comes on while the grip keeps up; once the
+    /// grip has settled under the whole weight, the outcome takes that force and the task
+    /// holds.
+    fn advance_lift(&mut self, t_s: f64, mut lift: Lift) -> Option<EndReason> {
+        let controller = self.service.controller();
+        let tightening = controller.is_some_and(|c| c.tightening());
+        let settled_n = controller.and_then(|c| c.settled_force_n());
+        match lift.step(t_s, tightening, settled_n) {
+            LiftStep::Load { share, over_s } => {
+                if let Some(truth) = self.plant.truth_mut() {
+                    truth.pull_object(share, over_s);
+                }
+                self.stage = Stage::Lift(lift);
+                None
+            }
             // No finger holds any more: the outcome stands and the hold test tells.
-            return self.hold_after_stable(true, t_s);
-        };
-        let weighed = t_s - since_s >= self.lift_rise_s;
-        let steady = match steady {
-            Some((at, f0)) if weighed && (force_n - f0).abs() <= LIFT_BAND * f0 => (at, f0),
-            _ => (t_s, force_n),
-        };
-        let done = weighed && t_s - steady.0 >= LIFT_STEADY_S
-            || t_s - since_s >= self.lift_rise_s + LIFT_TIMEOUT_S;
-        if !done {
-            self.stage = Stage::Lift {
-                since_s,
-                steady: Some(steady),
-            };
-            return None;
+            LiftStep::Ungripped => self.hold_after_stable(true, t_s),
+            LiftStep::Settled { force_n } => {
+                let slip_mm = self.slip_mm();
+                tracing::debug!(
+                    force_n,
+                    waited_s = lift.waited_s(),
+                    ?slip_mm,
+                    "auto lift settled"
+                );
+                if let Some(outcome) = self.outcome.as_mut() {
+                    outcome.settled_force_n = Some(force_n);
+                }
+                self.hold_after_stable(true, t_s)
+            }
         }
-        if let Some(outcome) = self.outcome.as_mut() {
-            outcome.settled_force_n = Some(force_n);
-        }
-        self.hold_after_stable(true, t_s)
     }
 
     /// Whether the controller has ended the grasp `slipping` since its outcome (the reflex
@@ -475,7 +463,7 @@ impl GentleGrasp {
     pub fn stage_label(&self) -> &'static str {
         match self.stage {
             Stage::Grasp => "grasp",
-            Stage::Lift { .. } => "lift",
+            Stage::Lift(_) => "lift",
             Stage::Hold { .. } => "hold",
             Stage::HoldTest { .. } => "hold_test",
             Stage::Done => "done",

@@ -22,6 +22,7 @@ pub mod fixed_close;
 pub mod gentle_grasp;
 pub mod last_pass;
 pub mod latency;
+pub mod lift;
 pub mod options;
 pub mod outcome;
 pub mod pilot;
