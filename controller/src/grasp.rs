@@ -425,14 +425,17 @@ impl GraspController {
     }
 
     /// Whether the grip is still catching up with what the felt slip asks: a finger holding
-    /// the object whose reflex aims above its target, or whose force stands below its
-    /// target, by more than the stable band (an `auto` lift waits for it).
+    /// the object, its target short of `max_force_n`, whose reflex aims above its target,
+    /// or whose force stands below its target, by more than the stable band (an `auto`
+    /// lift waits for it; a grip at its most has nothing more to give).
     pub fn tightening(&self) -> bool {
         let band = 1.0 + self.tuning.stable_band;
+        let most_n = self.tuning.grasp.max_force_n;
         self.fingers.iter().any(|f| {
             f.active
                 && f.phase == Phase::Hold
                 && f.status == FingerStatus::ContactClosing
+                && f.target_n * band < most_n
                 && (f.aim_n > band * f.target_n || f.force_n * band < f.target_n)
         })
     }
