@@ -261,7 +261,8 @@ fn an_auto_grasp_closes_to_the_preload_and_settles_at_the_least_that_holds_with_
     assert_eq!(idle.settled_force_n, Some(preload));
     assert_eq!(ctl.targets_n(), vec![preload; 3]);
     // Loaded from the start (1 N at μ 0.5: 2 N of grip holds, 0.67 N a finger), it
-    // settles the margin above that (the toy's stick ratio is exact), and says so once its reflex has stopped raising it.
+    // settles the margin above that (the toy's stick ratio is exact), and says so once its
+    // reflex has stopped raising it.
     let mut auto = request(f64::NAN);
     auto.auto_target = true;
     let mut ctl = GraspController::new(auto, Tuning::default(), vec![150.0; 3], vec![0.0; 3]);
